@@ -1,0 +1,228 @@
+//! Typed message reader and writer over a byte stream, and the handshake on top of them.
+//! Reading and writing are separate halves so a process can receive and send at the same time.
+
+use std::io;
+use std::marker::PhantomData;
+
+use bytes::Bytes;
+use futures::{SinkExt, StreamExt};
+use serde::{Serialize, de::DeserializeOwned};
+use tokio::io::{AsyncRead, AsyncWrite};
+use tokio::net::TcpStream;
+use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
+use tokio_util::codec::{FramedRead, FramedWrite, LengthDelimitedCodec};
+
+use crate::error::ProtocolError;
+use crate::frame::{WireMessage, codec, decode, decode_message, encode};
+use crate::handshake::{Hello, HelloReply, PROTOCOL_VERSION, Role};
+use crate::types::Fingerprint;
+
+/// Reads typed messages `M`, one per frame.
+pub struct MessageReader<R, M> {
+    inner: FramedRead<R, LengthDelimitedCodec>,
+    _msg: PhantomData<fn() -> M>,
+}
+
+/// Writes typed messages `M`, one per frame.
+pub struct MessageWriter<W, M> {
+    inner: FramedWrite<W, LengthDelimitedCodec>,
+    max_frame: usize,
+    _msg: PhantomData<fn(M)>,
+}
+
+impl<R: AsyncRead + Unpin, M: WireMessage> MessageReader<R, M> {
+    pub fn new(io: R, max_frame: usize) -> Self {
+        MessageReader {
+            inner: FramedRead::new(io, codec(max_frame)),
+            _msg: PhantomData,
+        }
+    }
+
+    /// The next message; `Err(Closed)` at a clean end of stream.
+    pub async fn recv(&mut self) -> Result<M, ProtocolError> {
+        let frame = self.recv_frame().await?;
+        decode_message(&frame)
+    }
+
+    /// The next message decoded as another type (used for the handshake frame).
+    pub async fn recv_as<T: DeserializeOwned>(&mut self) -> Result<T, ProtocolError> {
+        let frame = self.recv_frame().await?;
+        decode(&frame)
+    }
+
+    async fn recv_frame(&mut self) -> Result<bytes::BytesMut, ProtocolError> {
+        match self.inner.next().await {
+            Some(Ok(frame)) => Ok(frame),
+            Some(Err(e)) => Err(map_codec_error(e, self.inner.decoder().max_frame_length())),
+            None if self.inner.read_buffer().is_empty() => Err(ProtocolError::Closed),
+            None => Err(ProtocolError::Truncated),
+        }
+    }
+
+    /// Messages of another type on the same stream (after the handshake).
+    pub fn retype<N: WireMessage>(self) -> MessageReader<R, N> {
+        MessageReader {
+            inner: self.inner,
+            _msg: PhantomData,
+        }
+    }
+}
+
+impl<W: AsyncWrite + Unpin, M: Serialize> MessageWriter<W, M> {
+    pub fn new(io: W, max_frame: usize) -> Self {
+        MessageWriter {
+            inner: FramedWrite::new(io, codec(max_frame)),
+            max_frame,
+            _msg: PhantomData,
+        }
+    }
+
+    pub async fn send(&mut self, msg: &M) -> Result<(), ProtocolError> {
+        self.send_as(msg).await
+    }
+
+    /// Sends a message of another type on the same stream (the handshake frame).
+    pub async fn send_as<T: Serialize>(&mut self, msg: &T) -> Result<(), ProtocolError> {
+        let payload = encode(msg)?;
+        if payload.len() > self.max_frame {
+            return Err(ProtocolError::MessageTooLarge {
+                len: payload.len(),
+                max: self.max_frame,
+            });
+        }
+        self.inner
+            .send(Bytes::from(payload))
+            .await
+            .map_err(ProtocolError::Io)
+    }
+
+    /// Messages of another type on the same stream.
+    pub fn retype<N: Serialize>(self) -> MessageWriter<W, N> {
+        MessageWriter {
+            inner: self.inner,
+            max_frame: self.max_frame,
+            _msg: PhantomData,
+        }
+    }
+}
+
+fn map_codec_error(e: io::Error, max: usize) -> ProtocolError {
+    // LengthDelimitedCodec reports an oversized frame as InvalidData before reading its body.
+    if e.kind() == io::ErrorKind::InvalidData {
+        ProtocolError::FrameTooLarge { max }
+    } else if e.kind() == io::ErrorKind::UnexpectedEof
+        || e.to_string() == "bytes remaining on stream"
+    {
+        // tokio-util reports a stream that ends inside a frame with this message.
+        ProtocolError::Truncated
+    } else {
+        ProtocolError::Io(e)
+    }
+}
+
+/// The two halves of a TCP link.
+pub type TcpReader<M> = MessageReader<OwnedReadHalf, M>;
+pub type TcpWriter<M> = MessageWriter<OwnedWriteHalf, M>;
+
+/// Splits a TCP stream into a typed reader of `In` and writer of `Out`.
+pub fn split_tcp<In: WireMessage, Out: Serialize>(
+    stream: TcpStream,
+    max_frame: usize,
+) -> (TcpReader<In>, TcpWriter<Out>) {
+    let _ = stream.set_nodelay(true);
+    let (r, w) = stream.into_split();
+    (
+        MessageReader::new(r, max_frame),
+        MessageWriter::new(w, max_frame),
+    )
+}
+
+/// Connecting side: sends `Hello`, waits for the reply. Returns the peer's fingerprint.
+pub async fn connect_handshake<R, W, In, Out>(
+    reader: &mut MessageReader<R, In>,
+    writer: &mut MessageWriter<W, Out>,
+    hello: Hello,
+    expected_peer: Role,
+) -> Result<Option<Fingerprint>, ProtocolError>
+where
+    R: AsyncRead + Unpin,
+    W: AsyncWrite + Unpin,
+    In: WireMessage,
+    Out: Serialize,
+{
+    let ours = hello.fingerprint;
+    writer.send_as(&hello).await?;
+    match reader.recv_as::<HelloReply>().await? {
+        HelloReply::Welcome {
+            role,
+            version,
+            fingerprint,
+        } => {
+            if version != PROTOCOL_VERSION {
+                return Err(ProtocolError::VersionMismatch {
+                    ours: PROTOCOL_VERSION,
+                    theirs: version,
+                });
+            }
+            if role != expected_peer {
+                return Err(ProtocolError::RoleMismatch {
+                    expected: expected_peer,
+                    found: role,
+                });
+            }
+            crate::handshake::check_fingerprint(ours.as_ref(), fingerprint.as_ref())?;
+            Ok(fingerprint)
+        }
+        HelloReply::Refused { reason } => Err(ProtocolError::Refused(reason)),
+    }
+}
+
+/// Accepting side: reads `Hello`, checks it, replies `Welcome` or `Refused` (then the caller
+/// closes). `fingerprint` is the scene this side has loaded, checked when `check_scene` is set.
+pub async fn accept_handshake<R, W, In, Out>(
+    reader: &mut MessageReader<R, In>,
+    writer: &mut MessageWriter<W, Out>,
+    our_role: Role,
+    expected_peer: Role,
+    fingerprint: Option<Fingerprint>,
+    check_scene: bool,
+) -> Result<Hello, ProtocolError>
+where
+    R: AsyncRead + Unpin,
+    W: AsyncWrite + Unpin,
+    In: WireMessage,
+    Out: Serialize,
+{
+    let hello = match reader.recv_as::<Hello>().await {
+        Ok(h) => h,
+        Err(e) => {
+            let _ = writer
+                .send_as(&HelloReply::Refused {
+                    reason: e.to_string(),
+                })
+                .await;
+            return Err(e);
+        }
+    };
+    let expected_fp = if check_scene {
+        fingerprint.as_ref()
+    } else {
+        None
+    };
+    if let Err(e) = hello.check(expected_peer, expected_fp) {
+        let _ = writer
+            .send_as(&HelloReply::Refused {
+                reason: e.to_string(),
+            })
+            .await;
+        return Err(e);
+    }
+    writer
+        .send_as(&HelloReply::Welcome {
+            role: our_role,
+            version: PROTOCOL_VERSION,
+            fingerprint,
+        })
+        .await?;
+    Ok(hello)
+}

@@ -1,0 +1,51 @@
+//! Framing: a 4-byte big-endian length, then a postcard payload (DESIGN.md §8). postcard has a
+//! stable, documented wire format (varint integers, little-endian floats), so bulk data such as
+//! triangles and radiance stays compact without a hand-written encoding.
+
+use serde::{Serialize, de::DeserializeOwned};
+use tokio_util::codec::LengthDelimitedCodec;
+
+use crate::error::ProtocolError;
+
+/// Default maximum frame: 64 MiB, room for ~800k triangles in one `Insert`.
+pub const DEFAULT_MAX_FRAME: usize = 64 * 1024 * 1024;
+
+/// The codec of every link, with a maximum frame length.
+pub fn codec(max_frame: usize) -> LengthDelimitedCodec {
+    LengthDelimitedCodec::builder()
+        .length_field_length(4)
+        .max_frame_length(max_frame)
+        .new_codec()
+}
+
+/// Encodes one message into a payload (without the length prefix).
+pub fn encode<M: Serialize>(msg: &M) -> Result<Vec<u8>, ProtocolError> {
+    postcard::to_stdvec(msg).map_err(|e| ProtocolError::Malformed(e.to_string()))
+}
+
+/// Decodes one payload. Trailing bytes are an error: a frame holds exactly one message.
+pub fn decode<M: DeserializeOwned>(payload: &[u8]) -> Result<M, ProtocolError> {
+    match postcard::take_from_bytes::<M>(payload) {
+        Ok((msg, [])) => Ok(msg),
+        Ok((_, rest)) => Err(ProtocolError::Malformed(format!(
+            "{} trailing bytes after the message",
+            rest.len()
+        ))),
+        Err(postcard::Error::DeserializeBadEnum) => Err(ProtocolError::UnknownMessage),
+        Err(e) => Err(ProtocolError::Malformed(e.to_string())),
+    }
+}
+
+/// A message enum of one link direction. `KINDS` is its number of variants: postcard writes the
+/// variant index as the first varint, so a tag beyond it is an unknown message, not garbage.
+pub trait WireMessage: Serialize + DeserializeOwned {
+    const KINDS: u32;
+}
+
+/// Decodes one message, telling an unknown message kind apart from a malformed payload.
+pub fn decode_message<M: WireMessage>(payload: &[u8]) -> Result<M, ProtocolError> {
+    match postcard::take_from_bytes::<u32>(payload) {
+        Ok((tag, _)) if tag >= M::KINDS => Err(ProtocolError::UnknownMessage),
+        _ => decode(payload),
+    }
+}

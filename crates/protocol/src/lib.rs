@@ -1,0 +1,36 @@
+//! Wire protocol of the walkthrough system (DESIGN.md §8).
+//!
+//! Three processes meet only over TCP: renderers answer shading requests from the SMA, and viewers
+//! exchange cameras and triangles with it. This crate is a leaf: it defines its own plain types for
+//! what travels and imports none of the project's crates.
+//!
+//! - [`frame`]: length-delimited frames carrying postcard payloads, with a maximum size;
+//! - [`handshake`]: magic, protocol version, role and (renderer link) scene fingerprint;
+//! - [`renderer_link`] and [`viewer_link`]: the messages of each link;
+//! - [`connection`]: a typed message reader and writer over any byte stream;
+//! - [`error`]: every way a peer can go wrong, as a value, never a panic.
+//!
+//! ```
+//! use protocol::frame::{decode, encode};
+//! use protocol::viewer_link::{SmaToViewer, ShownTriangle};
+//! let msg = SmaToViewer::Insert {
+//!     triangles: vec![ShownTriangle { id: 7, positions: [[0.0; 3]; 3], radiance: [[1.0; 3]; 3] }],
+//! };
+//! let bytes = encode(&msg).unwrap();
+//! assert_eq!(decode::<SmaToViewer>(&bytes).unwrap(), msg);
+//! ```
+
+pub mod camera;
+pub mod connection;
+pub mod error;
+pub mod frame;
+pub mod handshake;
+pub mod renderer_link;
+pub mod types;
+pub mod viewer_link;
+
+pub use connection::{MessageReader, MessageWriter, split_tcp};
+pub use error::ProtocolError;
+pub use frame::WireMessage;
+pub use handshake::{Hello, HelloReply, PROTOCOL_VERSION, Role};
+pub use types::{Fingerprint, Rgb, Side, Vec3f};

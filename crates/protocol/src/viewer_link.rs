@@ -1,0 +1,126 @@
+//! Messages between the SMA and a viewer (DESIGN.md §8). The viewer holds a table
+//! `triangle id -> 3 positions + 3 radiances`; the SMA keeps it in step with the visible set.
+
+use serde::{Deserialize, Serialize};
+
+use crate::frame::WireMessage;
+
+use crate::types::{Bounds, Fingerprint, Rgb, Vec3f, Viewpoint};
+
+/// The id of a shown triangle: a leaf of the subdivision mesh and the side facing the eye
+/// (the visible set is keyed by (leaf, side), DESIGN.md §5). The SMA packs it; the viewer treats it
+/// as opaque.
+pub type TriangleId = u64;
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShownTriangle {
+    pub id: TriangleId,
+    pub positions: [Vec3f; 3],
+    pub radiance: [Rgb; 3],
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Recolour {
+    pub id: TriangleId,
+    pub radiance: [Rgb; 3],
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Camera {
+    /// Increases with every camera change of this viewer.
+    pub seq: u64,
+    pub eye: Vec3f,
+    /// Unit quaternion `[x, y, z, w]` rotating the camera frame (looking down -Z, Y up) into the world.
+    pub orientation: [f32; 4],
+    /// Vertical field of view, degrees.
+    pub fov_y_deg: f32,
+    pub width: u32,
+    pub height: u32,
+}
+
+/// The SMA's counters at the close of one consistent update.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Epoch {
+    /// The camera this update answers.
+    pub camera_seq: u64,
+    /// Triangles the viewer holds after this update.
+    pub shown: u64,
+    /// Visible leaves (with side) for this camera, shaded or not.
+    pub visible_leaves: u64,
+    /// Triangles inserted and removed since the previous epoch (Δins, Δrem).
+    pub inserted: u64,
+    pub removed: u64,
+    /// Samples computed so far (all viewers).
+    pub samples: u64,
+    /// Shade requests not yet answered.
+    pub outstanding: u64,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Stats {
+    pub samples_per_sec: f32,
+    pub leaves: u64,
+    pub cached_samples: u64,
+    pub renderers: u32,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SceneInfo {
+    pub name: String,
+    pub fingerprint: Fingerprint,
+    pub bounds: Bounds,
+    pub viewpoints: Vec<Viewpoint>,
+    /// Criteria the SMA offers, the active one first.
+    pub criteria: Vec<String>,
+}
+
+/// viewer -> SMA.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum ViewerToSma {
+    Camera(Camera),
+    SetCriterion {
+        name: String,
+    },
+    /// Stop refining (shading of what is visible goes on).
+    Pause,
+    Resume,
+    Bye,
+}
+
+/// SMA -> viewer.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum SmaToViewer {
+    SceneInfo(SceneInfo),
+    Insert {
+        triangles: Vec<ShownTriangle>,
+    },
+    Remove {
+        ids: Vec<TriangleId>,
+    },
+    /// Better radiance for triangles the viewer already shows (not counted in Δins/Δrem).
+    Update {
+        triangles: Vec<Recolour>,
+    },
+    ToneMap {
+        l_white: f32,
+    },
+    /// Closes one consistent update: the viewer draws only what an epoch closed.
+    Epoch(Epoch),
+    Stats(Stats),
+    /// The active criterion and whether refinement is paused, after `SetCriterion`/`Pause`/`Resume`.
+    Refinement {
+        criterion: String,
+        paused: bool,
+    },
+    Error {
+        message: String,
+    },
+}
+
+impl WireMessage for ViewerToSma {
+    const KINDS: u32 = 5;
+}
+
+impl WireMessage for SmaToViewer {
+    const KINDS: u32 = 9;
+}

@@ -1,0 +1,233 @@
+//! Every message survives encode + decode unchanged (property tests over random contents).
+
+use proptest::prelude::*;
+use protocol::frame::{decode, encode};
+use protocol::handshake::{Hello, HelloReply, Role};
+use protocol::renderer_link::*;
+use protocol::types::{Bounds, Side, Viewpoint};
+use protocol::viewer_link::*;
+
+fn finite() -> impl Strategy<Value = f32> {
+    -1e6f32..1e6f32
+}
+fn v3() -> impl Strategy<Value = [f32; 3]> {
+    [finite(), finite(), finite()]
+}
+fn side() -> impl Strategy<Value = Side> {
+    prop_oneof![Just(Side::Front), Just(Side::Back)]
+}
+fn role() -> impl Strategy<Value = Role> {
+    prop_oneof![Just(Role::Renderer), Just(Role::Sma), Just(Role::Viewer)]
+}
+fn quality() -> impl Strategy<Value = Quality> {
+    (1u32..5000, proptest::option::of(0u32..16))
+        .prop_map(|(paths, bounces)| Quality { paths, bounces })
+}
+fn point() -> impl Strategy<Value = ShadePoint> {
+    (
+        any::<u32>(),
+        side(),
+        any::<u32>(),
+        [0f32..1.0, 0f32..1.0],
+        side(),
+        proptest::option::of(v3()),
+    )
+        .prop_map(
+            |(vertex, kside, base_triangle, bary, side, eye)| ShadePoint {
+                key: SampleKey {
+                    vertex,
+                    side: kside,
+                },
+                base_triangle,
+                bary,
+                side,
+                eye,
+            },
+        )
+}
+fn shown() -> impl Strategy<Value = ShownTriangle> {
+    (any::<u64>(), [v3(), v3(), v3()], [v3(), v3(), v3()]).prop_map(|(id, positions, radiance)| {
+        ShownTriangle {
+            id,
+            positions,
+            radiance,
+        }
+    })
+}
+fn viewpoint() -> impl Strategy<Value = Viewpoint> {
+    ("[A-Za-z0-9]{0,8}", v3(), v3(), v3(), 1f32..170.0).prop_map(
+        |(name, eye, target, up, fov_y_deg)| Viewpoint {
+            name,
+            eye,
+            target,
+            up,
+            fov_y_deg,
+        },
+    )
+}
+
+fn to_renderer() -> impl Strategy<Value = ToRenderer> {
+    prop_oneof![
+        (
+            any::<u64>(),
+            quality(),
+            any::<u64>(),
+            prop::collection::vec(point(), 0..50)
+        )
+            .prop_map(|(batch_id, quality, seed, points)| ToRenderer::ShadeBatch(
+                ShadeBatch {
+                    batch_id,
+                    quality,
+                    seed,
+                    points
+                }
+            )),
+        Just(ToRenderer::Bye),
+    ]
+}
+fn from_renderer() -> impl Strategy<Value = FromRenderer> {
+    prop_oneof![
+        (
+            any::<u64>(),
+            quality(),
+            prop::collection::vec((v3(), any::<u8>()), 0..50),
+            any::<u64>()
+        )
+            .prop_map(|(batch_id, quality, vals, micros)| FromRenderer::Radiance(
+                Radiance {
+                    batch_id,
+                    quality,
+                    rgb: vals.iter().map(|v| v.0).collect(),
+                    flags: vals.iter().map(|v| v.1).collect(),
+                    micros,
+                }
+            )),
+        (any::<u64>(), ".*")
+            .prop_map(|(batch_id, reason)| FromRenderer::Rejected { batch_id, reason }),
+        ".*".prop_map(|message| FromRenderer::Error { message }),
+    ]
+}
+fn to_sma() -> impl Strategy<Value = ViewerToSma> {
+    prop_oneof![
+        (
+            any::<u64>(),
+            v3(),
+            [finite(), finite(), finite(), finite()],
+            1f32..170.0,
+            any::<u32>(),
+            any::<u32>()
+        )
+            .prop_map(|(seq, eye, orientation, fov_y_deg, width, height)| {
+                ViewerToSma::Camera(Camera {
+                    seq,
+                    eye,
+                    orientation,
+                    fov_y_deg,
+                    width,
+                    height,
+                })
+            }),
+        ".*".prop_map(|name| ViewerToSma::SetCriterion { name }),
+        Just(ViewerToSma::Pause),
+        Just(ViewerToSma::Resume),
+        Just(ViewerToSma::Bye),
+    ]
+}
+fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
+    prop_oneof![
+        (
+            "[a-z]{0,10}",
+            any::<[u8; 32]>(),
+            v3(),
+            v3(),
+            prop::collection::vec(viewpoint(), 0..4),
+            prop::collection::vec("[a-z-]{1,8}", 0..4)
+        )
+            .prop_map(|(name, fingerprint, min, max, viewpoints, criteria)| {
+                SmaToViewer::SceneInfo(SceneInfo {
+                    name,
+                    fingerprint,
+                    bounds: Bounds { min, max },
+                    viewpoints,
+                    criteria,
+                })
+            }),
+        prop::collection::vec(shown(), 0..40)
+            .prop_map(|triangles| SmaToViewer::Insert { triangles }),
+        prop::collection::vec(any::<u64>(), 0..100).prop_map(|ids| SmaToViewer::Remove { ids }),
+        prop::collection::vec((any::<u64>(), [v3(), v3(), v3()]), 0..40).prop_map(|v| {
+            SmaToViewer::Update {
+                triangles: v
+                    .into_iter()
+                    .map(|(id, radiance)| Recolour { id, radiance })
+                    .collect(),
+            }
+        }),
+        finite().prop_map(|l_white| SmaToViewer::ToneMap { l_white }),
+        any::<[u64; 7]>().prop_map(|c| SmaToViewer::Epoch(Epoch {
+            camera_seq: c[0],
+            shown: c[1],
+            visible_leaves: c[2],
+            inserted: c[3],
+            removed: c[4],
+            samples: c[5],
+            outstanding: c[6],
+        })),
+        (finite(), any::<u64>(), any::<u64>(), any::<u32>()).prop_map(
+            |(samples_per_sec, leaves, cached_samples, renderers)| {
+                SmaToViewer::Stats(Stats {
+                    samples_per_sec,
+                    leaves,
+                    cached_samples,
+                    renderers,
+                })
+            }
+        ),
+        ("[a-z-]{0,8}", any::<bool>())
+            .prop_map(|(criterion, paused)| SmaToViewer::Refinement { criterion, paused }),
+        ".*".prop_map(|message| SmaToViewer::Error { message }),
+    ]
+}
+
+fn round_trip<M>(msg: &M) -> M
+where
+    M: serde::Serialize + serde::de::DeserializeOwned,
+{
+    decode(&encode(msg).expect("encode")).expect("decode")
+}
+
+proptest! {
+    #[test]
+    fn renderer_requests(msg in to_renderer()) { prop_assert_eq!(round_trip(&msg), msg); }
+    #[test]
+    fn renderer_replies(msg in from_renderer()) { prop_assert_eq!(round_trip(&msg), msg); }
+    #[test]
+    fn viewer_requests(msg in to_sma()) { prop_assert_eq!(round_trip(&msg), msg); }
+    #[test]
+    fn viewer_updates(msg in to_viewer()) { prop_assert_eq!(round_trip(&msg), msg); }
+    #[test]
+    fn hellos(r in role(), fp in proptest::option::of(any::<[u8; 32]>())) {
+        let hello = Hello::new(r, fp);
+        prop_assert_eq!(round_trip(&hello), hello);
+        let welcome = HelloReply::Welcome { role: r, version: 3, fingerprint: fp };
+        prop_assert_eq!(round_trip(&welcome), welcome);
+    }
+}
+
+/// Bulk data stays compact: a shown triangle is its id varint plus 18 little-endian floats.
+#[test]
+fn triangles_encode_compactly() {
+    let triangles: Vec<ShownTriangle> = (0..1000)
+        .map(|i| ShownTriangle {
+            id: i,
+            positions: [[1.0; 3]; 3],
+            radiance: [[0.5; 3]; 3],
+        })
+        .collect();
+    let bytes = encode(&SmaToViewer::Insert { triangles }).unwrap();
+    let per_triangle = bytes.len() as f64 / 1000.0;
+    assert!(
+        per_triangle <= 18.0 * 4.0 + 3.0,
+        "{per_triangle} bytes per triangle"
+    );
+}

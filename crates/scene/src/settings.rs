@@ -1,0 +1,108 @@
+//! The scene file (TOML): what an OBJ cannot say (DESIGN.md §7).
+//!
+//! ```toml
+//! name = "sponza"
+//! obj = "../../shared/scenes/sponza/sponza.obj"   # relative to this file
+//! units = "m"
+//! crease_angle_deg = 45.0
+//!
+//! [sun]
+//! direction = [0.3, 1.0, 0.2]      # toward the sun
+//! radiance = [1.6e5, 1.5e5, 1.3e5] # per channel; irradiance = radiance x solid angle
+//! angular_diameter_deg = 0.53
+//!
+//! [sky]
+//! kind = "uniform"                 # "none" | "uniform"
+//! radiance = [0.6, 0.7, 1.0]
+//!
+//! [quality]
+//! paths = 64
+//! bounces = 2
+//!
+//! [[viewpoint]]
+//! name = "S1"
+//! eye = [...]; target = [...]; up = [0, 1, 0]; fov_y_deg = 60
+//! ```
+
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneSettings {
+    pub name: String,
+    /// OBJ path, relative to the scene file. Empty for built-in scenes (generated in code).
+    #[serde(default)]
+    pub obj: String,
+    #[serde(default = "default_units")]
+    pub units: String,
+    /// Faces meeting at more than this angle do not share a vertex (DESIGN.md §4).
+    #[serde(default = "default_crease")]
+    pub crease_angle_deg: f32,
+    #[serde(default)]
+    pub sun: Option<Sun>,
+    #[serde(default)]
+    pub sky: Sky,
+    #[serde(default)]
+    pub quality: QualitySetting,
+    #[serde(default, rename = "viewpoint")]
+    pub viewpoints: Vec<ViewpointSetting>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Sun {
+    /// Direction toward the sun (need not be unit length).
+    pub direction: [f32; 3],
+    /// Radiance of the sun's disc, linear RGB.
+    pub radiance: [f32; 3],
+    pub angular_diameter_deg: f32,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum Sky {
+    #[default]
+    None,
+    /// Constant radiance over the upper hemisphere (+Y up); black below the horizon.
+    Uniform { radiance: [f32; 3] },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct QualitySetting {
+    pub paths: u32,
+    /// Omitted = unbounded with Russian roulette.
+    #[serde(default)]
+    pub bounces: Option<u32>,
+}
+
+impl Default for QualitySetting {
+    fn default() -> Self {
+        QualitySetting { paths: 64, bounces: Some(2) }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ViewpointSetting {
+    pub name: String,
+    pub eye: [f32; 3],
+    pub target: [f32; 3],
+    #[serde(default = "default_up")]
+    pub up: [f32; 3],
+    #[serde(default = "default_fov")]
+    pub fov_y_deg: f32,
+}
+
+fn default_units() -> String {
+    "m".into()
+}
+fn default_crease() -> f32 {
+    45.0
+}
+fn default_up() -> [f32; 3] {
+    [0.0, 1.0, 0.0]
+}
+fn default_fov() -> f32 {
+    60.0
+}
