@@ -1,1 +1,7 @@
-fn main() {}
+//! `walkthrough`: the launcher. See `walkthrough --help`.
+
+use clap::Parser;
+
+fn main() -> anyhow::Result<()> {
+    walkthrough::cli::run(walkthrough::cli::Cli::parse())
+}

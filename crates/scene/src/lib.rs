@@ -1,7 +1,30 @@
-//! Scene model shared by renderer and SMA (DESIGN.md §2, §4, §5, §7, §11).
+//! Scene model shared by renderer and SMA (DESIGN.md §2, §4, §5, §7, §11): OBJ/MTL and scene file
+//! loading with validation, vertex splits and canonical normals, effects analysis, the
+//! fingerprint of the handshake, built-in scenes, their export, and a CPU estimate of what a
+//! viewpoint sees.
 
+mod builder;
+mod builtin;
+mod effects;
+mod error;
+mod fingerprint;
+mod obj;
+mod obj_check;
+mod scene_file;
+mod vertex_split;
+
+pub mod bench;
+pub mod export;
+pub mod info;
 pub mod model;
 pub mod settings;
+pub mod visibility;
 
+pub use builder::SceneBuilder;
+pub use builtin::BUILTIN_NAMES;
+pub use error::SceneError;
+pub use fingerprint::hex as fingerprint_hex;
 pub use model::{Effects, LoadReport, Material, Mesh, Scattering, Scene, Triangle};
-pub use settings::{SceneSettings, Sky, Sun, ViewpointSetting};
+pub use scene_file::{load, load_scene_file};
+pub use settings::{QualitySetting, SceneSettings, Sky, Sun, ViewpointSetting};
+pub use visibility::{VisibilityEstimator, visible_base_triangles};

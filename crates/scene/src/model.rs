@@ -36,6 +36,41 @@ pub struct Material {
 }
 
 impl Material {
+    /// A two-sided Lambertian material.
+    pub fn diffuse(name: impl Into<String>, kd: Vec3) -> Material {
+        Material {
+            name: name.into(),
+            kd,
+            ke: Vec3::ZERO,
+            ks: Vec3::ZERO,
+            ns: 0.0,
+            illum: 1,
+            scattering: Scattering::Diffuse,
+        }
+    }
+
+    /// A Lambertian reflector that also emits `ke` from its counter-clockwise side (DESIGN.md §7).
+    pub fn emitter(name: impl Into<String>, kd: Vec3, ke: Vec3) -> Material {
+        Material { ke, ..Material::diffuse(name, kd) }
+    }
+
+    /// A perfect mirror of reflectance `ks` (MTL `illum` 3).
+    pub fn mirror(name: impl Into<String>, kd: Vec3, ks: Vec3) -> Material {
+        Material::from_mtl(name, kd, Vec3::ZERO, ks, 0.0, 3)
+    }
+
+    /// A material as an MTL file states it; the scattering follows from `Ks` and `illum`: `illum`
+    /// 3 or 5 with some `Ks` is a mirror, other `Ks` > 0 a Blinn–Phong lobe unless `illum` 0 or 1
+    /// (the MTL models without highlights) turns it off.
+    pub fn from_mtl(name: impl Into<String>, kd: Vec3, ke: Vec3, ks: Vec3, ns: f32, illum: u32) -> Material {
+        let scattering = match (illum, ks.max_element() > 0.0) {
+            (_, false) | (0 | 1, true) => Scattering::Diffuse,
+            (3 | 5, true) => Scattering::Mirror,
+            _ => Scattering::Glossy,
+        };
+        Material { name: name.into(), kd, ke, ks, ns, illum, scattering }
+    }
+
     pub fn is_emitter(&self) -> bool {
         self.ke.max_element() > 0.0
     }

@@ -94,6 +94,67 @@ pub struct ViewpointSetting {
     pub fov_y_deg: f32,
 }
 
+impl SceneSettings {
+    /// Checks what serde cannot: finite numbers, a usable sun and usable viewpoints.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(0.0..=180.0).contains(&self.crease_angle_deg) {
+            return Err(format!("crease_angle_deg {} is not within 0..=180", self.crease_angle_deg));
+        }
+        if let Some(sun) = &self.sun {
+            sun.validate()?;
+        }
+        if let Sky::Uniform { radiance } = &self.sky {
+            check_radiance("sky radiance", radiance)?;
+        }
+        if self.quality.paths == 0 {
+            return Err("quality.paths must be at least 1".into());
+        }
+        self.viewpoints.iter().try_for_each(ViewpointSetting::validate)
+    }
+
+    pub fn viewpoint(&self, name: &str) -> Option<&ViewpointSetting> {
+        self.viewpoints.iter().find(|v| v.name == name)
+    }
+}
+
+impl Sun {
+    fn validate(&self) -> Result<(), String> {
+        let d = glam::Vec3::from(self.direction);
+        if !d.is_finite() || d.length_squared() == 0.0 {
+            return Err(format!("sun direction {:?} is not a usable direction", self.direction));
+        }
+        if !(self.angular_diameter_deg > 0.0 && self.angular_diameter_deg < 180.0) {
+            return Err(format!("sun angular_diameter_deg {} is not within (0, 180)", self.angular_diameter_deg));
+        }
+        check_radiance("sun radiance", &self.radiance)
+    }
+}
+
+impl ViewpointSetting {
+    fn validate(&self) -> Result<(), String> {
+        let [eye, target, up] = [self.eye, self.target, self.up].map(glam::Vec3::from);
+        let forward = target - eye;
+        if !(eye.is_finite() && forward.is_finite() && up.is_finite()) {
+            return Err(format!("viewpoint {}: non-finite eye, target or up", self.name));
+        }
+        if forward.length_squared() == 0.0 || forward.cross(up).length_squared() == 0.0 {
+            return Err(format!("viewpoint {}: eye equals target, or up is parallel to the view", self.name));
+        }
+        if !(self.fov_y_deg > 0.0 && self.fov_y_deg < 180.0) {
+            return Err(format!("viewpoint {}: fov_y_deg {} is not within (0, 180)", self.name, self.fov_y_deg));
+        }
+        Ok(())
+    }
+}
+
+fn check_radiance(what: &str, rgb: &[f32; 3]) -> Result<(), String> {
+    if rgb.iter().all(|c| c.is_finite() && *c >= 0.0) {
+        Ok(())
+    } else {
+        Err(format!("{what} {rgb:?} must be finite and non-negative"))
+    }
+}
+
 fn default_units() -> String {
     "m".into()
 }

@@ -1,1 +1,34 @@
-//! placeholder
+//! The viewer (DESIGN.md §2, §8, §9; thesis §2.3, §4.1): a thin wgpu client that holds the SMA's
+//! visible triangles, draws them with Gouraud-interpolated vertex radiance and tone mapping, and
+//! sends the camera back. It has no scene of its own: it learns the scene from `SceneInfo`.
+//!
+//! - [`table`]: triangle table, O(1) insert/remove/recolour, partial uploads ([`vertex_buffer`]);
+//! - [`update`]: changes held back until the `Epoch` that closes them;
+//! - [`link`]: the SMA connection with reconnect and backoff; [`view_state`] follows its events;
+//! - [`draw`] (with `draw.wgsl`): the pass with tone mapping; [`offscreen`]: the same pass into
+//!   textures, read back ([`render_offscreen`] for the end-to-end benchmark);
+//! - [`window`] (winit) and [`headless`] (snapshots, [`snapshot_files`]) front ends, with
+//!   [`walk_camera`], [`camera_path`], [`camera_sender`] and [`session`];
+//! - [`gpu`]: device setup and the `WALKTHROUGH_REQUIRE_GPU` rule; [`bench`]: BENCHMARKS.md figures;
+//! - [`cli`]: the command line, embedded by the launcher as `walkthrough viewer`.
+
+pub mod bench;
+pub mod camera_path;
+pub mod camera_sender;
+pub mod cli;
+pub mod draw;
+pub mod gpu;
+pub mod headless;
+pub mod link;
+pub mod offscreen;
+pub mod session;
+pub mod snapshot_files;
+pub mod table;
+pub mod update;
+pub mod vertex_buffer;
+pub mod view_state;
+pub mod walk_camera;
+pub mod window;
+
+pub use draw::{DrawSettings, ToneMap};
+pub use offscreen::{Snapshot, render_offscreen, render_offscreen_with};

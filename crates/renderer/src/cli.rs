@@ -1,0 +1,164 @@
+//! Command line: `renderer serve …` and `renderer reference …` (the launcher embeds [`Cli`] as
+//! `walkthrough renderer …`).
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::Context;
+use clap::{Parser, Subcommand};
+use protocol::frame::DEFAULT_MAX_FRAME;
+use tokio::net::TcpListener;
+
+use crate::reference::{ReferenceSettings, render_to_files};
+use crate::service::Service;
+use crate::world::World;
+
+#[derive(Parser, Debug, Clone)]
+#[command(name = "renderer", about = "Path-tracing service for object-space shading requests, and reference images")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug, Clone)]
+pub enum Command {
+    /// Answer shade batches from SMAs over TCP until Ctrl-C.
+    Serve {
+        /// Scene file (TOML) or built-in name ("bracara", "cornell").
+        #[arg(long, default_value = "bracara")]
+        scene: String,
+        /// Address to listen on; port 0 picks a free port (the line "listening on ADDR" on
+        /// stdout tells which).
+        #[arg(long, default_value = "127.0.0.1:7201")]
+        listen: String,
+        /// Worker threads (0 = one per core).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// Largest frame accepted or sent, bytes.
+        #[arg(long, default_value_t = DEFAULT_MAX_FRAME)]
+        max_frame: usize,
+    },
+    /// Render a named viewpoint per pixel with the same estimator: linear EXR plus a PNG beside it.
+    Reference {
+        #[arg(long, default_value = "bracara")]
+        scene: String,
+        /// Viewpoint name from the scene.
+        #[arg(long)]
+        view: String,
+        #[arg(long, default_value_t = 1024)]
+        width: u32,
+        #[arg(long, default_value_t = 768)]
+        height: u32,
+        /// Paths per pixel.
+        #[arg(long, default_value_t = 256)]
+        spp: u32,
+        /// Bounce depth: a number (0 = direct light only) or "unbounded" (Russian roulette).
+        #[arg(long, default_value = "2")]
+        bounces: BounceDepth,
+        /// Output EXR path; the PNG is written beside it.
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Tone-mapping white for the PNG (default: the image's largest luminance).
+        #[arg(long)]
+        l_white: Option<f32>,
+        /// Worker threads (0 = one per core).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+    },
+}
+
+/// A bounce depth on the command line: a number, or "unbounded" (`None`, Russian roulette).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BounceDepth(pub Option<u32>);
+
+impl std::str::FromStr for BounceDepth {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "unbounded" | "inf" | "none" => Ok(BounceDepth(None)),
+            _ => s.parse::<u32>().map(|b| BounceDepth(Some(b))).map_err(|e| format!("{e} (a number or \"unbounded\")")),
+        }
+    }
+}
+
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
+        )
+        .with_writer(std::io::stderr)
+        .try_init();
+    match cli.command {
+        Command::Serve { scene, listen, threads, max_frame } => serve(&scene, &listen, threads, max_frame),
+        Command::Reference { scene, view, width, height, spp, bounces, out, seed, l_white, threads } => {
+            let settings = ReferenceSettings { width, height, spp, bounces: bounces.0, seed };
+            reference(&scene, &view, &settings, &out, l_white, threads)
+        }
+    }
+}
+
+fn load_world(spec: &str) -> anyhow::Result<World> {
+    let start = Instant::now();
+    let scene = scene::load(spec).with_context(|| format!("loading scene {spec:?}"))?;
+    let world = World::new(scene);
+    tracing::info!(
+        scene = %world.scene.name,
+        triangles = world.triangle_count(),
+        bvh_ms = world.bvh.build_time().as_secs_f64() * 1e3,
+        total_ms = start.elapsed().as_secs_f64() * 1e3,
+        effects = ?world.effects(),
+        "scene ready"
+    );
+    Ok(world)
+}
+
+fn serve(spec: &str, listen: &str, threads: usize, max_frame: usize) -> anyhow::Result<()> {
+    let world = Arc::new(load_world(spec)?);
+    let service = Service::new(world, threads, max_frame)?;
+    let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
+    runtime.block_on(async move {
+        let listener = TcpListener::bind(listen).await.with_context(|| format!("binding {listen}"))?;
+        let addr = listener.local_addr()?;
+        // A machine-readable line for launchers and tests that asked for port 0.
+        println!("listening on {addr}");
+        std::io::stdout().flush()?;
+        tracing::info!(%addr, "renderer serving");
+        service
+            .serve(listener, async {
+                let _ = tokio::signal::ctrl_c().await;
+            })
+            .await
+    })
+}
+
+fn reference(spec: &str, view: &str, s: &ReferenceSettings, out: &std::path::Path, l_white: Option<f32>, threads: usize) -> anyhow::Result<()> {
+    let world = load_world(spec)?;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
+    let start = Instant::now();
+    let (_, counts) = pool.install(|| render_to_files(&world, view, s, out, l_white))?;
+    let secs = start.elapsed().as_secs_f64();
+    tracing::info!(seconds = secs, rays = counts.total(), mrays_per_s = counts.total() as f64 / secs / 1e6, "reference written to {}", out.display());
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_both_subcommands() {
+        let cli = Cli::try_parse_from(["renderer", "serve", "--scene", "cornell", "--listen", "127.0.0.1:0", "--threads", "2"]).unwrap();
+        assert!(matches!(cli.command, Command::Serve { ref scene, threads: 2, .. } if scene == "cornell"));
+        let cli = Cli::try_parse_from([
+            "renderer", "reference", "--scene", "cornell", "--view", "main", "--width", "64", "--height", "48",
+            "--spp", "4", "--bounces", "unbounded", "--out", "x.exr",
+        ])
+        .unwrap();
+        assert!(matches!(cli.command, Command::Reference { bounces: BounceDepth(None), width: 64, .. }));
+        assert!(Cli::try_parse_from(["renderer", "reference", "--view", "v", "--out", "o.exr", "--bounces", "x"]).is_err());
+    }
+}

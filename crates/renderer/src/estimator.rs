@@ -1,0 +1,112 @@
+//! Path tracing with next-event estimation (DESIGN.md §7): the outgoing radiance of a surface point
+//! toward a direction. Light sources are reached by next-event estimation at every non-mirror
+//! vertex; a mirror bounce instead sees what it hits (emitters, the sky, the sun's disc), so every
+//! light path is counted exactly once. Bounce depth counts diffuse and glossy bounces; mirror
+//! bounces are free up to `MAX_MIRROR_CHAIN` so a mirror still shows its reflection at the
+//! direct-light-only quality.
+
+use glam::Vec3;
+
+use crate::counters::{RayCounts, RayKind};
+use crate::material::Bsdf;
+use crate::sampling::{Rng, uniform3};
+use crate::world::{Surface, World};
+use rand::RngExt;
+
+/// Russian roulette starts after this many bounces.
+const ROULETTE_AFTER: u32 = 3;
+/// Longest chain of mirror reflections followed (two facing mirrors would loop forever).
+const MAX_MIRROR_CHAIN: u32 = 8;
+/// Safety cap on unbounded paths; roulette ends them long before in any scene with albedo < 1.
+const MAX_DEPTH: u32 = 1024;
+
+/// One path's estimate of the radiance leaving `surface` toward unit `wo`, excluding the surface's
+/// own emission. `max_bounces`: `Some(0)` = direct light only, `None` = unbounded with roulette.
+pub fn path_radiance(
+    world: &World,
+    surface: Surface,
+    wo: Vec3,
+    max_bounces: Option<u32>,
+    rng: &mut Rng,
+    counts: &mut RayCounts,
+) -> Vec3 {
+    let mut radiance = Vec3::ZERO;
+    let mut throughput = Vec3::ONE;
+    let mut s = surface;
+    let mut wo = wo;
+    let mut bounces = 0u32;
+    let mut mirror_chain = 0u32;
+    for _ in 0..MAX_DEPTH {
+        let bsdf = world.bsdf(s.triangle);
+        let origin = world.offset.origin(s.position, s.normal);
+        radiance += throughput * direct_light(world, &s, origin, wo, bsdf, rng, counts);
+        let Some(sample) = bsdf.sample(s.normal, wo, uniform3(rng)) else { break };
+        let mirror = sample.kind == RayKind::Mirror;
+        let budget_left = if mirror {
+            mirror_chain < MAX_MIRROR_CHAIN
+        } else {
+            max_bounces.is_none_or(|max| bounces < max)
+        };
+        if !budget_left || !world.simulates(sample.kind) {
+            break;
+        }
+        throughput *= sample.weight;
+        if bounces >= ROULETTE_AFTER {
+            let survive = throughput.max_element().min(0.95);
+            if survive <= 0.0 || rng.random::<f32>() >= survive {
+                break;
+            }
+            throughput /= survive;
+        }
+        if throughput.max_element() <= 0.0 {
+            break;
+        }
+        let Some(hit) = world.trace(origin, sample.dir, sample.kind, counts) else {
+            if mirror {
+                radiance += throughput * world.lights.escaped_radiance(sample.dir);
+            }
+            break;
+        };
+        if mirror {
+            radiance += throughput * world.emission(hit.triangle, sample.dir);
+            mirror_chain += 1;
+        } else {
+            bounces += 1;
+            mirror_chain = 0;
+        }
+        s = world.surface_at(origin, sample.dir, hit);
+        wo = -sample.dir;
+    }
+    radiance
+}
+
+/// Next-event estimation: one sample of each light, each with its shadow ray.
+fn direct_light(
+    world: &World,
+    s: &Surface,
+    origin: Vec3,
+    wo: Vec3,
+    bsdf: &Bsdf,
+    rng: &mut Rng,
+    counts: &mut RayCounts,
+) -> Vec3 {
+    let mut sum = Vec3::ZERO;
+    for light in &world.lights.lights {
+        let Some(ls) = light.sample(origin, s.normal, uniform3(rng)) else { continue };
+        let f = bsdf.eval(s.normal, wo, ls.dir);
+        if f.max_element() <= 0.0 {
+            continue;
+        }
+        // Stop short of the light's own surface by its rounding margin.
+        let tmax = if ls.distance.is_finite() {
+            ls.distance - 2.0 * world.offset.margin(origin + ls.dir * ls.distance)
+        } else {
+            f32::INFINITY
+        };
+        if tmax <= 0.0 || world.occluded(origin, ls.dir, tmax, light.shadow_kind(), counts) {
+            continue;
+        }
+        sum += f * s.normal.dot(ls.dir) * ls.radiance_over_pdf;
+    }
+    sum
+}

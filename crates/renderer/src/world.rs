@@ -1,0 +1,106 @@
+//! What the estimator needs of a scene, prepared once: the BVH, the lights the scene calls for,
+//! each material's scattering, unit face normals and the origin offsetter.
+
+use glam::Vec3;
+use scene::{Effects, Scene};
+
+use crate::bvh::{BuildPreset, Hit, SceneBvh};
+use crate::counters::{RayCounts, RayKind};
+use crate::lights::Lights;
+use crate::material::Bsdf;
+use crate::offset::Offsetter;
+
+/// A point on a surface, on the side being shaded.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Surface {
+    pub position: Vec3,
+    /// Unit geometric normal of the shaded side.
+    pub normal: Vec3,
+    pub triangle: u32,
+}
+
+pub struct World {
+    pub scene: Scene,
+    pub bvh: SceneBvh,
+    pub lights: Lights,
+    pub offset: Offsetter,
+    /// Length of the scene's bounding-box diagonal.
+    pub extent: f32,
+    bsdfs: Vec<Bsdf>,
+    /// Unit counter-clockwise normal per triangle (zero for a degenerate one).
+    face_normals: Vec<Vec3>,
+}
+
+impl World {
+    pub fn new(scene: Scene) -> World {
+        World::with_preset(scene, BuildPreset::Slow)
+    }
+
+    pub fn with_preset(scene: Scene, preset: BuildPreset) -> World {
+        let bvh = SceneBvh::build(&scene.mesh, preset);
+        let lights = Lights::from_scene(&scene);
+        let (lo, hi) = scene.mesh.bounds();
+        let extent = if lo.is_finite() && hi.is_finite() { (hi - lo).length() } else { 1.0 };
+        let face_normals = (0..scene.mesh.triangles.len())
+            .map(|t| scene.mesh.face_normal(t).normalize_or_zero())
+            .collect();
+        let bsdfs = scene.materials.iter().map(Bsdf::from_material).collect();
+        World { offset: Offsetter::new(extent), extent, bvh, lights, bsdfs, face_normals, scene }
+    }
+
+    pub fn effects(&self) -> Effects {
+        self.scene.effects
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.face_normals.len()
+    }
+
+    pub fn bsdf(&self, triangle: u32) -> &Bsdf {
+        &self.bsdfs[self.scene.mesh.triangles[triangle as usize].material as usize]
+    }
+
+    pub fn face_normal(&self, triangle: u32) -> Vec3 {
+        self.face_normals[triangle as usize]
+    }
+
+    /// Radiance a ray travelling along `dir` receives from emitting triangle `triangle`: its `Ke`
+    /// when it arrives on the counter-clockwise side (emitters are one-sided, DESIGN.md §7).
+    pub fn emission(&self, triangle: u32, dir: Vec3) -> Vec3 {
+        let ke = self.scene.material_of(triangle as usize).ke;
+        if self.face_normal(triangle).dot(dir) < 0.0 { ke } else { Vec3::ZERO }
+    }
+
+    /// Whether a scattering ray of this kind belongs to an effect the scene calls for.
+    pub fn simulates(&self, kind: RayKind) -> bool {
+        let e = self.effects();
+        match kind {
+            RayKind::Bounce => e.interreflection,
+            RayKind::Glossy => e.glossy,
+            RayKind::Mirror => e.mirror,
+            _ => true,
+        }
+    }
+
+    pub fn trace(&self, origin: Vec3, dir: Vec3, kind: RayKind, counts: &mut RayCounts) -> Option<Hit> {
+        counts.count(kind);
+        self.bvh.closest_hit(origin, dir, f32::INFINITY)
+    }
+
+    pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32, kind: RayKind, counts: &mut RayCounts) -> bool {
+        counts.count(kind);
+        self.bvh.occluded(origin, dir, tmax)
+    }
+
+    /// The surface a ray from `origin` along unit `dir` hit, on the side it arrived from. The
+    /// position is projected onto the triangle's plane, which removes most of the rounding of
+    /// `origin + t dir` along the normal (the direction that matters for the next ray's origin).
+    pub fn surface_at(&self, origin: Vec3, dir: Vec3, hit: Hit) -> Surface {
+        let n = self.face_normal(hit.triangle);
+        let v0 = self.scene.mesh.triangle_positions(hit.triangle as usize)[0];
+        let p = origin + dir * hit.t;
+        let position = p - n * n.dot(p - v0);
+        let normal = if n.dot(dir) > 0.0 { -n } else { n };
+        Surface { position, normal, triangle: hit.triangle }
+    }
+}

@@ -1,0 +1,125 @@
+//! The built-in Cornell box (issue 3, "Tests"): Monte Carlo error falls like 1/sqrt(paths), and
+//! a reference image of view `main` has the regions the scene is known for.
+
+mod common;
+
+use common::*;
+use glam::Vec3;
+use protocol::renderer_link::Quality;
+use renderer::reference::{Image, ReferenceSettings, camera_for, render};
+use renderer::sampling::{luminance, stream};
+use renderer::{RayCounts, World, shade_point};
+
+fn cornell() -> World {
+    World::new(scene::load("cornell").expect("built-in cornell"))
+}
+
+#[test]
+fn error_falls_like_one_over_sqrt_paths() {
+    let w = cornell();
+    // A floor point in the open, lit directly and by the walls.
+    let p = point_hit_by(&w, Vec3::new(0.4, 0.3, 0.15), Vec3::NEG_Y);
+    let bounces = Some(2);
+    let estimate = |paths: u32, seed: u64| {
+        let q = Quality { paths, bounces };
+        luminance(shade_point(&w, &p, q, &mut stream(seed, 0), &mut RayCounts::default()).rgb) as f64
+    };
+    let truth = estimate(65_536, 999);
+    let levels = [4u32, 16, 64, 256];
+    let repeats = 48;
+    let rms: Vec<f64> = levels
+        .iter()
+        .map(|&paths| {
+            let sq: f64 = (0..repeats).map(|r| (estimate(paths, 1000 + r) - truth).powi(2)).sum();
+            (sq / repeats as f64).sqrt()
+        })
+        .collect();
+    // Least-squares slope of log(rms) against log(paths).
+    let xs: Vec<f64> = levels.iter().map(|&p| (p as f64).ln()).collect();
+    let ys: Vec<f64> = rms.iter().map(|r| r.ln()).collect();
+    let (mx, my) = (xs.iter().sum::<f64>() / 4.0, ys.iter().sum::<f64>() / 4.0);
+    let slope = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum::<f64>()
+        / xs.iter().map(|x| (x - mx).powi(2)).sum::<f64>();
+    assert!((slope + 0.5).abs() < 0.12, "slope {slope}, rms {rms:?}");
+}
+
+/// Mean colour of the pixels whose centre ray hits a triangle for which `select` holds.
+fn region_mean(w: &World, img: &Image, select: impl Fn(u32, Vec3) -> bool) -> (Vec3, usize) {
+    let cam = camera_for(w, "main", img.width, img.height).unwrap();
+    let mut sum = Vec3::ZERO;
+    let mut n = 0;
+    for y in 0..img.height {
+        for x in 0..img.width {
+            let dir = cam.ray_direction(x as f32 + 0.5, y as f32 + 0.5);
+            if let Some(hit) = w.bvh.closest_hit(cam.eye_vec(), dir, f32::INFINITY) {
+                if select(hit.triangle, cam.eye_vec() + dir * hit.t) {
+                    sum += img.pixels[(y * img.width + x) as usize];
+                    n += 1;
+                }
+            }
+        }
+    }
+    (sum / n.max(1) as f32, n)
+}
+
+fn material_name(w: &World, t: u32) -> &str {
+    &w.scene.material_of(t as usize).name
+}
+
+/// Distance in the floor plane from (x, z) to the footprint of the nearer block, negative inside.
+fn distance_to_blocks(p: Vec3) -> f32 {
+    let blocks = [
+        [(130.0, 65.0), (82.0, 225.0), (240.0, 272.0), (290.0, 114.0)],
+        [(423.0, 247.0), (265.0, 296.0), (314.0, 456.0), (472.0, 406.0)],
+    ];
+    let q = glam::Vec2::new(p.x, p.z) * 1e3;
+    blocks
+        .iter()
+        .map(|b| {
+            let corners: Vec<glam::Vec2> = b.iter().map(|&(x, z)| glam::Vec2::new(x, z)).collect();
+            let edge_distance = (0..4)
+                .map(|i| {
+                    let (a, c) = (corners[i], corners[(i + 1) % 4]);
+                    let t = ((q - a).dot(c - a) / (c - a).length_squared()).clamp(0.0, 1.0);
+                    q.distance(a + (c - a) * t)
+                })
+                .fold(f32::INFINITY, f32::min);
+            let inside = (0..4).all(|i| {
+                let (a, c) = (corners[i], corners[(i + 1) % 4]);
+                let s = (c - a).perp_dot(q - a);
+                let s0 = (corners[1] - corners[0]).perp_dot(corners[2] - corners[0]);
+                s * s0 >= 0.0
+            });
+            if inside { -edge_distance } else { edge_distance }
+        })
+        .fold(f32::INFINITY, f32::min)
+        * 1e-3
+}
+
+#[test]
+fn reference_image_of_main_has_the_known_regions() {
+    let w = cornell();
+    let settings = ReferenceSettings { width: 80, height: 80, spp: 48, bounces: Some(3), seed: 1 };
+    let cam = camera_for(&w, "main", settings.width, settings.height).unwrap();
+    let (img, counts) = render(&w, &cam, &settings, None);
+    assert!(counts.camera >= 80 * 80 * 48);
+    assert!(img.pixels.iter().all(|p| p.is_finite() && p.min_element() >= 0.0));
+    let (left, nl) = region_mean(&w, &img, |t, _| material_name(&w, t) == "red");
+    let (right, nr) = region_mean(&w, &img, |t, _| material_name(&w, t) == "green");
+    assert!(nl > 100 && nr > 100, "{nl} {nr}");
+    assert!(left.x > 2.0 * left.y && left.x > 2.0 * left.z, "left wall {left}");
+    assert!(right.y > 1.5 * right.x && right.y > 1.5 * right.z, "right wall {right}");
+    // The red wall is on the image's left: the camera looks along +z, so image-left is +x.
+    let left_px = (0..img.width / 4).map(|x| img.pixels[(40 * img.width + x) as usize]).sum::<Vec3>();
+    assert!(left_px.x > left_px.y, "{left_px}");
+    let is_floor = |t: u32| w.face_normal(t).y.abs() > 0.99 && material_name(&w, t) == "white";
+    let (near, nn) = region_mean(&w, &img, |t, p| is_floor(t) && p.y < 0.01 && (0.0..0.02).contains(&distance_to_blocks(p)));
+    let (open, no) = region_mean(&w, &img, |t, p| is_floor(t) && p.y < 0.01 && distance_to_blocks(p) > 0.08);
+    assert!(nn > 10 && no > 100, "{nn} {no}");
+    assert!(luminance(near) < 0.85 * luminance(open), "floor at the blocks {near} vs open floor {open}");
+    // Mean luminance is stable across seeds.
+    let other = render(&w, &cam, &ReferenceSettings { seed: 2, ..settings }, None).0;
+    let mean = |i: &Image| i.pixels.iter().map(|&p| luminance(p) as f64).sum::<f64>() / i.pixels.len() as f64;
+    let (a, b) = (mean(&img), mean(&other));
+    assert!((a - b).abs() < 0.02 * a, "{a} vs {b}");
+}

@@ -1,0 +1,196 @@
+//! Building a validated [`Scene`] from raw triangles: the one path every scene takes, whether it
+//! comes from an OBJ file or is generated in code, so both get the same welding, degenerate
+//! triangle removal, vertex splits, normals, effects and fingerprint.
+
+use std::collections::HashMap;
+
+use glam::Vec3;
+
+use crate::effects::analyse_effects;
+use crate::error::SceneError;
+use crate::fingerprint::fingerprint;
+use crate::model::{LoadReport, Material, Scene, Triangle};
+use crate::settings::SceneSettings;
+use crate::vertex_split::split_vertices;
+
+pub struct SceneBuilder {
+    settings: SceneSettings,
+    materials: Vec<Material>,
+    positions: Vec<Vec3>,
+    triangles: Vec<Triangle>,
+    warnings: Vec<String>,
+}
+
+impl SceneBuilder {
+    pub fn new(settings: SceneSettings) -> SceneBuilder {
+        SceneBuilder {
+            settings,
+            materials: Vec::new(),
+            positions: Vec::new(),
+            triangles: Vec::new(),
+            warnings: Vec::new(),
+        }
+    }
+
+    pub fn material(&mut self, material: Material) -> u32 {
+        self.materials.push(material);
+        self.materials.len() as u32 - 1
+    }
+
+    pub fn vertex(&mut self, position: Vec3) -> u32 {
+        self.positions.push(position);
+        self.positions.len() as u32 - 1
+    }
+
+    /// A triangle, counter-clockwise as seen from the side an emitter shines to.
+    pub fn triangle(&mut self, vertices: [u32; 3], material: u32) {
+        self.triangles.push(Triangle { vertices, material });
+    }
+
+    /// Something the scene's user should know (a missing MTL, say), kept in the report.
+    pub fn warn(&mut self, warning: String) {
+        self.warnings.push(warning);
+    }
+
+    /// Validates and finishes the scene: bit-identical positions are welded (so adjacency does
+    /// not depend on how the source numbered its vertices), zero-area triangles are dropped and
+    /// counted, vertices are split at material seams and creases, and effects and fingerprint
+    /// are computed.
+    pub fn build(self) -> Result<Scene, SceneError> {
+        self.settings.validate().map_err(SceneError::Settings)?;
+        self.check_references()?;
+        let (positions, welded) = weld(&self.positions);
+        let mut kept = Vec::with_capacity(self.triangles.len());
+        for t in &self.triangles {
+            let vertices = t.vertices.map(|v| welded[v as usize]);
+            if !is_degenerate(vertices.map(|v| positions[v as usize])) {
+                kept.push(Triangle { vertices, material: t.material });
+            }
+        }
+        if kept.is_empty() {
+            return Err(SceneError::Empty);
+        }
+        let split = split_vertices(&positions, &kept, self.settings.crease_angle_deg);
+        let effects = analyse_effects(&self.settings, &self.materials, &split.mesh);
+        let fingerprint = fingerprint(&self.settings, &split.mesh, &self.materials);
+        let report = LoadReport {
+            dropped_triangles: self.triangles.len() - kept.len(),
+            source_vertices: self.positions.len(),
+            material_split_vertices: split.material_splits,
+            crease_split_vertices: split.crease_splits,
+            warnings: self.warnings,
+        };
+        Ok(Scene {
+            name: self.settings.name.clone(),
+            settings: self.settings,
+            mesh: split.mesh,
+            materials: self.materials,
+            effects,
+            fingerprint,
+            report,
+        })
+    }
+
+    fn check_references(&self) -> Result<(), SceneError> {
+        if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
+            return Err(SceneError::Builder(format!("vertex {i} is not finite")));
+        }
+        for (i, t) in self.triangles.iter().enumerate() {
+            if let Some(v) = t.vertices.iter().find(|&&v| v as usize >= self.positions.len()) {
+                return Err(SceneError::Builder(format!("triangle {i} uses undefined vertex {v}")));
+            }
+            if t.material as usize >= self.materials.len() {
+                return Err(SceneError::Builder(format!(
+                    "triangle {i} uses undefined material {}",
+                    t.material
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Merges bit-identical positions (-0.0 counts as 0.0); returns the unique positions and, per
+/// input vertex, its unique index.
+fn weld(positions: &[Vec3]) -> (Vec<Vec3>, Vec<u32>) {
+    let mut index: HashMap<[u32; 3], u32> = HashMap::with_capacity(positions.len());
+    let mut unique = Vec::with_capacity(positions.len());
+    let welded = positions
+        .iter()
+        .map(|p| {
+            let p = *p + Vec3::ZERO;
+            *index.entry(p.to_array().map(f32::to_bits)).or_insert_with(|| {
+                unique.push(p);
+                unique.len() as u32 - 1
+            })
+        })
+        .collect();
+    (unique, welded)
+}
+
+/// Zero area, or so thin that its normal means nothing: twice its area is below 1e-7 of its
+/// longest edge squared (a sine of the smallest angle below ~1e-7).
+fn is_degenerate([a, b, c]: [Vec3; 3]) -> bool {
+    let twice_area = (b - a).cross(c - a).length();
+    let longest = (b - a).length_squared().max((c - b).length_squared()).max((a - c).length_squared());
+    !(twice_area > 1e-7 * longest)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unit_quad(b: &mut SceneBuilder, material: u32) {
+        let v = [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 0.0, -1.0), Vec3::NEG_Z].map(|p| b.vertex(p));
+        b.triangle([v[0], v[1], v[2]], material);
+        b.triangle([v[0], v[2], v[3]], material);
+    }
+
+    fn settings() -> SceneSettings {
+        toml::from_str("name = \"t\"").expect("minimal settings parse")
+    }
+
+    #[test]
+    fn welds_duplicates_and_drops_degenerates() {
+        let mut b = SceneBuilder::new(settings());
+        let m = b.material(Material::diffuse("grey", Vec3::splat(0.5)));
+        unit_quad(&mut b, m);
+        unit_quad(&mut b, m); // the same quad again: welded onto the first one's vertices
+        let p = b.vertex(Vec3::new(2.0, 0.0, 0.0));
+        let q = b.vertex(Vec3::new(3.0, 0.0, 0.0));
+        let r = b.vertex(Vec3::new(4.0, 0.0, 0.0));
+        b.triangle([p, q, r], m); // collinear
+        b.triangle([p, p, q], m); // repeated vertex
+        let s = b.build().expect("valid scene");
+        assert_eq!(s.report.dropped_triangles, 2);
+        assert_eq!(s.report.source_vertices, 11);
+        assert_eq!(s.mesh.positions.len(), 4);
+        assert_eq!(s.mesh.triangles.len(), 4);
+        assert!(s.mesh.normals.iter().all(|n| n.abs_diff_eq(Vec3::Y, 1e-6) || n.abs_diff_eq(Vec3::NEG_Y, 1e-6)));
+    }
+
+    #[test]
+    fn undefined_references_are_errors_not_panics() {
+        let mut b = SceneBuilder::new(settings());
+        let m = b.material(Material::diffuse("grey", Vec3::splat(0.5)));
+        b.triangle([0, 1, 2], m);
+        assert!(matches!(b.build(), Err(SceneError::Builder(msg)) if msg == "triangle 0 uses undefined vertex 0"));
+
+        let mut b = SceneBuilder::new(settings());
+        unit_quad(&mut b, 3);
+        assert!(matches!(b.build(), Err(SceneError::Builder(msg)) if msg == "triangle 0 uses undefined material 3"));
+
+        let mut b = SceneBuilder::new(settings());
+        b.vertex(Vec3::new(f32::NAN, 0.0, 0.0));
+        assert!(matches!(b.build(), Err(SceneError::Builder(msg)) if msg == "vertex 0 is not finite"));
+    }
+
+    #[test]
+    fn a_scene_of_only_degenerate_triangles_is_empty() {
+        let mut b = SceneBuilder::new(settings());
+        let m = b.material(Material::diffuse("grey", Vec3::splat(0.5)));
+        let v = b.vertex(Vec3::ONE);
+        b.triangle([v, v, v], m);
+        assert!(matches!(b.build(), Err(SceneError::Empty)));
+    }
+}

@@ -1,0 +1,20 @@
+//! Built-in scenes, generated in code and deterministic (DESIGN.md §11).
+
+mod bracara;
+mod cornell;
+mod shapes;
+
+use crate::error::SceneError;
+use crate::model::Scene;
+
+pub const BUILTIN_NAMES: [&str; 2] = ["bracara", "cornell"];
+
+/// The built-in scene called `name`, or `None` if there is none.
+pub fn build(name: &str) -> Option<Result<Scene, SceneError>> {
+    let builder = match name {
+        "bracara" => bracara::bracara(),
+        "cornell" => cornell::cornell(),
+        _ => return None,
+    };
+    Some(builder.build())
+}

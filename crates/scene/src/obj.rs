@@ -1,0 +1,115 @@
+//! OBJ/MTL loading with tobj (DESIGN.md §7): positions and faces, materials from `Kd`, `Ke`,
+//! `Ks`, `Ns` and `illum`; texture maps and file normals are ignored (DESIGN.md §5 defines the
+//! canonical normal from the faces).
+
+use std::collections::HashMap;
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+
+use crate::builder::SceneBuilder;
+use crate::error::SceneError;
+use crate::model::{Material, Scene};
+use crate::obj_check::{check_mtl, check_obj};
+use crate::settings::SceneSettings;
+
+/// What a face with no (or an unknown) material gets, and every face when the MTL is missing.
+fn default_material() -> Material {
+    Material::diffuse("default", Vec3::splat(0.7))
+}
+
+pub fn load_obj(path: &Path, settings: SceneSettings) -> Result<Scene, SceneError> {
+    let text = read_text(path)?;
+    let summary = check_obj(path, &text)?;
+    let mut builder = SceneBuilder::new(settings);
+    let libraries = read_material_libraries(path, &summary.material_libraries, &mut builder)?;
+    let options = tobj::LoadOptions { triangulate: true, ignore_points: true, ignore_lines: true, ..Default::default() };
+    // The line check above rejects every input known to make tobj 4.0.5 panic; should another
+    // slip through, it is still an error value, never a crash of the server loading it.
+    let parsed = catch_unwind(AssertUnwindSafe(|| {
+        tobj::load_obj_buf(&mut text.as_bytes(), &options, |library| match libraries.get(library) {
+            Some(mtl) => tobj::load_mtl_buf(&mut mtl.as_bytes()),
+            None => Err(tobj::LoadError::OpenFileFailed),
+        })
+    }));
+    let obj_error = |message: String| SceneError::Obj { file: path.to_path_buf(), message };
+    let (models, materials) = parsed
+        .map_err(|_| obj_error("the OBJ parser failed on this file".into()))?
+        .map_err(|e| obj_error(e.to_string()))?;
+    // A library that failed to open was already reported as missing.
+    let materials = materials.unwrap_or_default();
+    add_geometry(&mut builder, &models, &materials);
+    builder.build()
+}
+
+fn read_text(path: &Path) -> Result<String, SceneError> {
+    let bytes = std::fs::read(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
+    // Comments in OBJ files are not always UTF-8; geometry always is ASCII.
+    Ok(String::from_utf8_lossy(&bytes).into_owned())
+}
+
+/// Reads and checks each `mtllib` (relative to the OBJ); a missing one is a warning, not an
+/// error: its faces get the default material.
+fn read_material_libraries(
+    obj: &Path,
+    names: &[String],
+    builder: &mut SceneBuilder,
+) -> Result<HashMap<PathBuf, String>, SceneError> {
+    let dir = obj.parent().unwrap_or(Path::new(""));
+    let mut libraries = HashMap::new();
+    for name in names {
+        let path = dir.join(name);
+        match std::fs::read(&path) {
+            Ok(bytes) => {
+                let text = String::from_utf8_lossy(&bytes).into_owned();
+                check_mtl(&path, &text)?;
+                libraries.insert(PathBuf::from(name), text);
+            }
+            Err(e) => builder.warn(format!("{}: {e}; its materials are replaced by a default one", path.display())),
+        }
+    }
+    Ok(libraries)
+}
+
+fn add_geometry(builder: &mut SceneBuilder, models: &[tobj::Model], materials: &[tobj::Material]) {
+    let ids: Vec<u32> = materials.iter().map(|m| builder.material(convert_material(m))).collect();
+    let mut fallback = None;
+    let mut faces_without_material = 0;
+    for model in models {
+        let mesh = &model.mesh;
+        let material = match mesh.material_id.and_then(|i| ids.get(i)) {
+            Some(&id) => id,
+            None => {
+                faces_without_material += mesh.indices.len() / 3;
+                *fallback.get_or_insert_with(|| builder.material(default_material()))
+            }
+        };
+        // tobj numbers each model's positions from 0; they follow the builder's earlier ones.
+        let mut first = None;
+        for p in mesh.positions.chunks_exact(3) {
+            let id = builder.vertex(Vec3::new(p[0], p[1], p[2]));
+            first.get_or_insert(id);
+        }
+        let Some(first) = first else { continue };
+        for t in mesh.indices.chunks_exact(3) {
+            builder.triangle([t[0] + first, t[1] + first, t[2] + first], material);
+        }
+    }
+    if faces_without_material > 0 {
+        builder.warn(format!("{faces_without_material} faces have no known material; default material used"));
+    }
+}
+
+fn convert_material(m: &tobj::Material) -> Material {
+    let rgb = |c: Option<[f32; 3]>| c.map_or(Vec3::ZERO, Vec3::from);
+    Material::from_mtl(
+        m.name.clone(),
+        m.diffuse.map_or(default_material().kd, Vec3::from),
+        rgb(m.emissive),
+        rgb(m.specular),
+        m.shininess.unwrap_or(0.0),
+        // MTL's usual model when none is given: diffuse plus highlights.
+        m.illumination_model.map_or(2, u32::from),
+    )
+}

@@ -1,0 +1,255 @@
+//! The SMA's command line (`sma …`, and `walkthrough sma …` through the launcher): every
+//! refinement parameter is a flag; the defaults, and the measurements behind them, are in
+//! `CriterionSettings::default` / `MeshParams::default` (the core) and on each flag here.
+
+use std::time::Duration;
+
+use anyhow::Context;
+use clap::Parser;
+use protocol::frame::DEFAULT_MAX_FRAME;
+use protocol::viewer_link::SceneInfo;
+use tokio::net::TcpListener;
+use tokio::sync::{mpsc, watch};
+
+use crate::criteria::{CRITERIA, CriterionSettings};
+use crate::mesh::{MeshParams, SubdivisionMesh};
+use crate::pool::{self, PoolConfig};
+use crate::schedule::{Schedule, ScheduleConfig};
+use crate::viewer_link::ViewerLinkConfig;
+use crate::visibility::Gpu;
+
+fn criterion_defaults() -> CriterionSettings {
+    CriterionSettings::default()
+}
+
+fn mesh_defaults() -> MeshParams {
+    MeshParams::default()
+}
+
+#[derive(Parser, Debug, Clone)]
+#[command(name = "sma", about = "Shading Management Agent: visibility, shading cache, refinement")]
+pub struct Cli {
+    /// Scene: a TOML scene file or a built-in name (bracara, cornell).
+    #[arg(long, default_value = "bracara")]
+    pub scene: String,
+    /// Address to accept viewers on.
+    #[arg(long, default_value = "127.0.0.1:7200")]
+    pub listen: String,
+    /// A renderer `host:port`; repeat for several.
+    #[arg(long = "renderer", required = true)]
+    pub renderers: Vec<String>,
+    /// Refinement criterion (each viewer may change its own with SetCriterion).
+    #[arg(long, default_value = "nld-os", value_parser = clap::builder::PossibleValuesParser::new(CRITERIA))]
+    pub criterion: String,
+    /// No refinement at all: only the base mesh is shaded (the control run).
+    #[arg(long)]
+    pub no_refine: bool,
+    /// Seed of the criteria's and the renderers' random streams.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+
+    /// R: leaves a criterion may select per refinement round (§4.3.5); small keeps a camera change
+    /// answered within one round.
+    #[arg(long, default_value_t = 64)]
+    pub max_selections: usize,
+    /// No leaf covering fewer pixels is split (one sample per few pixels is the useful limit).
+    #[arg(long, default_value_t = 6)]
+    pub min_split_pixels: u32,
+    /// K: visibility is re-run after this many new samples.
+    #[arg(long, default_value_t = 20_000)]
+    pub revisit_samples: u64,
+    /// Points per shade batch.
+    #[arg(long, default_value_t = 128)]
+    pub batch_points: usize,
+    /// Batches in flight per renderer.
+    #[arg(long, default_value_t = 4)]
+    pub batches_per_renderer: usize,
+    /// Refinement waits until fewer samples than this are queued or in flight.
+    #[arg(long, default_value_t = 256)]
+    pub queue_low: usize,
+    /// A camera rests (refinement may start) once unchanged this many milliseconds.
+    #[arg(long, default_value_t = 100)]
+    pub rest_ms: u64,
+    /// A view-dependent sample is retaken once the eye has moved by this angle, seen from it.
+    #[arg(long, default_value_t = 2.0)]
+    pub view_angle_deg: f32,
+    /// Seconds between stats lines.
+    #[arg(long, default_value_t = 2.0)]
+    pub stats_secs: f32,
+    /// Shading cache budget, MiB.
+    #[arg(long, default_value_t = 1024)]
+    pub cache_mib: usize,
+    /// Largest frame accepted or sent.
+    #[arg(long, default_value_t = DEFAULT_MAX_FRAME)]
+    pub max_frame: usize,
+
+    /// NLD_OS: first S_ref (§4.3.4).
+    #[arg(long, default_value_t = criterion_defaults().s_ref_start)]
+    pub s_ref_start: f32,
+    /// NLD_OS: S_ref decrease once a pass finds nothing above it.
+    #[arg(long, default_value_t = criterion_defaults().s_ref_step)]
+    pub s_ref_step: f32,
+    /// NLD_OS, NLD_PX: S at or below which a leaf is never selected.
+    #[arg(long, default_value_t = criterion_defaults().s_min)]
+    pub s_min: f32,
+    /// A leaf covering more than this fraction of the image is always selected (§4.3.5).
+    #[arg(long, default_value_t = criterion_defaults().large_triangle_fraction)]
+    pub large_triangle_fraction: f32,
+    /// RND: a pass ends after this fraction of the pixels (§4.3.1).
+    #[arg(long, default_value_t = criterion_defaults().rnd_fraction)]
+    pub rnd_fraction: f32,
+    /// NLD_IS: a pass ends after this fraction of the pixels (§4.3.3).
+    #[arg(long, default_value_t = criterion_defaults().nld_is_fraction)]
+    pub nld_is_fraction: f32,
+    /// Criteria other than RND select no leaf covering fewer pixels (§4.3.3: 6).
+    #[arg(long, default_value_t = criterion_defaults().min_leaf_pixels)]
+    pub min_leaf_pixels: u32,
+    /// NLD_PX: weight of size alone in a leaf's priority (eq. 3.4's ε).
+    #[arg(long, default_value_t = criterion_defaults().nld_px_epsilon)]
+    pub nld_px_epsilon: f32,
+    /// No split below this edge length, scene units.
+    #[arg(long, default_value_t = mesh_defaults().min_edge_length)]
+    pub min_edge_length: f32,
+    /// Weld tolerance for adjacency, fraction of the scene diagonal.
+    #[arg(long, default_value_t = mesh_defaults().weld_tolerance_rel)]
+    pub weld_tolerance: f32,
+}
+
+impl Cli {
+    fn criterion_settings(&self) -> CriterionSettings {
+        CriterionSettings {
+            s_ref_start: self.s_ref_start,
+            s_ref_step: self.s_ref_step,
+            s_min: self.s_min,
+            large_triangle_fraction: self.large_triangle_fraction,
+            rnd_fraction: self.rnd_fraction,
+            nld_is_fraction: self.nld_is_fraction,
+            min_leaf_pixels: self.min_leaf_pixels,
+            nld_px_epsilon: self.nld_px_epsilon,
+        }
+    }
+
+    pub fn schedule_config(&self) -> ScheduleConfig {
+        ScheduleConfig {
+            criterion: self.criterion.clone(),
+            criterion_settings: self.criterion_settings(),
+            refine: !self.no_refine,
+            max_selections: self.max_selections,
+            min_split_pixels: self.min_split_pixels,
+            revisit_samples: self.revisit_samples,
+            batch_points: self.batch_points.max(1),
+            batches_per_renderer: self.batches_per_renderer.max(1),
+            queue_low: self.queue_low,
+            rest: Duration::from_millis(self.rest_ms),
+            view_angle_deg: self.view_angle_deg,
+            stats_every: Duration::from_secs_f32(self.stats_secs.max(0.1)),
+            cache_budget_bytes: self.cache_mib << 20,
+            seed: self.seed,
+        }
+    }
+}
+
+/// Runs the SMA until Ctrl-C (graceful: links closed, threads joined).
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+        )
+        .with_writer(std::io::stderr)
+        .try_init();
+    let runtime = tokio::runtime::Runtime::new().context("starting the async runtime")?;
+    runtime.block_on(serve(cli))
+}
+
+async fn serve(cli: Cli) -> anyhow::Result<()> {
+    let scene = scene::load(&cli.scene).with_context(|| format!("loading scene {:?}", cli.scene))?;
+    let params = MeshParams { min_edge_length: cli.min_edge_length, weld_tolerance_rel: cli.weld_tolerance };
+    let mesh = SubdivisionMesh::new(&scene.mesh, params);
+    let gpu = Gpu::new().context("visibility needs a graphics adapter")?;
+    let (shutdown_tx, shutdown) = watch::channel(false);
+    let (pool_tx, pool_rx) = mpsc::unbounded_channel();
+    let pool = pool::spawn(
+        PoolConfig {
+            renderers: cli.renderers.clone(),
+            fingerprint: scene.fingerprint,
+            depth: cli.batches_per_renderer.max(1),
+            max_frame: cli.max_frame,
+            backoff_min: Duration::from_millis(100),
+            backoff_max: Duration::from_secs(5),
+        },
+        pool_tx,
+        shutdown.clone(),
+    );
+    let link = ViewerLinkConfig {
+        scene_info: scene_info(&scene, &cli.criterion),
+        fingerprint: scene.fingerprint,
+        max_frame: cli.max_frame,
+    };
+    let schedule = Schedule::new(cli.schedule_config(), &scene, mesh, gpu, pool)?;
+    tracing::info!(adapter = %schedule.adapter(), "visibility device");
+    let listener =
+        TcpListener::bind(&cli.listen).await.with_context(|| format!("listening on {}", cli.listen))?;
+    // Tests and the launcher read this line to learn the port when `--listen` asks for port 0.
+    println!("sma listening on {}", listener.local_addr()?);
+    let (viewer_tx, viewer_rx) = mpsc::unbounded_channel();
+    tokio::spawn(crate::server::accept_viewers(listener, link, viewer_tx, shutdown.clone()));
+    let schedule_thread = spawn_schedule(schedule, viewer_rx, pool_rx, shutdown.clone())?;
+    let outcome = tokio::select! {
+        r = tokio::signal::ctrl_c() => r.context("waiting for Ctrl-C"),
+        r = wait_thread(&schedule_thread) => r,
+    };
+    tracing::info!("shutting down");
+    let _ = shutdown_tx.send(true);
+    let joined = tokio::task::spawn_blocking(move || schedule_thread.join()).await?;
+    joined.map_err(|_| anyhow::anyhow!("the schedule thread panicked"))??;
+    outcome
+}
+
+/// The schedule on its own thread with its own single-threaded runtime (see `schedule`).
+fn spawn_schedule(
+    schedule: Schedule,
+    viewers: mpsc::UnboundedReceiver<crate::viewer_link::ViewerEvent>,
+    pool: mpsc::UnboundedReceiver<crate::pool::PoolEvent>,
+    shutdown: watch::Receiver<bool>,
+) -> anyhow::Result<std::thread::JoinHandle<anyhow::Result<()>>> {
+    std::thread::Builder::new()
+        .name("sma-schedule".into())
+        .spawn(move || {
+            let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
+            runtime.block_on(schedule.run(viewers, pool, shutdown))
+        })
+        .context("starting the schedule thread")
+}
+
+/// Resolves when the schedule thread has ended (an error in it ends the process).
+async fn wait_thread(thread: &std::thread::JoinHandle<anyhow::Result<()>>) -> anyhow::Result<()> {
+    while !thread.is_finished() {
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    Ok(())
+}
+
+pub fn scene_info(scene: &scene::Scene, active_criterion: &str) -> SceneInfo {
+    let (lo, hi) = scene.mesh.bounds();
+    let mut criteria = vec![active_criterion.to_string()];
+    criteria.extend(CRITERIA.iter().filter(|c| **c != active_criterion).map(|c| c.to_string()));
+    SceneInfo {
+        name: scene.name.clone(),
+        fingerprint: scene.fingerprint,
+        bounds: protocol::types::Bounds { min: lo.to_array(), max: hi.to_array() },
+        viewpoints: scene
+            .settings
+            .viewpoints
+            .iter()
+            .map(|v| protocol::types::Viewpoint {
+                name: v.name.clone(),
+                eye: v.eye,
+                target: v.target,
+                up: v.up,
+                fov_y_deg: v.fov_y_deg,
+            })
+            .collect(),
+        criteria,
+    }
+}

@@ -1,0 +1,137 @@
+//! Refinement criteria (thesis §4.3, DESIGN.md §6), one module each behind [`Criterion`]. Adding
+//! one: a new file under `criteria/`, a `mod` line, its name in [`CRITERIA`] and an arm in
+//! [`make_criterion`].
+//!
+//! Every criterion returns at most R (`max`) leaves per call (§4.3.5) so the SMA's loop stays
+//! responsive, keeps its progress between calls, and is deterministic for a seed.
+
+mod nld_is;
+mod nld_os;
+mod nld_px;
+mod rnd;
+
+use crate::cache::ShadingCache;
+use crate::mesh::{NodeId, SubdivisionMesh};
+use crate::visible::VisibleSet;
+
+pub use nld_is::NldIs;
+pub use nld_os::NldOs;
+pub use nld_px::NldPx;
+pub use rnd::Rnd;
+
+/// The current state as a criterion sees it.
+pub struct CriterionInput<'a> {
+    pub mesh: &'a SubdivisionMesh,
+    pub cache: &'a ShadingCache,
+    pub visible: &'a VisibleSet,
+    /// L_max of eq. 4.3 (DESIGN.md §6).
+    pub l_white: f32,
+    /// The Gouraud-shaded luminance of the current state, for image-space criteria.
+    pub image: Option<&'a LuminanceImage>,
+}
+
+/// A luminance image and the leaf seen at each pixel, row-major from the top-left.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LuminanceImage {
+    pub width: u32,
+    pub height: u32,
+    pub luminance: Vec<f32>,
+    /// Leaf `NodeId` per pixel, [`LuminanceImage::NONE`] where no geometry is seen.
+    pub ids: Vec<u32>,
+}
+
+impl LuminanceImage {
+    pub const NONE: u32 = u32::MAX;
+
+    fn index(&self, x: u32, y: u32) -> usize {
+        (y * self.width + x) as usize
+    }
+}
+
+pub trait Criterion: Send {
+    fn name(&self) -> &'static str;
+    /// Whether `select` needs `CriterionInput::image`.
+    fn needs_image(&self) -> bool;
+    /// Up to `max` distinct leaves to refine; empty when nothing (more) is worth refining now.
+    fn select(&mut self, input: &CriterionInput, max: usize) -> Vec<NodeId>;
+    /// Start over (the camera moved).
+    fn reset(&mut self);
+}
+
+pub const CRITERIA: &[&str] = &["rnd", "nld-is", "nld-os", "nld-px"];
+
+/// Every parameter of every criterion. Defaults and the measurements behind them are in
+/// `Default` and in each criterion's module documentation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CriterionSettings {
+    /// NLD_OS: first S_ref (§4.3.4).
+    pub s_ref_start: f32,
+    /// NLD_OS: S_ref decreases by this once a pass finds nothing above it.
+    pub s_ref_step: f32,
+    /// NLD_OS, NLD_PX: S at or below which a leaf is never selected for its shading (§4.3.4).
+    pub s_min: f32,
+    /// NLD_OS, NLD_PX: a leaf covering more than this fraction of the image is always selected
+    /// (§4.3.5, fig. 4.10).
+    pub large_triangle_fraction: f32,
+    /// RND: a pass ends after this fraction of width × height pixels has been picked (§4.3.1).
+    pub rnd_fraction: f32,
+    /// NLD_IS: a pass ends after this fraction of width × height leaves has been selected
+    /// (§4.3.3).
+    pub nld_is_fraction: f32,
+    /// All but RND: no selection of a leaf covering fewer pixels (§4.3.3: 6).
+    pub min_leaf_pixels: u32,
+    /// NLD_PX: ε of eq. 3.4, the weight of a leaf's size alone in its priority
+    /// `(ε + (1 - ε) S) × pixels`.
+    pub nld_px_epsilon: f32,
+}
+
+impl Default for CriterionSettings {
+    fn default() -> Self {
+        CriterionSettings {
+            s_ref_start: 0.5,
+            s_ref_step: 0.1,
+            s_min: 0.02,
+            large_triangle_fraction: 0.02,
+            rnd_fraction: 0.1,
+            nld_is_fraction: 0.1,
+            min_leaf_pixels: 6,
+            nld_px_epsilon: 0.05,
+        }
+    }
+}
+
+/// The criterion called `name` (one of [`CRITERIA`]).
+pub fn make_criterion(name: &str, settings: &CriterionSettings, seed: u64) -> Option<Box<dyn Criterion>> {
+    Some(match name {
+        "rnd" => Box::new(Rnd::new(settings, seed)),
+        "nld-is" => Box::new(NldIs::new(settings)),
+        "nld-os" => Box::new(NldOs::new(settings)),
+        "nld-px" => Box::new(NldPx::new(settings)),
+        _ => return None,
+    })
+}
+
+/// Whether a visible leaf covers more than `fraction` of the image (§4.3.5).
+fn is_large(pixels: u32, visible: &VisibleSet, fraction: f32) -> bool {
+    f64::from(pixels) > f64::from(fraction) * visible.image_pixels() as f64
+}
+
+/// S of eq. 4.6 over a leaf's three cached vertex samples, `None` while one is missing.
+fn leaf_nld(input: &CriterionInput, leaf: NodeId, side: protocol::Side) -> Option<f32> {
+    let rgb = input.cache.leaf_radiance(input.mesh, leaf, side)?;
+    Some(crate::nld::nld3(rgb.map(crate::nld::luminance), input.l_white))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_listed_criterion_is_made_and_named_so() {
+        for &name in CRITERIA {
+            let c = make_criterion(name, &CriterionSettings::default(), 1).expect(name);
+            assert_eq!(c.name(), name);
+        }
+        assert!(make_criterion("nope", &CriterionSettings::default(), 1).is_none());
+    }
+}

@@ -1,0 +1,166 @@
+//! NLD_IS (thesis §1.4, §4.3.3; DESIGN.md §6): image space. The luminance image is cut into
+//! quadrants recursively, breadth first (coarse regions before fine ones); for each quadrant cut
+//! into four, the child with the largest S over its four corners (eq. 4.5) has the leaf under its
+//! centre selected if that leaf covers at least `min_leaf_pixels`; every child is still descended,
+//! so no region is skipped. A pass ends at 1-pixel quadrants or after `nld_is_fraction` × width ×
+//! height selections. A call that reaches R selections resumes there next time, on whatever image
+//! it is then given.
+
+use std::collections::{HashMap, HashSet, VecDeque};
+
+use super::{Criterion, CriterionInput, CriterionSettings, LuminanceImage};
+use crate::mesh::NodeId;
+use crate::mesh::fast_hash::FastHash;
+use crate::nld::nld_metric;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Quad {
+    x: u32,
+    y: u32,
+    w: u32,
+    h: u32,
+}
+
+impl Quad {
+    /// The four (or, at odd or unit sizes, fewer) quadrants.
+    fn children(self) -> impl Iterator<Item = Quad> {
+        let (w0, h0) = (self.w.div_ceil(2), self.h.div_ceil(2));
+        [(0, 0, w0, h0), (w0, 0, self.w - w0, h0), (0, h0, w0, self.h - h0), (w0, h0, self.w - w0, self.h - h0)]
+            .into_iter()
+            .filter(|&(_, _, w, h)| w > 0 && h > 0)
+            .map(move |(dx, dy, w, h)| Quad { x: self.x + dx, y: self.y + dy, w, h })
+    }
+
+    /// S of eq. 4.5 over the corners that see geometry.
+    fn nld(self, image: &LuminanceImage, l_white: f32) -> f32 {
+        let (x1, y1) = (self.x + self.w - 1, self.y + self.h - 1);
+        let lum: Vec<f32> = [(self.x, self.y), (x1, self.y), (self.x, y1), (x1, y1)]
+            .into_iter()
+            .map(|(x, y)| image.index(x, y))
+            .filter(|&i| image.ids[i] != LuminanceImage::NONE)
+            .map(|i| image.luminance[i])
+            .collect();
+        nld_metric(&lum, l_white)
+    }
+
+    fn centre_id(self, image: &LuminanceImage) -> u32 {
+        image.ids[image.index(self.x + self.w / 2, self.y + self.h / 2)]
+    }
+}
+
+pub struct NldIs {
+    fraction: f32,
+    min_leaf_pixels: u32,
+    queue: VecDeque<Quad>,
+    started: bool,
+    selected: HashSet<NodeId, FastHash>,
+}
+
+impl NldIs {
+    pub fn new(settings: &CriterionSettings) -> Self {
+        NldIs {
+            fraction: settings.nld_is_fraction,
+            min_leaf_pixels: settings.min_leaf_pixels,
+            queue: VecDeque::new(),
+            started: false,
+            selected: HashSet::default(),
+        }
+    }
+}
+
+impl Criterion for NldIs {
+    fn name(&self) -> &'static str {
+        "nld-is"
+    }
+
+    fn needs_image(&self) -> bool {
+        true
+    }
+
+    fn select(&mut self, input: &CriterionInput, max: usize) -> Vec<NodeId> {
+        let Some(image) = input.image else { return Vec::new() };
+        if image.width == 0 || image.height == 0 {
+            return Vec::new();
+        }
+        if !self.started {
+            self.started = true;
+            self.queue.push_back(Quad { x: 0, y: 0, w: image.width, h: image.height });
+        }
+        let pixels: HashMap<NodeId, u32, FastHash> = input.visible.leaves.iter().map(|v| (v.leaf, v.pixels)).collect();
+        let budget = (f64::from(self.fraction) * f64::from(image.width) * f64::from(image.height)) as usize;
+        let mut out = Vec::new();
+        while out.len() < max {
+            if self.selected.len() >= budget {
+                self.queue.clear();
+            }
+            let Some(quad) = self.queue.pop_front() else { break };
+            // The image may have shrunk since the quad was queued.
+            if quad.x + quad.w > image.width || quad.y + quad.h > image.height {
+                continue;
+            }
+            let children: Vec<Quad> = quad.children().filter(|c| c.w * c.h < quad.w * quad.h).collect();
+            let best = children
+                .iter()
+                .map(|&c| (c, c.nld(image, input.l_white)))
+                .fold(None, |best: Option<(Quad, f32)>, (c, s)| match best {
+                    Some((_, b)) if b >= s => best,
+                    _ => Some((c, s)),
+                });
+            if let Some((child, s)) = best
+                && s > 0.0
+            {
+                let leaf = child.centre_id(image);
+                let big_enough = pixels.get(&leaf).is_some_and(|&p| p >= self.min_leaf_pixels);
+                if big_enough && input.mesh.is_leaf(leaf) && self.selected.insert(leaf) {
+                    out.push(leaf);
+                }
+            }
+            self.queue.extend(children);
+        }
+        out
+    }
+
+    fn reset(&mut self) {
+        self.queue.clear();
+        self.started = false;
+        self.selected.clear();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bench::synthetic::{Shading, Synthetic};
+
+    #[test]
+    fn a_flat_image_selects_nothing_and_an_edge_is_found() {
+        let flat = Synthetic::new(4, 64, Shading::Flat);
+        let mut is = NldIs::new(&CriterionSettings::default());
+        assert!(is.select(&flat.input(), 50).is_empty());
+
+        // On an 8-wide grid leaves lie up to 7 units from the line; quadrant centres of the
+        // first levels up to 2.9 (half the diagonal of a 4-unit quadrant).
+        let edge = Synthetic::new(8, 128, Shading::ShadowEdge);
+        is.reset();
+        let picked = is.select(&edge.input(), 8);
+        assert_eq!(picked.len(), 8);
+        assert!(picked.iter().all(|&l| edge.distance_to_shadow(l) < 3.0), "only leaves near the shadow edge");
+    }
+
+    #[test]
+    fn calls_resume_where_the_last_one_stopped() {
+        let edge = Synthetic::new(4, 64, Shading::ShadowEdge);
+        let mut whole = NldIs::new(&CriterionSettings::default());
+        let all = whole.select(&edge.input(), usize::MAX);
+        let mut parts = NldIs::new(&CriterionSettings::default());
+        let mut resumed = Vec::new();
+        loop {
+            let part = parts.select(&edge.input(), 3);
+            if part.is_empty() {
+                break;
+            }
+            resumed.extend(part);
+        }
+        assert_eq!(resumed, all);
+    }
+}

@@ -1,0 +1,164 @@
+//! NLD_OS (thesis §4.3.4–§4.3.5): object space. A visible leaf is selected when S over its three
+//! vertex samples (eq. 4.6) exceeds S_ref; S_ref starts at `s_ref_start` and drops by
+//! `s_ref_step` each time a whole pass over the visible set selects nothing, down to `s_min`.
+//! Large-triangle rule (§4.3.5, fig. 4.10): a leaf covering more than `large_triangle_fraction`
+//! of the image is selected whatever its S, since a shadow may cross it without touching its
+//! vertices. A leaf is selected at most once per S_ref level (one the caller declined to split
+//! is not offered again), and the level does not drop while the visible set still lists split
+//! leaves or leaves without all samples: their children or samples may be above S_ref.
+
+use std::collections::HashSet;
+
+use super::{Criterion, CriterionInput, CriterionSettings, is_large, leaf_nld};
+use crate::mesh::NodeId;
+use crate::mesh::fast_hash::FastHash;
+
+pub struct NldOs {
+    settings: CriterionSettings,
+    s_ref: f32,
+    cursor: usize,
+    found_in_pass: bool,
+    waiting_in_pass: bool,
+    done: bool,
+    selected_at_level: HashSet<NodeId, FastHash>,
+}
+
+/// What the end of a pass over the visible set leads to.
+#[derive(PartialEq)]
+enum PassEnd {
+    Again,
+    Wait,
+    Done,
+}
+
+impl NldOs {
+    pub fn new(settings: &CriterionSettings) -> Self {
+        NldOs {
+            settings: *settings,
+            s_ref: settings.s_ref_start,
+            cursor: 0,
+            found_in_pass: false,
+            waiting_in_pass: false,
+            done: false,
+            selected_at_level: HashSet::default(),
+        }
+    }
+
+    /// The current S_ref.
+    pub fn s_ref(&self) -> f32 {
+        self.s_ref
+    }
+
+    fn end_pass(&mut self) -> PassEnd {
+        let end = if self.found_in_pass {
+            PassEnd::Again
+        } else if self.waiting_in_pass {
+            PassEnd::Wait
+        } else if self.s_ref > self.settings.s_min {
+            self.s_ref = (self.s_ref - self.settings.s_ref_step).max(self.settings.s_min);
+            self.selected_at_level.clear();
+            PassEnd::Again
+        } else {
+            self.done = true;
+            PassEnd::Done
+        };
+        self.cursor = 0;
+        self.found_in_pass = false;
+        self.waiting_in_pass = false;
+        end
+    }
+}
+
+impl Criterion for NldOs {
+    fn name(&self) -> &'static str {
+        "nld-os"
+    }
+
+    fn needs_image(&self) -> bool {
+        false
+    }
+
+    fn select(&mut self, input: &CriterionInput, max: usize) -> Vec<NodeId> {
+        let leaves = &input.visible.leaves;
+        let mut out = Vec::new();
+        // Two pass ends per call at most: one pass over everything, whatever the levels.
+        let mut pass_ends = 0;
+        while out.len() < max && !self.done {
+            let Some(v) = leaves.get(self.cursor) else {
+                pass_ends += 1;
+                if self.end_pass() != PassEnd::Again || pass_ends > 2 {
+                    break;
+                }
+                continue;
+            };
+            self.cursor += 1;
+            if !input.mesh.is_leaf(v.leaf) {
+                self.waiting_in_pass = true;
+                continue;
+            }
+            if v.pixels < self.settings.min_leaf_pixels || self.selected_at_level.contains(&v.leaf) {
+                continue;
+            }
+            let wanted = if is_large(v.pixels, input.visible, self.settings.large_triangle_fraction) {
+                true
+            } else if let Some(s) = leaf_nld(input, v.leaf, v.side) {
+                s > self.s_ref
+            } else {
+                self.waiting_in_pass = true;
+                false
+            };
+            if wanted {
+                self.selected_at_level.insert(v.leaf);
+                self.found_in_pass = true;
+                out.push(v.leaf);
+            }
+        }
+        out
+    }
+
+    fn reset(&mut self) {
+        *self = NldOs::new(&self.settings);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bench::synthetic::{Shading, Synthetic};
+
+    #[test]
+    fn a_flat_lit_region_is_left_alone() {
+        let flat = Synthetic::new(6, 96, Shading::Flat);
+        let mut os = NldOs::new(&CriterionSettings { large_triangle_fraction: 1.0, ..Default::default() });
+        for _ in 0..10 {
+            assert!(os.select(&flat.input(), 100).is_empty());
+        }
+        assert_eq!(os.s_ref(), CriterionSettings::default().s_min);
+    }
+
+    #[test]
+    fn a_shadow_edge_across_a_strip_is_followed() {
+        let mut edge = Synthetic::new(6, 96, Shading::ShadowEdge);
+        let settings = CriterionSettings { large_triangle_fraction: 1.0, ..Default::default() };
+        let mut os = NldOs::new(&settings);
+        for _ in 0..6 {
+            let picked = os.select(&edge.input(), 16);
+            assert!(picked.iter().all(|&l| edge.straddles_shadow(l)), "only leaves across the edge");
+            edge.refine_and_shade(&picked);
+        }
+        // Refinement concentrates along the edge: the finest leaves straddle it.
+        assert!(edge.mesh.leaf_count() > 3 * 72, "refined: {}", edge.mesh.leaf_count());
+        let deepest = edge.mesh.leaves().max_by_key(|&l| edge.mesh.node(l).depth).unwrap();
+        assert!(edge.distance_to_shadow(deepest) < 0.5, "deepest leaf {deepest} is near the shadow line");
+    }
+
+    #[test]
+    fn the_large_triangle_rule_fires_on_a_flat_big_leaf() {
+        let blob = Synthetic::new(1, 64, Shading::Flat);
+        let mut os = NldOs::new(&CriterionSettings::default());
+        let picked = os.select(&blob.input(), 10);
+        assert_eq!(picked.len(), 2, "both halves of the one square cover half the image");
+        let mut none = NldOs::new(&CriterionSettings { large_triangle_fraction: 1.0, ..Default::default() });
+        assert!(none.select(&blob.input(), 10).is_empty());
+    }
+}

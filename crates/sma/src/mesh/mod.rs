@@ -1,0 +1,346 @@
+//! The hierarchical subdivision mesh of the SMA (thesis §4.2, DESIGN.md §4).
+//!
+//! Every triangle ever made is a [`Node`]; the base triangles are nodes `0..base_count` and the
+//! leaves (nodes without children) form the current triangulation. Refinement is **red–green**
+//! (Bank–Sherman–Weiser): a selected leaf is split 1:4 at its edge midpoints (red, Loop's dyadic
+//! split of §4.2); a neighbour left with one midpoint on its edges is bisected (green); one left
+//! with two or three is split red as well, and so on until no hanging vertex remains. A green
+//! triangle is never split further: when it must be, its parent's green closure is undone and the
+//! parent is split red instead. Hence:
+//!
+//! - **Angles.** Red children are similar to their parent, so every red or base node has exactly
+//!   the angles of its base triangle; greens are one median bisection of such a node. The
+//!   smallest angle of any leaf is therefore at least [`angle_bound`] of its base triangle: the
+//!   smallest angle among the base triangle and its three median bisections (exact, not an
+//!   estimate; the property tests check it).
+//! - **Termination.** Closure only splits a leaf that has a finer neighbour, and never a leaf
+//!   finer than its neighbours, so it stops at the finest level already present.
+//! - **Conformity** holds after every step: the leaves meet edge to edge.
+//!
+//! Adjacency is by *position*: base vertices are welded into points with a tolerance relative to
+//! the scene size (DESIGN.md §4), across material and crease seams, and an edge is a pair of
+//! points, so any number of faces may share one (non-manifold edges). An edge midpoint gets one
+//! vertex per pair of vertex copies, i.e. one per side of a seam, at one shared position
+//! (DESIGN.md §5). Coarsening (thesis §6, future work) undoes a red split when no neighbour is
+//! finer along the parent's edges, re-greening or un-greening what closure then needs.
+
+mod adjacency;
+mod angles;
+mod coarsen;
+pub(crate) mod fast_hash;
+mod grid;
+mod refine;
+mod step;
+mod weld;
+
+#[cfg(test)]
+mod invariants;
+#[cfg(test)]
+pub(crate) mod test_meshes;
+
+use std::collections::HashMap;
+
+use glam::Vec3;
+
+pub use angles::{angle_bound, min_angle};
+pub use grid::grid_mesh;
+use fast_hash::FastHash;
+pub use step::RefinementStep;
+
+/// Any triangle of the hierarchy. Never reused: a removed node stays as a dead entry.
+pub type NodeId = u32;
+/// A mesh vertex: the scene's vertices first (same indices), then edge midpoints.
+pub type VertexId = u32;
+
+/// Below this fraction of the scene's extent an edge is not split: midpoints of shorter edges
+/// would lie within a few hundred f32 ulps of their ends, so positions would start to collide.
+const MIN_EDGE_FRACTION_OF_EXTENT: f32 = 1e-5;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeshParams {
+    /// No red split of a triangle whose longest edge is shorter than twice this (scene units), so
+    /// no child edge drops below it (issue 4: "no split below a set edge length"). Closure splits
+    /// ignore it: conformity comes first. Raised to [`MIN_EDGE_FRACTION_OF_EXTENT`] of the scene
+    /// extent at least.
+    pub min_edge_length: f32,
+    /// Weld tolerance as a fraction of the scene's bounding-box diagonal: base vertices closer
+    /// than this are one point for adjacency. 1e-6 is ten f32 ulps of a scene coordinate, so it
+    /// only absorbs rounding in exported files, never merges distinct modelled corners.
+    pub weld_tolerance_rel: f32,
+}
+
+impl Default for MeshParams {
+    fn default() -> Self {
+        // The pixel veto of the caller (`refine`'s `too_small`) is the working limit; this one
+        // only guards scenes in metres against refining below a millimetre.
+        MeshParams { min_edge_length: 1e-3, weld_tolerance_rel: 1e-6 }
+    }
+}
+
+/// One vertex of the subdivision mesh, with where a renderer should shade it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeshVertex {
+    pub position: Vec3,
+    /// Canonical unit normal; sides of samples are relative to it (DESIGN.md §5).
+    pub normal: Vec3,
+    /// A base triangle the vertex lies on (`u32::MAX` for a scene vertex no triangle uses).
+    pub base_triangle: u32,
+    /// Barycentric weights of that triangle's vertices 1 and 2.
+    pub bary: [f32; 2],
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NodeKind {
+    Base,
+    /// A child of a 1:4 split.
+    Red,
+    /// A child of a closure bisection; never split itself.
+    Green,
+}
+
+/// How a node is split, if it is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Split {
+    None,
+    /// Four children `first..first + 4`: the corners at vertices 0, 1, 2, then the middle one.
+    Red { first_child: NodeId },
+    /// Two children `first..first + 2` bisecting edge `edge` (vertices `edge`, `edge + 1`).
+    Green { first_child: NodeId, edge: u8 },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Node {
+    /// Counter-clockwise like the base triangle; edge `k` runs from vertex `k` to `k + 1`.
+    pub vertices: [VertexId; 3],
+    pub base: u32,
+    pub parent: Option<NodeId>,
+    /// Splits between the base triangle and this node (red or green).
+    pub depth: u8,
+    pub kind: NodeKind,
+    pub split: Split,
+    /// False once removed by coarsening or by undoing a green closure.
+    pub alive: bool,
+}
+
+impl Node {
+    pub fn children(&self) -> std::ops::Range<NodeId> {
+        match self.split {
+            Split::None => 0..0,
+            Split::Red { first_child } => first_child..first_child + 4,
+            Split::Green { first_child, .. } => first_child..first_child + 2,
+        }
+    }
+}
+
+/// A split edge, keyed by its (welded) end points.
+#[derive(Clone, Copy, Debug)]
+struct EdgeSplit {
+    /// The point at the midpoint, shared by every face on the edge.
+    mid_point: u32,
+    /// Live nodes whose split cut this edge; a leaf edge with a count above zero has a hanging
+    /// vertex.
+    splits: u32,
+}
+
+#[derive(Clone, Debug)]
+pub struct SubdivisionMesh {
+    min_split_edge: f32,
+    nodes: Vec<Node>,
+    vertices: Vec<MeshVertex>,
+    /// Welded point of each vertex: adjacency goes by points, shading by vertices.
+    vertex_point: Vec<u32>,
+    point_positions: Vec<Vec3>,
+    base_count: usize,
+    /// Base triangles with two corners welded into one point: never split, no neighbours.
+    degenerate: Vec<bool>,
+    adjacency: adjacency::BaseAdjacency,
+    /// Keyed by point pair; kept when the count drops to zero so a re-split reuses the point.
+    edge_splits: HashMap<u64, EdgeSplit, FastHash>,
+    /// Keyed by vertex pair: one midpoint vertex per side of a seam; kept for ever so a re-split
+    /// finds the vertex, and its cached samples, again.
+    midpoint_vertices: HashMap<u64, VertexId, FastHash>,
+    leaf_count: usize,
+}
+
+/// Key of an unordered pair of ids.
+fn pair_key(a: u32, b: u32) -> u64 {
+    let (lo, hi) = if a < b { (a, b) } else { (b, a) };
+    (u64::from(lo) << 32) | u64::from(hi)
+}
+
+impl SubdivisionMesh {
+    pub fn new(mesh: &scene::Mesh, params: MeshParams) -> Self {
+        let (lo, hi) = mesh.bounds();
+        let extent = if mesh.positions.is_empty() { 0.0 } else { (hi - lo).length() };
+        let (vertex_point, point_positions) =
+            weld::weld(&mesh.positions, params.weld_tolerance_rel * extent);
+        let vertices = base_vertices(mesh);
+        let nodes: Vec<Node> = mesh
+            .triangles
+            .iter()
+            .enumerate()
+            .map(|(t, tri)| Node {
+                vertices: tri.vertices,
+                base: t as u32,
+                parent: None,
+                depth: 0,
+                kind: NodeKind::Base,
+                split: Split::None,
+                alive: true,
+            })
+            .collect();
+        let degenerate: Vec<bool> = nodes
+            .iter()
+            .map(|n| {
+                let [a, b, c] = n.vertices.map(|v| vertex_point[v as usize]);
+                a == b || b == c || c == a
+            })
+            .collect();
+        let adjacency = adjacency::BaseAdjacency::new(&nodes, &vertex_point, &degenerate);
+        SubdivisionMesh {
+            min_split_edge: 2.0 * params.min_edge_length.max(MIN_EDGE_FRACTION_OF_EXTENT * extent),
+            leaf_count: nodes.len(),
+            base_count: nodes.len(),
+            nodes,
+            vertices,
+            vertex_point,
+            point_positions,
+            degenerate,
+            adjacency,
+            edge_splits: HashMap::default(),
+            midpoint_vertices: HashMap::default(),
+        }
+    }
+
+    /// Base triangles are nodes `0..base_count`.
+    pub fn base_count(&self) -> usize {
+        self.base_count
+    }
+
+    /// Every node ever made, dead ones included (ids are `0..node_count`).
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    pub fn vertex_count(&self) -> usize {
+        self.vertices.len()
+    }
+
+    pub fn node(&self, id: NodeId) -> &Node {
+        &self.nodes[id as usize]
+    }
+
+    pub fn is_leaf(&self, id: NodeId) -> bool {
+        let n = &self.nodes[id as usize];
+        n.alive && n.split == Split::None
+    }
+
+    /// The current leaves under base triangle `base`, depth first.
+    pub fn leaves_of_base(&self, base: u32) -> Vec<NodeId> {
+        let mut leaves = Vec::new();
+        let mut stack = vec![base];
+        while let Some(id) = stack.pop() {
+            let node = self.node(id);
+            match node.split {
+                Split::None => leaves.push(id),
+                _ => stack.extend(node.children().rev()),
+            }
+        }
+        leaves
+    }
+
+    /// All current leaves, in base order.
+    pub fn leaves(&self) -> impl Iterator<Item = NodeId> + '_ {
+        (0..self.base_count as u32).flat_map(|b| self.leaves_of_base(b))
+    }
+
+    pub fn leaf_count(&self) -> usize {
+        self.leaf_count
+    }
+
+    pub fn vertex(&self, v: VertexId) -> &MeshVertex {
+        &self.vertices[v as usize]
+    }
+
+    pub fn leaf_positions(&self, id: NodeId) -> [Vec3; 3] {
+        self.node(id).vertices.map(|v| self.vertices[v as usize].position)
+    }
+
+    /// The smallest angle any descendant of `base` can have (see the module documentation).
+    pub fn base_angle_bound(&self, base: u32) -> f32 {
+        angle_bound(self.leaf_positions(base))
+    }
+
+    /// Heap bytes held by the mesh structures (nodes, vertices, points, edge tables), for the
+    /// memory figures of BENCHMARKS.md. Hash tables count their buckets and control bytes.
+    pub fn heap_bytes(&self) -> usize {
+        use std::mem::size_of;
+        fn table<K, V>(t: &HashMap<K, V, FastHash>) -> usize {
+            // hashbrown keeps capacity at 7/8 of a power-of-two bucket count, one control byte each.
+            let buckets = (t.capacity() * 8 / 7).next_power_of_two();
+            buckets * (size_of::<(K, V)>() + 1)
+        }
+        self.nodes.capacity() * size_of::<Node>()
+            + self.vertices.capacity() * size_of::<MeshVertex>()
+            + self.vertex_point.capacity() * size_of::<u32>()
+            + self.point_positions.capacity() * size_of::<Vec3>()
+            + self.degenerate.capacity()
+            + self.adjacency.heap_bytes()
+            + table(&self.edge_splits)
+            + table(&self.midpoint_vertices)
+    }
+
+    fn point_of(&self, v: VertexId) -> u32 {
+        self.vertex_point[v as usize]
+    }
+
+    /// Vertices of edge `k` of a node, in the node's winding.
+    fn edge_vertices(&self, id: NodeId, k: usize) -> (VertexId, VertexId) {
+        let v = self.node(id).vertices;
+        (v[k], v[(k + 1) % 3])
+    }
+
+    /// Point-pair key of edge `k` of a node.
+    fn edge_key(&self, id: NodeId, k: usize) -> u64 {
+        let (a, b) = self.edge_vertices(id, k);
+        pair_key(self.point_of(a), self.point_of(b))
+    }
+
+    /// Live splits of an edge by point-pair key.
+    fn splits_of(&self, key: u64) -> u32 {
+        self.edge_splits.get(&key).map_or(0, |e| e.splits)
+    }
+
+    fn is_degenerate(&self, id: NodeId) -> bool {
+        self.degenerate[self.node(id).base as usize]
+    }
+
+    fn longest_edge(&self, id: NodeId) -> f32 {
+        let [a, b, c] = self.leaf_positions(id);
+        a.distance(b).max(b.distance(c)).max(c.distance(a))
+    }
+}
+
+/// The scene's vertices, each placed on the first triangle that uses it.
+fn base_vertices(mesh: &scene::Mesh) -> Vec<MeshVertex> {
+    let mut vertices: Vec<MeshVertex> = mesh
+        .positions
+        .iter()
+        .zip(&mesh.normals)
+        .map(|(&position, &normal)| MeshVertex {
+            position,
+            normal,
+            base_triangle: u32::MAX,
+            bary: [0.0; 2],
+        })
+        .collect();
+    const CORNER_BARY: [[f32; 2]; 3] = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+    for (t, tri) in mesh.triangles.iter().enumerate().rev() {
+        for (corner, &v) in tri.vertices.iter().enumerate() {
+            let vertex = &mut vertices[v as usize];
+            vertex.base_triangle = t as u32;
+            vertex.bary = CORNER_BARY[corner];
+        }
+    }
+    vertices
+}

@@ -1,0 +1,251 @@
+//! Red–green refinement with closure (module documentation of [`super`]; thesis §4.2).
+
+use glam::Vec3;
+
+use super::step::StepRecorder;
+use super::{
+    EdgeSplit, MeshVertex, Node, NodeId, NodeKind, RefinementStep, Split, SubdivisionMesh,
+    VertexId, pair_key,
+};
+
+/// Children of a red split of (a, b, c) with midpoints m0 on ab, m1 on bc, m2 on ca: the corners
+/// at a, b, c, then the middle one; all counter-clockwise like the parent. The layout is what
+/// `adjacency` relies on.
+fn red_children([a, b, c]: [VertexId; 3], [m0, m1, m2]: [VertexId; 3]) -> [[VertexId; 3]; 4] {
+    [[a, m0, m2], [m0, b, m1], [m2, m1, c], [m0, m1, m2]]
+}
+
+/// Children of a green bisection of edge `s` at `m`: (v_s, m, o) and (m, v_s+1, o).
+fn green_children(v: [VertexId; 3], s: usize, m: VertexId) -> [[VertexId; 3]; 2] {
+    let (a, b, o) = (v[s], v[(s + 1) % 3], v[(s + 2) % 3]);
+    [[a, m, o], [m, b, o]]
+}
+
+/// Barycentric weights of `p` on triangle `t` for its vertices 1 and 2 (least squares in the
+/// triangle's plane).
+fn barycentric(t: [Vec3; 3], p: Vec3) -> [f32; 2] {
+    let (e1, e2, d) = (t[1] - t[0], t[2] - t[0], p - t[0]);
+    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let (d1, d2) = (d.dot(e1), d.dot(e2));
+    let det = d11 * d22 - d12 * d12;
+    if det <= 0.0 {
+        return [0.0; 2];
+    }
+    [(d22 * d1 - d12 * d2) / det, (d11 * d2 - d12 * d1) / det]
+}
+
+impl SubdivisionMesh {
+    /// Refines the selected leaves, each with its whole closure, one step per leaf actually
+    /// split. A selected green leaf has its parent split red instead. Skipped: leaves no longer
+    /// leaves (split by an earlier closure of the same call), leaves `too_small` vetoes (the
+    /// caller's projected-size limit), and those whose red children would have edges below
+    /// `MeshParams::min_edge_length`.
+    pub fn refine(&mut self, selected: &[NodeId], too_small: &dyn Fn(NodeId) -> bool) -> Vec<RefinementStep> {
+        let mut steps = Vec::new();
+        for &leaf in selected {
+            if !self.is_leaf(leaf) || self.is_degenerate(leaf) || too_small(leaf) {
+                continue;
+            }
+            let node = self.node(leaf);
+            let target = match (node.kind, node.parent) {
+                (NodeKind::Green, Some(parent)) => parent,
+                _ => leaf,
+            };
+            if self.longest_edge(target) < self.min_split_edge {
+                continue;
+            }
+            let mut step = StepRecorder::default();
+            let mut queue = Vec::new();
+            self.red_split(target, &mut step, &mut queue);
+            self.close(&mut step, &mut queue);
+            steps.push(step.finish(self));
+        }
+        steps
+    }
+
+    /// Splits leaves with hanging vertices until none is left: one hanging edge gets a green
+    /// bisection, two or three a red split; a green leaf with any has its parent split red.
+    fn close(&mut self, step: &mut StepRecorder, queue: &mut Vec<NodeId>) {
+        while let Some(id) = queue.pop() {
+            if !self.is_leaf(id) || self.is_degenerate(id) {
+                continue;
+            }
+            let mut hanging = (0..3).filter(|&k| self.splits_of(self.edge_key(id, k)) > 0);
+            let Some(first) = hanging.next() else { continue };
+            let more = hanging.next().is_some();
+            let node = self.node(id);
+            match (node.kind, node.parent) {
+                (NodeKind::Green, Some(parent)) => self.red_split(parent, step, queue),
+                _ if more => self.red_split(id, step, queue),
+                _ => self.green_split(id, first, step, queue),
+            }
+        }
+    }
+
+    /// Red split of a leaf or of a green-split node (whose greens are removed first). Queues the
+    /// leaves across its edges and its corner children, which may now have hanging vertices.
+    pub(super) fn red_split(&mut self, id: NodeId, step: &mut StepRecorder, queue: &mut Vec<NodeId>) {
+        if matches!(self.node(id).split, Split::Green { .. }) {
+            self.remove_children(id, step);
+        }
+        let mids = [0, 1, 2].map(|k| self.split_edge(id, k, step));
+        let first = self.push_children(id, NodeKind::Red, &red_children(self.node(id).vertices, mids), step);
+        self.nodes[id as usize].split = Split::Red { first_child: first };
+        for k in 0..3 {
+            self.leaves_across(id, k, queue);
+        }
+        queue.extend(first..first + 3);
+    }
+
+    /// Green bisection of edge `s` of a leaf; queues the two halves.
+    pub(super) fn green_split(&mut self, id: NodeId, s: usize, step: &mut StepRecorder, queue: &mut Vec<NodeId>) {
+        let m = self.split_edge(id, s, step);
+        let first = self.push_children(id, NodeKind::Green, &green_children(self.node(id).vertices, s, m), step);
+        self.nodes[id as usize].split = Split::Green { first_child: first, edge: s as u8 };
+        queue.extend([first, first + 1]);
+    }
+
+    /// Removes the children (all leaves) of `id`, which becomes a leaf again.
+    pub(super) fn remove_children(&mut self, id: NodeId, step: &mut StepRecorder) {
+        let node = *self.node(id);
+        step.before_change(self, id);
+        for child in node.children() {
+            debug_assert!(self.is_leaf(child), "only leaves are removed");
+            step.before_change(self, child);
+            self.nodes[child as usize].alive = false;
+        }
+        let cut: &[usize] = match node.split {
+            Split::Green { edge, .. } => &[edge as usize],
+            _ => &[0, 1, 2],
+        };
+        for &k in cut {
+            let key = self.edge_key(id, k);
+            if let Some(e) = self.edge_splits.get_mut(&key) {
+                e.splits -= 1;
+            }
+        }
+        self.leaf_count = self.leaf_count + 1 - node.children().len();
+        self.nodes[id as usize].split = Split::None;
+    }
+
+    fn push_children(&mut self, parent: NodeId, kind: NodeKind, children: &[[VertexId; 3]], step: &mut StepRecorder) -> NodeId {
+        step.before_change(self, parent);
+        let p = *self.node(parent);
+        let first = self.nodes.len() as NodeId;
+        for (i, &vertices) in children.iter().enumerate() {
+            step.before_change(self, first + i as NodeId);
+            self.nodes.push(Node {
+                vertices,
+                base: p.base,
+                parent: Some(parent),
+                depth: p.depth.saturating_add(1),
+                kind,
+                split: Split::None,
+                alive: true,
+            });
+        }
+        self.leaf_count += children.len() - 1;
+        first
+    }
+
+    /// Marks edge `k` of `id` as split and returns its midpoint vertex for this side of any seam,
+    /// making the point and the vertex the first time.
+    fn split_edge(&mut self, id: NodeId, k: usize, step: &mut StepRecorder) -> VertexId {
+        let (va, vb) = self.edge_vertices(id, k);
+        let (pa, pb) = (self.point_of(va), self.point_of(vb));
+        let next_point = self.point_positions.len() as u32;
+        let split = self
+            .edge_splits
+            .entry(pair_key(pa, pb))
+            .or_insert(EdgeSplit { mid_point: next_point, splits: 0 });
+        split.splits += 1;
+        let mid_point = split.mid_point;
+        if mid_point == next_point {
+            let (a, b) = (self.point_positions[pa as usize], self.point_positions[pb as usize]);
+            self.point_positions.push(0.5 * (a + b));
+        }
+        let vertex_key = pair_key(va, vb);
+        if let Some(&v) = self.midpoint_vertices.get(&vertex_key) {
+            return v;
+        }
+        let v = self.vertices.len() as VertexId;
+        let vertex = self.midpoint_vertex(id, va, vb, self.point_positions[mid_point as usize]);
+        self.vertices.push(vertex);
+        self.vertex_point.push(mid_point);
+        self.midpoint_vertices.insert(vertex_key, v);
+        step.new_vertices.push(v);
+        v
+    }
+
+    /// The midpoint vertex of edge (va, vb) of node `id`: shaded on the node's base triangle,
+    /// normal halfway between the ends' (the node's face normal, turned to `va`'s side, if those
+    /// cancel).
+    fn midpoint_vertex(&self, id: NodeId, va: VertexId, vb: VertexId, position: Vec3) -> MeshVertex {
+        let (na, nb) = (self.vertex(va).normal, self.vertex(vb).normal);
+        let normal = (na + nb).try_normalize().unwrap_or_else(|| {
+            let [a, b, c] = self.leaf_positions(id);
+            let face = (b - a).cross(c - a).normalize_or(na);
+            if face.dot(na) < 0.0 { -face } else { face }
+        });
+        let base = self.node(id).base;
+        MeshVertex { position, normal, base_triangle: base, bary: barycentric(self.leaf_positions(base), position) }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::MeshParams;
+    use crate::mesh::test_meshes::square;
+
+    #[test]
+    fn red_split_of_one_triangle_bisects_its_neighbour_green() {
+        let mut mesh = SubdivisionMesh::new(&square(), MeshParams::default());
+        let steps = mesh.refine(&[0], &|_| false);
+        assert_eq!(steps.len(), 1);
+        let step = &steps[0];
+        assert_eq!(step.replaced_leaves, vec![0, 1]);
+        assert_eq!(step.new_leaves.len(), 4 + 2);
+        assert_eq!(step.new_vertices.len(), 3);
+        assert_eq!(mesh.leaf_count(), 6);
+        assert!(matches!(mesh.node(1).split, Split::Green { .. }));
+        let mid = mesh.vertex(step.new_vertices[1]);
+        assert_eq!(mid.position, Vec3::new(1.0, 0.5, 0.0));
+    }
+
+    #[test]
+    fn selecting_a_green_splits_its_parent_red_and_undoes_the_greens() {
+        let mut mesh = SubdivisionMesh::new(&square(), MeshParams::default());
+        mesh.refine(&[0], &|_| false);
+        let green = mesh.leaves_of_base(1)[0];
+        let step = mesh.refine(&[green], &|_| false).remove(0);
+        assert!(matches!(mesh.node(1).split, Split::Red { .. }));
+        assert_eq!(mesh.leaf_count(), 8);
+        assert_eq!(step.replaced_leaves.len(), 2, "both greens go");
+        assert_eq!(step.new_leaves.len(), 4);
+        assert!(step.new_leaves.iter().all(|&l| mesh.node(l).parent == Some(1)));
+    }
+
+    #[test]
+    fn vetoed_and_too_short_leaves_are_not_split() {
+        let mut mesh = SubdivisionMesh::new(&square(), MeshParams::default());
+        assert!(mesh.refine(&[0], &|id| id == 0).is_empty());
+        let params = MeshParams { min_edge_length: 0.8, ..MeshParams::default() };
+        let mut coarse = SubdivisionMesh::new(&square(), params);
+        assert!(coarse.refine(&[0], &|_| false).is_empty(), "children would have edges < 0.8");
+        assert_eq!(coarse.leaf_count(), 2);
+    }
+
+    #[test]
+    fn midpoint_barycentrics_place_it_on_its_base_triangle() {
+        let mut mesh = SubdivisionMesh::new(&square(), MeshParams::default());
+        let step = mesh.refine(&[1], &|_| false).remove(0);
+        for v in step.new_vertices {
+            let vertex = mesh.vertex(v);
+            let t = mesh.leaf_positions(vertex.base_triangle);
+            let [u, w] = vertex.bary;
+            let p = (1.0 - u - w) * t[0] + u * t[1] + w * t[2];
+            assert!(p.distance(vertex.position) < 1e-6);
+        }
+    }
+}

@@ -1,0 +1,84 @@
+//! What one viewer holds, and the diff that keeps it in step (DESIGN.md §3 step 4, §5, §8):
+//! `Remove` for what left, `Insert` for what came in with all three samples cached, `Update` for
+//! a shown triangle whose samples got better. The caller closes the batch with an `Epoch`.
+
+use std::collections::{HashMap, HashSet};
+
+use protocol::Side;
+use protocol::viewer_link::{Recolour, ShownTriangle, SmaToViewer, TriangleId};
+
+use crate::cache::ShadingCache;
+use crate::mesh::{NodeId, SubdivisionMesh};
+use crate::visible::shown_id;
+
+/// Inserts are split so no frame nears the protocol's maximum (about 80 bytes a triangle).
+const MAX_TRIANGLES_PER_MESSAGE: usize = 100_000;
+
+#[derive(Debug, Default)]
+pub struct Display {
+    /// Shown triangles and the radiance last sent for each.
+    shown: HashMap<TriangleId, [[f32; 3]; 3]>,
+    /// Δins and Δrem since the last epoch.
+    pub inserted: u64,
+    pub removed: u64,
+    /// Wanted triangles not shown yet for lack of samples, after the last sync.
+    pub unshown: usize,
+}
+
+impl Display {
+    pub fn shown(&self) -> usize {
+        self.shown.len()
+    }
+
+    /// Brings the viewer to `targets` (each node with the side it is seen from), as far as the
+    /// cache allows. A shown triangle whose samples were evicted stays as it is.
+    pub fn sync(
+        &mut self,
+        targets: &[(NodeId, Side)],
+        mesh: &SubdivisionMesh,
+        cache: &ShadingCache,
+    ) -> Vec<SmaToViewer> {
+        let wanted: HashSet<TriangleId> = targets.iter().map(|&(n, s)| shown_id(n, s)).collect();
+        let removed: Vec<TriangleId> =
+            self.shown.keys().filter(|id| !wanted.contains(id)).copied().collect();
+        for id in &removed {
+            self.shown.remove(id);
+        }
+        let (mut inserts, mut updates) = (Vec::new(), Vec::new());
+        self.unshown = 0;
+        for &(node, side) in targets {
+            let id = shown_id(node, side);
+            let Some(radiance) = cache.leaf_radiance(mesh, node, side) else {
+                self.unshown += usize::from(!self.shown.contains_key(&id));
+                continue;
+            };
+            match self.shown.insert(id, radiance) {
+                None => inserts.push(ShownTriangle {
+                    id,
+                    positions: mesh.leaf_positions(node).map(|p| p.to_array()),
+                    radiance,
+                }),
+                Some(old) if old != radiance => updates.push(Recolour { id, radiance }),
+                Some(_) => {}
+            }
+        }
+        self.inserted += inserts.len() as u64;
+        self.removed += removed.len() as u64;
+        let mut messages = Vec::new();
+        if !removed.is_empty() {
+            messages.push(SmaToViewer::Remove { ids: removed });
+        }
+        for chunk in inserts.chunks(MAX_TRIANGLES_PER_MESSAGE) {
+            messages.push(SmaToViewer::Insert { triangles: chunk.to_vec() });
+        }
+        for chunk in updates.chunks(MAX_TRIANGLES_PER_MESSAGE) {
+            messages.push(SmaToViewer::Update { triangles: chunk.to_vec() });
+        }
+        messages
+    }
+
+    /// The shown triangles as (node, side, radiance), for the luminance image of `nld-is`.
+    pub fn shown_triangles(&self) -> impl Iterator<Item = (NodeId, [[f32; 3]; 3])> + '_ {
+        self.shown.iter().map(|(&id, &rgb)| (crate::visible::split_shown_id(id).0, rgb))
+    }
+}

@@ -1,0 +1,169 @@
+//! Shade requests (DESIGN.md §3 step 5): the prioritised queue of samples wanted, the keys in
+//! flight, and batching. The queue is re-planned from the visible sets whenever they change, so
+//! priorities follow the camera; a key already in flight at a quality at least as good is never
+//! asked twice.
+
+use std::collections::{HashMap, VecDeque};
+
+use protocol::renderer_link::{Quality, SampleKey, ShadeBatch, ShadePoint};
+
+use crate::cache::ShadingCache;
+
+/// Why a sample is wanted; lower goes first.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Urgency {
+    /// A visible leaf cannot be shown without it (cheap quality first: a complete picture fast).
+    Missing,
+    /// A pending refinement step waits for it (DESIGN.md §4).
+    Refinement,
+    /// A shown sample to upgrade to the scene's quality, or a view-dependent one to retake for
+    /// the eye that moved (DESIGN.md §5, §7).
+    Better,
+}
+
+/// One wanted sample.
+#[derive(Clone, Copy, Debug)]
+pub struct Need {
+    pub point: ShadePoint,
+    pub quality: Quality,
+    pub urgency: Urgency,
+    /// Larger first: on-screen size weighted toward the image centre.
+    pub priority: f32,
+    /// Wanted although a sample of this quality is cached: its eye is out of date.
+    pub new_eye: bool,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct InFlight {
+    best: (u32, u32),
+    count: u32,
+}
+
+#[derive(Default)]
+pub struct Requests {
+    queue: VecDeque<Need>,
+    in_flight: HashMap<SampleKey, InFlight>,
+    batches_in_flight: usize,
+    next_batch_id: u64,
+    seed: u64,
+}
+
+impl Requests {
+    pub fn new(seed: u64) -> Self {
+        Requests { seed, ..Default::default() }
+    }
+
+    /// Replaces the queue with `needs`, best first; one entry per (key, quality).
+    pub fn replan(&mut self, mut needs: Vec<Need>) {
+        needs.sort_by(|a, b| {
+            a.urgency.cmp(&b.urgency).then(b.priority.total_cmp(&a.priority))
+        });
+        let mut seen = std::collections::HashSet::new();
+        needs.retain(|n| seen.insert((n.point.key, n.quality.rank())));
+        self.queue = needs.into();
+    }
+
+    /// Samples asked for and not answered, plus those queued.
+    pub fn outstanding(&self) -> usize {
+        self.queue.len() + self.in_flight_keys()
+    }
+
+    pub fn queued(&self) -> usize {
+        self.queue.len()
+    }
+
+    pub fn in_flight_keys(&self) -> usize {
+        self.in_flight.len()
+    }
+
+    pub fn batches_in_flight(&self) -> usize {
+        self.batches_in_flight
+    }
+
+    /// Whether `key` is being shaded at `quality` or better.
+    pub fn in_flight_at(&self, key: SampleKey, quality: Quality) -> bool {
+        self.in_flight.get(&key).is_some_and(|f| f.best >= quality.rank())
+    }
+
+    /// The next batch: up to `max_points` queued needs of the quality at the head of the queue,
+    /// skipping those a cached sample or one in flight already satisfies.
+    pub fn next_batch(&mut self, max_points: usize, cache: &ShadingCache) -> Option<ShadeBatch> {
+        let mut points = Vec::new();
+        let mut quality = None;
+        while points.len() < max_points {
+            let Some(need) = self.queue.front().copied() else { break };
+            if quality.is_some_and(|q| q != need.quality) {
+                break;
+            }
+            self.queue.pop_front();
+            if self.satisfied(&need, cache) {
+                continue;
+            }
+            quality = Some(need.quality);
+            let entry = self.in_flight.entry(need.point.key).or_insert(InFlight { best: (0, 0), count: 0 });
+            entry.best = entry.best.max(need.quality.rank());
+            entry.count += 1;
+            points.push(need.point);
+        }
+        let quality = quality?;
+        self.next_batch_id += 1;
+        self.batches_in_flight += 1;
+        let batch_id = self.next_batch_id;
+        let seed = self.seed ^ batch_id.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        Some(ShadeBatch { batch_id, quality, seed, points })
+    }
+
+    fn satisfied(&self, need: &Need, cache: &ShadingCache) -> bool {
+        let cached = cache.get(need.point.key).is_some_and(|s| {
+            s.quality.rank() >= need.quality.rank() && (!need.new_eye || s.eye.map(|e| e.to_array()) == need.point.eye)
+        });
+        cached || self.in_flight_at(need.point.key, need.quality)
+    }
+
+    /// A batch came back (answered or failed): its keys are no longer in flight for it.
+    pub fn finished(&mut self, batch: &ShadeBatch) {
+        self.batches_in_flight = self.batches_in_flight.saturating_sub(1);
+        for point in &batch.points {
+            if let Some(f) = self.in_flight.get_mut(&point.key) {
+                f.count -= 1;
+                if f.count == 0 {
+                    self.in_flight.remove(&point.key);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use protocol::Side;
+
+    fn need(vertex: u32, quality: Quality, urgency: Urgency, priority: f32) -> Need {
+        let key = SampleKey { vertex, side: Side::Front };
+        let point = ShadePoint { key, base_triangle: 0, bary: [0.0; 2], side: Side::Front, eye: None };
+        Need { point, quality, urgency, priority, new_eye: false }
+    }
+
+    #[test]
+    fn batches_follow_urgency_then_priority_and_never_repeat_a_key_in_flight() {
+        let cache = ShadingCache::new(1 << 20);
+        let mut r = Requests::new(7);
+        r.replan(vec![
+            need(1, Quality::INTERACTIVE, Urgency::Better, 100.0),
+            need(2, Quality::DIRECT, Urgency::Missing, 1.0),
+            need(3, Quality::DIRECT, Urgency::Missing, 50.0),
+            need(3, Quality::DIRECT, Urgency::Missing, 10.0),
+        ]);
+        assert_eq!(r.outstanding(), 3);
+        let b = r.next_batch(8, &cache).unwrap();
+        assert_eq!(b.quality, Quality::DIRECT);
+        assert_eq!(b.points.iter().map(|p| p.key.vertex).collect::<Vec<_>>(), vec![3, 2]);
+        // Re-planning the same needs while they fly asks nothing twice.
+        r.replan(vec![need(3, Quality::DIRECT, Urgency::Missing, 50.0)]);
+        assert!(r.next_batch(8, &cache).is_none());
+        r.finished(&b);
+        assert_eq!(r.in_flight_keys(), 0);
+        assert_eq!(r.batches_in_flight(), 0);
+    }
+}

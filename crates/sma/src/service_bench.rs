@@ -1,0 +1,146 @@
+//! Figures of the SMA service for BENCHMARKS.md (issue 5): the cost of one ID pass at 1024×768
+//! against submitted triangles (fixed cost and slope, thesis §5.4: 137 triangles/ms plus 30 ms on
+//! 2006 hardware), and the two-level visibility of a built-in scene's named views.
+
+use std::fmt::Write;
+use std::time::Instant;
+
+use glam::Vec3;
+use protocol::viewer_link::Camera;
+use protocol::types::Viewpoint;
+use rand::{RngExt, SeedableRng};
+
+use crate::mesh::{MeshParams, SubdivisionMesh};
+use crate::visibility::{Gpu, IdPass, TriangleBuffer, Visibility};
+
+const WIDTH: u32 = 1024;
+const HEIGHT: u32 = 768;
+
+pub fn section(quick: bool) -> anyhow::Result<String> {
+    let gpu = Gpu::new()?;
+    let runs = if quick { 3 } else { 10 };
+    let mut md = String::from("## SMA service (crates/sma: visibility, schedule, pool)\n\n");
+    writeln!(md, "Adapter: {}.\n", gpu.describe())?;
+    write_pass_cost(&mut md, &gpu, runs, quick)?;
+    drop(gpu);
+    write_scene_views(&mut md, runs)?;
+    Ok(md)
+}
+
+fn median(mut xs: Vec<f64>) -> f64 {
+    xs.sort_by(f64::total_cmp);
+    xs[xs.len() / 2]
+}
+
+/// `n` random triangles filling a 20-unit cube in front of the camera, sized so the total
+/// projected area stays about the same whatever `n` (depth complexity ~ a few).
+fn random_triangles(n: usize, seed: u64) -> Vec<[Vec3; 3]> {
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    let edge = 20.0 * 4.0 / (n as f32).sqrt();
+    let mut r = |s: f32| rng.random_range(-s..s);
+    (0..n)
+        .map(|_| {
+            let c = Vec3::new(r(10.0), r(10.0), r(10.0) - 30.0);
+            [c, c + Vec3::new(r(edge), r(edge), r(edge)), c + Vec3::new(r(edge), r(edge), r(edge))]
+        })
+        .collect()
+}
+
+fn bench_camera() -> Camera {
+    let vp = Viewpoint {
+        name: "bench".into(),
+        eye: [0.0, 0.0, 0.0],
+        target: [0.0, 0.0, -1.0],
+        up: [0.0, 1.0, 0.0],
+        fov_y_deg: 60.0,
+    };
+    Camera::from_viewpoint(&vp, 0, WIDTH, HEIGHT)
+}
+
+/// Median ms of render + readback + per-triangle coverage, per size; then a least-squares line.
+fn write_pass_cost(md: &mut String, gpu: &Gpu, runs: usize, quick: bool) -> anyhow::Result<()> {
+    let sizes: &[usize] = if quick { &[10_000, 100_000, 300_000] } else { &[10_000, 100_000, 1_000_000] };
+    let camera = bench_camera();
+    let view_proj = camera.view_projection(0.1, 100.0);
+    let mut pass = IdPass::new(gpu);
+    writeln!(md, "### Visibility pass at {WIDTH}×{HEIGHT} (render + readback + per-triangle pixel counts)\n")?;
+    writeln!(md, "| submitted triangles | median ms ({runs} runs) | visible triangles |\n|---:|---:|---:|")?;
+    let mut points = Vec::new();
+    for &n in sizes {
+        let tris = random_triangles(n, n as u64);
+        let mut buffer = TriangleBuffer::default();
+        pass.upload(gpu, &tris, &mut buffer);
+        let mut times = Vec::new();
+        let mut visible = 0;
+        for _ in 0..runs + 1 {
+            let t = Instant::now();
+            let image = pass.render(gpu, &buffer, view_proj, WIDTH, HEIGHT)?;
+            visible = image.coverage(n).iter().filter(|c| c.pixels > 0).count();
+            times.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+        times.remove(0); // the first run compiles pipelines and faults pages in
+        let ms = median(times);
+        points.push((n as f64, ms));
+        writeln!(md, "| {n} | {ms:.1} | {visible} |")?;
+    }
+    let (fixed, slope) = fit_line(&points);
+    writeln!(
+        md,
+        "\nLeast-squares fit: fixed cost {fixed:.1} ms, slope {:.0} triangles/ms (targets: <= 10 ms, \
+         >= 2,000 triangles/ms; thesis §5.4 on 2006 hardware: 30 ms, 137 triangles/ms). Uploading the \
+         triangles is not counted: the base mesh is uploaded once, leaves when they change.\n",
+        1.0 / slope.max(1e-12)
+    )?;
+    Ok(())
+}
+
+/// (intercept, slope) of the least-squares line through `points`.
+fn fit_line(points: &[(f64, f64)]) -> (f64, f64) {
+    let n = points.len() as f64;
+    let (sx, sy) = points.iter().fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
+    let (mx, my) = (sx / n, sy / n);
+    let sxx: f64 = points.iter().map(|(x, _)| (x - mx).powi(2)).sum();
+    let sxy: f64 = points.iter().map(|(x, y)| (x - mx) * (y - my)).sum();
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    (my - slope * mx, slope)
+}
+
+/// Both levels on each named view of the built-in scene, unrefined mesh.
+fn write_scene_views(md: &mut String, runs: usize) -> anyhow::Result<()> {
+    let scene = scene::load("bracara")?;
+    let mesh = SubdivisionMesh::new(&scene.mesh, MeshParams::default());
+    let mut visibility = Visibility::new(Gpu::new()?, &mesh, scene.mesh.bounds());
+    writeln!(
+        md,
+        "### Two-level visibility on `bracara` ({} base triangles), {WIDTH}×{HEIGHT}\n",
+        mesh.base_count()
+    )?;
+    writeln!(md, "| view | visible base | visible leaves | median ms ({runs} runs) |\n|---|---:|---:|---:|")?;
+    for vp in &scene.settings.viewpoints {
+        let camera = Camera::from_viewpoint(
+            &Viewpoint { name: vp.name.clone(), eye: vp.eye, target: vp.target, up: vp.up, fov_y_deg: vp.fov_y_deg },
+            0,
+            WIDTH,
+            HEIGHT,
+        );
+        let mut times = Vec::new();
+        let mut last = None;
+        for _ in 0..runs + 1 {
+            let t = Instant::now();
+            last = Some(visibility.leaf_view(&mesh, &camera)?);
+            times.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+        times.remove(0);
+        let view = last.expect("at least one run");
+        writeln!(
+            md,
+            "| {} | {} | {} | {:.1} |",
+            vp.name,
+            view.visible_bases,
+            view.visible.leaves.len(),
+            median(times)
+        )?;
+    }
+    md.push('\n');
+    Ok(())
+}

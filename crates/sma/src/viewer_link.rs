@@ -1,0 +1,123 @@
+//! One accepted viewer (DESIGN.md §2, §8): handshake, `SceneInfo` first, then its messages go to
+//! the schedule and the schedule's messages go out. A malformed, oversized or unknown frame, or a
+//! camera no renderer could use, gets an `Error` reply and this connection closes; every other
+//! viewer is unaffected.
+
+use protocol::connection::accept_handshake;
+use protocol::viewer_link::{Camera, SceneInfo, SmaToViewer, ViewerToSma};
+use protocol::{Fingerprint, ProtocolError, Role, split_tcp};
+use tokio::net::TcpStream;
+use tokio::sync::{mpsc, watch};
+
+/// Identifies one viewer connection for the life of the process.
+pub type ViewerId = u64;
+
+/// Largest image side a viewer may ask for: the visibility passes allocate width × height.
+pub const MAX_IMAGE_SIDE: u32 = 8192;
+
+/// What a viewer connection tells the schedule.
+#[derive(Debug)]
+pub enum ViewerEvent {
+    Joined { id: ViewerId, outbox: mpsc::UnboundedSender<SmaToViewer> },
+    Message { id: ViewerId, message: ViewerToSma },
+    Left { id: ViewerId },
+}
+
+/// What every viewer connection needs to know.
+#[derive(Clone, Debug)]
+pub struct ViewerLinkConfig {
+    pub scene_info: SceneInfo,
+    pub fingerprint: Fingerprint,
+    pub max_frame: usize,
+}
+
+/// Serves one viewer until it leaves, breaks the protocol, or the server shuts down.
+pub async fn serve(
+    stream: TcpStream,
+    id: ViewerId,
+    config: ViewerLinkConfig,
+    events: mpsc::UnboundedSender<ViewerEvent>,
+    mut shutdown: watch::Receiver<bool>,
+) {
+    let peer = stream.peer_addr().map(|a| a.to_string()).unwrap_or_default();
+    let (mut reader, mut writer) = split_tcp::<ViewerToSma, SmaToViewer>(stream, config.max_frame);
+    let handshake = accept_handshake(
+        &mut reader,
+        &mut writer,
+        Role::Sma,
+        Role::Viewer,
+        Some(config.fingerprint),
+        false,
+    );
+    if let Err(e) = handshake.await {
+        tracing::info!(viewer = id, %peer, error = %e, "viewer handshake failed");
+        return;
+    }
+    if writer.send(&SmaToViewer::SceneInfo(config.scene_info)).await.is_err() {
+        return;
+    }
+    tracing::info!(viewer = id, %peer, "viewer connected");
+    let (outbox, mut outgoing) = mpsc::unbounded_channel();
+    if events.send(ViewerEvent::Joined { id, outbox }).is_err() {
+        return;
+    }
+    let ended = loop {
+        tokio::select! {
+            incoming = reader.recv() => match incoming.and_then(checked) {
+                Ok(ViewerToSma::Bye) => break None,
+                Ok(message) => {
+                    if events.send(ViewerEvent::Message { id, message }).is_err() {
+                        break None;
+                    }
+                }
+                Err(e) if e.is_disconnect() => break None,
+                Err(e) => break Some(e),
+            },
+            message = outgoing.recv() => match message {
+                Some(message) => {
+                    if let Err(e) = writer.send(&message).await {
+                        break (!e.is_disconnect()).then_some(e);
+                    }
+                }
+                None => break None,
+            },
+            _ = shutdown.changed() => break None,
+        }
+    };
+    if let Some(e) = ended {
+        tracing::warn!(viewer = id, %peer, error = %e, "closing viewer after a protocol error");
+        let _ = writer.send(&SmaToViewer::Error { message: e.to_string() }).await;
+    }
+    let _ = events.send(ViewerEvent::Left { id });
+    tracing::info!(viewer = id, %peer, "viewer left");
+}
+
+/// Rejects messages that decode but that the SMA cannot act on.
+fn checked(message: ViewerToSma) -> Result<ViewerToSma, ProtocolError> {
+    if let ViewerToSma::Camera(camera) = &message {
+        camera_problem(camera).map_or(Ok(()), |p| Err(ProtocolError::Malformed(p)))?;
+    }
+    Ok(message)
+}
+
+/// Why a camera cannot be rendered, if it cannot.
+pub fn camera_problem(camera: &Camera) -> Option<String> {
+    let finite = camera.eye.iter().chain(&camera.orientation).all(|v| v.is_finite());
+    let norm: f32 = camera.orientation.iter().map(|v| v * v).sum();
+    if !finite || norm < 1e-6 {
+        Some("camera eye or orientation is not finite or not a rotation".into())
+    } else if !(camera.fov_y_deg > 0.1 && camera.fov_y_deg < 179.0) {
+        Some(format!("camera field of view {} is outside (0.1, 179) degrees", camera.fov_y_deg))
+    } else if camera.width == 0
+        || camera.height == 0
+        || camera.width > MAX_IMAGE_SIDE
+        || camera.height > MAX_IMAGE_SIDE
+    {
+        Some(format!(
+            "camera image {}x{} is outside 1..={MAX_IMAGE_SIDE} per side",
+            camera.width, camera.height
+        ))
+    } else {
+        None
+    }
+}

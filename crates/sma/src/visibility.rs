@@ -1,0 +1,16 @@
+//! GPU visibility, headless (DESIGN.md §3 steps 2–3; thesis §4.1).
+//!
+//! - [`gpu`]: the device (a GPU when there is one, else Mesa) and offscreen targets with readback;
+//! - [`id_pass`]: triangles into an R32Uint ID buffer with depth, per-triangle pixel coverage;
+//! - [`levels`]: level 1 over the base mesh, level 2 over the leaves of visible base triangles;
+//! - [`luminance_pass`]: the Gouraud luminance image of what a viewer shows, for `nld-is`.
+
+pub mod gpu;
+pub mod id_pass;
+pub mod levels;
+pub mod luminance_pass;
+
+pub use gpu::{Gpu, GpuError};
+pub use id_pass::{Coverage, IdImage, IdPass, TriangleBuffer};
+pub use levels::{LeafView, Visibility, side_facing};
+pub use luminance_pass::LuminancePass;

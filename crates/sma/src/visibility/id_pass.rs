@@ -1,0 +1,181 @@
+//! The ID pass (DESIGN.md §3 steps 2–3): triangles drawn into an R32Uint target with a depth
+//! test; each pixel holds `index + 1` of the triangle it sees (0: nothing). The index comes from
+//! `@builtin(primitive_index)` where the adapter offers it, else from a flat per-vertex attribute.
+
+use glam::{Mat4, Vec3};
+
+use super::gpu::{Gpu, GpuError, MatrixUniform, OffscreenTarget};
+
+const SHADER_PRIMITIVE_INDEX: &str = r#"
+enable primitive_index;
+@group(0) @binding(0) var<uniform> view_proj: mat4x4<f32>;
+@vertex fn vs_main(@location(0) p: vec3<f32>) -> @builtin(position) vec4<f32> {
+    return view_proj * vec4<f32>(p, 1.0);
+}
+@fragment fn fs_main(@builtin(primitive_index) i: u32) -> @location(0) u32 {
+    return i + 1u;
+}
+"#;
+
+const SHADER_VERTEX_ID: &str = r#"
+@group(0) @binding(0) var<uniform> view_proj: mat4x4<f32>;
+struct Out { @builtin(position) pos: vec4<f32>, @location(0) @interpolate(flat) id: u32 };
+@vertex fn vs_main(@location(0) p: vec3<f32>, @location(1) id: u32) -> Out {
+    return Out(view_proj * vec4<f32>(p, 1.0), id + 1u);
+}
+@fragment fn fs_main(v: Out) -> @location(0) u32 {
+    return v.id;
+}
+"#;
+
+/// Maps depth z to w - z: the same pixels as `Camera::view_projection`, with reversed Z.
+pub fn reversed_z(view_proj: Mat4) -> Mat4 {
+    let flip = Mat4::from_cols_array(&[
+        1.0, 0.0, 0.0, 0.0, //
+        0.0, 1.0, 0.0, 0.0, //
+        0.0, 0.0, -1.0, 0.0, //
+        0.0, 0.0, 1.0, 1.0,
+    ]);
+    flip * view_proj
+}
+
+/// Triangles on the device, ready to draw.
+#[derive(Default)]
+pub struct TriangleBuffer {
+    buffer: Option<wgpu::Buffer>,
+    count: u32,
+}
+
+impl TriangleBuffer {
+    pub fn len(&self) -> usize {
+        self.count as usize
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+}
+
+/// What one triangle covers in an ID image.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Coverage {
+    pub pixels: u32,
+    /// Sums of pixel coordinates, for the centroid (priority: near the centre first).
+    pub sum_x: u64,
+    pub sum_y: u64,
+}
+
+impl Coverage {
+    /// Centroid in pixels (pixel centres at +0.5).
+    pub fn centroid(&self) -> (f32, f32) {
+        let n = self.pixels.max(1) as f64;
+        ((self.sum_x as f64 / n + 0.5) as f32, (self.sum_y as f64 / n + 0.5) as f32)
+    }
+}
+
+/// A read-back ID image, row-major from the top-left.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct IdImage {
+    pub width: u32,
+    pub height: u32,
+    /// `index + 1` of the triangle seen at each pixel, 0 for none.
+    pub ids: Vec<u32>,
+}
+
+impl IdImage {
+    /// Coverage of each of `triangles` submitted triangles (index = submission order).
+    pub fn coverage(&self, triangles: usize) -> Vec<Coverage> {
+        let mut cov = vec![Coverage::default(); triangles];
+        for (i, &id) in self.ids.iter().enumerate() {
+            if let Some(c) = id.checked_sub(1).and_then(|t| cov.get_mut(t as usize)) {
+                c.pixels += 1;
+                c.sum_x += (i as u32 % self.width) as u64;
+                c.sum_y += (i as u32 / self.width) as u64;
+            }
+        }
+        cov
+    }
+}
+
+/// The ID pipeline and its reusable target.
+pub struct IdPass {
+    uniform: MatrixUniform,
+    pipeline: wgpu::RenderPipeline,
+    /// The fallback path: each vertex carries its triangle's index.
+    vertex_ids: bool,
+    target: Option<OffscreenTarget>,
+}
+
+const POSITION_ATTRS: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![0 => Float32x3];
+const POSITION_ID_ATTRS: [wgpu::VertexAttribute; 2] =
+    wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32];
+
+impl IdPass {
+    pub fn new(gpu: &Gpu) -> Self {
+        let uniform = MatrixUniform::new(gpu);
+        let vertex_ids = !gpu.primitive_index;
+        let (shader, stride, attributes): (_, u64, &[wgpu::VertexAttribute]) = if vertex_ids {
+            (SHADER_VERTEX_ID, 16, &POSITION_ID_ATTRS)
+        } else {
+            (SHADER_PRIMITIVE_INDEX, 12, &POSITION_ATTRS)
+        };
+        let layout = wgpu::VertexBufferLayout {
+            array_stride: stride,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes,
+        };
+        let pipeline = uniform.pipeline(gpu, shader, layout, wgpu::TextureFormat::R32Uint);
+        IdPass { uniform, pipeline, vertex_ids, target: None }
+    }
+
+    /// Uploads triangles; triangle `i` of `triangles` gets id `i + 1` in the image.
+    pub fn upload(&self, gpu: &Gpu, triangles: &[[Vec3; 3]], into: &mut TriangleBuffer) {
+        let words_per_vertex = if self.vertex_ids { 4 } else { 3 };
+        let mut words: Vec<u32> = Vec::with_capacity(triangles.len() * 3 * words_per_vertex);
+        for (i, tri) in triangles.iter().enumerate() {
+            for p in tri {
+                words.extend(p.to_array().map(f32::to_bits));
+                if self.vertex_ids {
+                    words.push(i as u32);
+                }
+            }
+        }
+        gpu.upload_into(&mut into.buffer, bytemuck::cast_slice(&words));
+        into.count = triangles.len() as u32;
+    }
+
+    /// Draws `triangles` seen through `view_proj` (a `Camera::view_projection`) and reads back.
+    pub fn render(
+        &mut self,
+        gpu: &Gpu,
+        triangles: &TriangleBuffer,
+        view_proj: Mat4,
+        width: u32,
+        height: u32,
+    ) -> Result<IdImage, GpuError> {
+        self.uniform.set(gpu, reversed_z(view_proj));
+        let target = fitted_target(&mut self.target, gpu, wgpu::TextureFormat::R32Uint, width, height);
+        let ids = target.draw_and_read::<u32>(
+            gpu,
+            &self.pipeline,
+            &self.uniform.bind_group,
+            triangles.buffer.as_ref(),
+            triangles.count * 3,
+        )?;
+        Ok(IdImage { width, height, ids })
+    }
+}
+
+/// The target in `slot`, recreated when the image size changed.
+pub fn fitted_target<'a>(
+    slot: &'a mut Option<OffscreenTarget>,
+    gpu: &Gpu,
+    format: wgpu::TextureFormat,
+    width: u32,
+    height: u32,
+) -> &'a OffscreenTarget {
+    if slot.as_ref().is_none_or(|t| t.width != width || t.height != height) {
+        *slot = Some(OffscreenTarget::new(gpu, format, width, height));
+    }
+    slot.as_ref().expect("just filled")
+}

@@ -1,0 +1,106 @@
+//! The two visibility levels of DESIGN.md §3 (thesis §4.1, "segundo nível de visibilidade"):
+//! level 1 renders the base mesh (uploaded once) and finds the visible base triangles; level 2
+//! renders only the leaves of those and yields the visible set V_t keyed by (leaf, side), with
+//! pixel counts and centroids, and the leaf under every pixel.
+
+use glam::{Mat4, Vec3};
+use protocol::Side;
+use protocol::viewer_link::Camera;
+
+use super::gpu::{Gpu, GpuError};
+use super::id_pass::{Coverage, IdPass, TriangleBuffer};
+use crate::mesh::{NodeId, SubdivisionMesh};
+use crate::visible::{VisibleLeaf, VisibleSet};
+
+/// The result of one two-level pass for one camera.
+#[derive(Clone, Debug, Default)]
+pub struct LeafView {
+    pub visible: VisibleSet,
+    /// Pixel centroid of each entry of `visible.leaves`, same order.
+    pub centroids: Vec<(f32, f32)>,
+    /// The leaf seen at each pixel, row-major from the top-left; `None` for background.
+    pub pixel_leaves: Vec<Option<NodeId>>,
+    /// Base triangles visible at level 1, and leaves submitted at level 2 (for benchmarks).
+    pub visible_bases: usize,
+    pub submitted_leaves: usize,
+}
+
+/// Owns the device, the ID pipeline and the uploaded base mesh.
+pub struct Visibility {
+    gpu: Gpu,
+    pass: IdPass,
+    base: TriangleBuffer,
+    leaves: TriangleBuffer,
+    /// Scene bounds, for near and far planes that hold the whole scene.
+    bounds: (Vec3, Vec3),
+}
+
+impl Visibility {
+    pub fn new(gpu: Gpu, mesh: &SubdivisionMesh, bounds: (Vec3, Vec3)) -> Self {
+        let pass = IdPass::new(&gpu);
+        let mut base = TriangleBuffer::default();
+        let base_triangles: Vec<[Vec3; 3]> =
+            (0..mesh.base_count() as NodeId).map(|b| mesh.leaf_positions(b)).collect();
+        pass.upload(&gpu, &base_triangles, &mut base);
+        Visibility { gpu, pass, base, leaves: TriangleBuffer::default(), bounds }
+    }
+
+    pub fn gpu(&self) -> &Gpu {
+        &self.gpu
+    }
+
+    /// Camera -> clip for this scene: far reaches the farthest corner of the scene bounds; near
+    /// is a small fraction of it (depth is reversed-Z float, so the ratio costs no precision).
+    pub fn view_projection(&self, camera: &Camera) -> Mat4 {
+        let (lo, hi) = self.bounds;
+        let eye = camera.eye_vec();
+        let far = (eye - lo).abs().max((eye - hi).abs()).length().max(1e-3) * 1.01;
+        camera.view_projection(far * 1e-5, far)
+    }
+
+    /// Levels 1 and 2 for one camera.
+    pub fn leaf_view(&mut self, mesh: &SubdivisionMesh, camera: &Camera) -> Result<LeafView, GpuError> {
+        let view_proj = self.view_projection(camera);
+        let (w, h) = (camera.width, camera.height);
+        let level1 = self.pass.render(&self.gpu, &self.base, view_proj, w, h)?;
+        let bases: Vec<u32> = level1
+            .coverage(mesh.base_count())
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.pixels > 0)
+            .map(|(b, _)| b as u32)
+            .collect();
+        let submitted: Vec<NodeId> = bases.iter().flat_map(|&b| mesh.leaves_of_base(b)).collect();
+        let positions: Vec<[Vec3; 3]> = submitted.iter().map(|&l| mesh.leaf_positions(l)).collect();
+        self.pass.upload(&self.gpu, &positions, &mut self.leaves);
+        let level2 = self.pass.render(&self.gpu, &self.leaves, view_proj, w, h)?;
+        let coverage = level2.coverage(submitted.len());
+        let eye = camera.eye_vec();
+        let (mut leaves, mut centroids) = (Vec::new(), Vec::new());
+        for (i, c) in coverage.iter().enumerate().filter(|(_, c)| c.pixels > 0) {
+            let leaf = submitted[i];
+            leaves.push(VisibleLeaf { leaf, side: side_facing(mesh, leaf, eye), pixels: c.pixels });
+            centroids.push(Coverage::centroid(c));
+        }
+        let pixel_leaves =
+            level2.ids.iter().map(|&id| id.checked_sub(1).map(|i| submitted[i as usize])).collect();
+        Ok(LeafView {
+            visible: VisibleSet { leaves, width: w, height: h },
+            centroids,
+            pixel_leaves,
+            visible_bases: bases.len(),
+            submitted_leaves: submitted.len(),
+        })
+    }
+}
+
+/// The side of `node` that faces `eye`, relative to its vertices' canonical normals
+/// (DESIGN.md §5). A pinhole camera sees a flat triangle from exactly the side of its plane the eye
+/// is on, so this is exact for every pixel of the triangle.
+pub fn side_facing(mesh: &SubdivisionMesh, node: NodeId, eye: Vec3) -> Side {
+    let [a, b, c] = mesh.leaf_positions(node);
+    let face = (b - a).cross(c - a);
+    let canonical: Vec3 = mesh.node(node).vertices.iter().map(|&v| mesh.vertex(v).normal).sum();
+    let toward_eye = face.dot(eye - (a + b + c) / 3.0);
+    if toward_eye * face.dot(canonical) >= 0.0 { Side::Front } else { Side::Back }
+}

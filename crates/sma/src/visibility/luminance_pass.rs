@@ -1,0 +1,68 @@
+//! The luminance pass for `nld-is` (DESIGN.md §6): the triangles a viewer shows, Gouraud-shaded
+//! with their vertex luminances, into an R32Float image (0 where nothing is seen).
+
+use glam::{Mat4, Vec3};
+
+use super::gpu::{Gpu, GpuError, MatrixUniform, OffscreenTarget};
+use super::id_pass::{fitted_target, reversed_z};
+
+const SHADER: &str = r#"
+@group(0) @binding(0) var<uniform> view_proj: mat4x4<f32>;
+struct Out { @builtin(position) pos: vec4<f32>, @location(0) lum: f32 };
+@vertex fn vs_main(@location(0) p: vec3<f32>, @location(1) lum: f32) -> Out {
+    return Out(view_proj * vec4<f32>(p, 1.0), lum);
+}
+@fragment fn fs_main(v: Out) -> @location(0) f32 {
+    return v.lum;
+}
+"#;
+
+const ATTRS: [wgpu::VertexAttribute; 2] = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32];
+
+pub struct LuminancePass {
+    uniform: MatrixUniform,
+    pipeline: wgpu::RenderPipeline,
+    vertices: Option<wgpu::Buffer>,
+    target: Option<OffscreenTarget>,
+}
+
+impl LuminancePass {
+    pub fn new(gpu: &Gpu) -> Self {
+        let uniform = MatrixUniform::new(gpu);
+        let layout = wgpu::VertexBufferLayout {
+            array_stride: 16,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &ATTRS,
+        };
+        let pipeline = uniform.pipeline(gpu, SHADER, layout, wgpu::TextureFormat::R32Float);
+        LuminancePass { uniform, pipeline, vertices: None, target: None }
+    }
+
+    /// Draws triangles given as (positions, vertex luminances) and reads the image back.
+    pub fn render(
+        &mut self,
+        gpu: &Gpu,
+        triangles: &[([Vec3; 3], [f32; 3])],
+        view_proj: Mat4,
+        width: u32,
+        height: u32,
+    ) -> Result<Vec<f32>, GpuError> {
+        let mut words: Vec<f32> = Vec::with_capacity(triangles.len() * 12);
+        for (positions, lum) in triangles {
+            for (p, l) in positions.iter().zip(lum) {
+                words.extend([p.x, p.y, p.z, *l]);
+            }
+        }
+        gpu.upload_into(&mut self.vertices, bytemuck::cast_slice(&words));
+        self.uniform.set(gpu, reversed_z(view_proj));
+        let target =
+            fitted_target(&mut self.target, gpu, wgpu::TextureFormat::R32Float, width, height);
+        target.draw_and_read::<f32>(
+            gpu,
+            &self.pipeline,
+            &self.uniform.bind_group,
+            self.vertices.as_ref(),
+            triangles.len() as u32 * 3,
+        )
+    }
+}

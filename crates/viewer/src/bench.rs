@@ -1,0 +1,226 @@
+//! The viewer's figures for BENCHMARKS.md (issue 6): how fast updates are applied (target: 2 M
+//! triangles a second) and how long a frame takes at 100k and 1M triangles.
+//!
+//! Update batches are what the SMA sends between epochs: inserts of new triangles and removes of
+//! random held ones, applied to the table and uploaded to the GPU, waiting for the queue so the
+//! upload is really done. Frames draw a finely tessellated wall filling a 1024×768 view, because the
+//! SMA sends only visible leaves: depth complexity stays near one, as in a real walkthrough.
+
+use std::fmt::Write as _;
+use std::time::Instant;
+
+use protocol::types::Viewpoint;
+use protocol::viewer_link::{Camera, ShownTriangle};
+
+use crate::draw::{DrawSettings, depth_range};
+use crate::gpu::{Gpu, headless_or_skip};
+use crate::offscreen::Offscreen;
+use crate::table::TriangleTable;
+use crate::update::TableOp;
+use crate::vertex_buffer::GpuTriangles;
+
+const WIDTH: u32 = 1024;
+const HEIGHT: u32 = 768;
+
+struct Plan {
+    table_size: usize,
+    batch: usize,
+    batches_per_run: usize,
+    runs: usize,
+    frame_sizes: &'static [usize],
+    frames: usize,
+}
+
+const FULL: Plan = Plan {
+    table_size: 1_000_000,
+    batch: 10_000,
+    batches_per_run: 10,
+    runs: 7,
+    frame_sizes: &[100_000, 1_000_000],
+    frames: 7,
+};
+const QUICK: Plan = Plan {
+    table_size: 100_000,
+    batch: 10_000,
+    batches_per_run: 5,
+    runs: 3,
+    frame_sizes: &[100_000],
+    frames: 3,
+};
+
+/// The Markdown section; `quick` uses smaller sizes and fewer runs (for CI).
+pub fn section(quick: bool) -> anyhow::Result<String> {
+    let plan = if quick { QUICK } else { FULL };
+    let gpu = headless_or_skip("viewer benchmark")?;
+    let mut out = String::from("## Viewer: applying updates and drawing\n\n");
+    let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
+    let adapter = gpu.as_ref().map_or("none".to_string(), Gpu::describe);
+    writeln!(out, "Adapter: {adapter}; {cores} CPU cores; medians of {} runs.\n", plan.runs)?;
+    writeln!(out, "| measure | median | min | max |\n|---|---|---|---|")?;
+
+    let cpu = apply_rates(&plan, None)?;
+    row(&mut out, &format!("updates applied, table only ({})", batch_words(&plan)), &cpu, "M tri/s")?;
+    if let Some(gpu) = &gpu {
+        let with_upload = apply_rates(&plan, Some(gpu))?;
+        let label = format!("updates applied + uploaded ({})", batch_words(&plan));
+        row(&mut out, &label, &with_upload, "M tri/s")?;
+        for &n in plan.frame_sizes {
+            let times = frame_times(gpu, n, plan.frames)?;
+            row(&mut out, &format!("frame time, {n} triangles, {WIDTH}×{HEIGHT}"), &times, "ms")?;
+        }
+        let verdict = if median(&with_upload) >= 2.0 { "met" } else { "NOT met" };
+        writeln!(out, "\nTarget of 2 M triangles/s applied (with upload): {verdict}.")?;
+    } else {
+        writeln!(out, "\nNo graphics adapter: upload and frame times not measured.")?;
+    }
+    Ok(out)
+}
+
+fn batch_words(plan: &Plan) -> String {
+    format!("{} table, batches of {}+{} ins+rem", plan.table_size, plan.batch, plan.batch)
+}
+
+fn row(out: &mut String, label: &str, values: &[f64], unit: &str) -> std::fmt::Result {
+    let min = values.iter().copied().fold(f64::INFINITY, f64::min);
+    let max = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    writeln!(out, "| {label} | {:.2} {unit} | {min:.2} | {max:.2} |", median(values))
+}
+
+fn median(values: &[f64]) -> f64 {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+/// Millions of triangles (inserted + removed) applied per second, one figure per run.
+fn apply_rates(plan: &Plan, gpu: Option<&Gpu>) -> anyhow::Result<Vec<f64>> {
+    let mut rng = XorShift(0x9e37_79b9_7f4a_7c15);
+    let mut table = TriangleTable::new();
+    let mut held: Vec<u64> = (0..plan.table_size as u64).collect();
+    let mut next_id = plan.table_size as u64;
+    table.apply(&[TableOp::Insert(held.iter().map(|&id| random_triangle(id, &mut rng)).collect())]);
+    let mut uploaded = gpu.map(|g| GpuTriangles::new(&g.device));
+    if let (Some(g), Some(u)) = (gpu, uploaded.as_mut()) {
+        u.sync(&g.device, &g.queue, &mut table);
+        g.wait_idle()?;
+    }
+    let mut rates = Vec::new();
+    for _ in 0..plan.runs {
+        let batches: Vec<Vec<TableOp>> = (0..plan.batches_per_run)
+            .map(|_| {
+                let inserts = (0..plan.batch)
+                    .map(|_| {
+                        next_id += 1;
+                        held.push(next_id);
+                        random_triangle(next_id, &mut rng)
+                    })
+                    .collect();
+                let removes = (0..plan.batch)
+                    .map(|_| held.swap_remove(rng.below(held.len())))
+                    .collect();
+                vec![TableOp::Insert(inserts), TableOp::Remove(removes)]
+            })
+            .collect();
+        let start = Instant::now();
+        for ops in &batches {
+            table.apply(ops);
+            if let (Some(g), Some(u)) = (gpu, uploaded.as_mut()) {
+                u.sync(&g.device, &g.queue, &mut table);
+                g.queue.submit([]);
+                g.wait_idle()?;
+            }
+        }
+        let seconds = start.elapsed().as_secs_f64();
+        rates.push((2 * plan.batch * plan.batches_per_run) as f64 / seconds / 1e6);
+    }
+    Ok(rates)
+}
+
+/// Milliseconds per frame (draw + wait) for a wall of `n` triangles filling the view.
+fn frame_times(gpu: &Gpu, n: usize, frames: usize) -> anyhow::Result<Vec<f64>> {
+    let mut table = TriangleTable::new();
+    table.apply(&[TableOp::Insert(wall(n))]);
+    let mut triangles = GpuTriangles::new(&gpu.device);
+    triangles.sync(&gpu.device, &gpu.queue, &mut table);
+    let camera = wall_camera();
+    let offscreen = Offscreen::new(gpu, WIDTH, HEIGHT);
+    let depth = depth_range(&camera, table.extent());
+    let settings = DrawSettings { l_white: 2.0, ..DrawSettings::default() };
+    offscreen.draw_frame(gpu, &triangles, &camera, depth, &settings)?; // warm-up
+    (0..frames)
+        .map(|_| {
+            let start = Instant::now();
+            offscreen.draw_frame(gpu, &triangles, &camera, depth, &settings)?;
+            Ok(start.elapsed().as_secs_f64() * 1e3)
+        })
+        .collect()
+}
+
+/// A 4×3 wall at z = 0 cut into `n` triangles (rounded to a grid), radiance varying across it.
+fn wall(n: usize) -> Vec<ShownTriangle> {
+    let cols = ((n as f64 / 2.0 * 4.0 / 3.0).sqrt().ceil() as usize).max(1);
+    let rows = (n / 2).div_ceil(cols).max(1);
+    let point = |i: usize, j: usize| [4.0 * i as f32 / cols as f32 - 2.0, 3.0 * j as f32 / rows as f32 - 1.5, 0.0];
+    let radiance = |p: [f32; 3]| [0.5 + 0.25 * p[0], 0.6, 0.4 + 0.2 * p[1]];
+    let mut out = Vec::with_capacity(2 * cols * rows);
+    for j in 0..rows {
+        for i in 0..cols {
+            let [a, b, c, d] = [point(i, j), point(i + 1, j), point(i + 1, j + 1), point(i, j + 1)];
+            for (k, positions) in [[a, b, c], [a, c, d]].into_iter().enumerate() {
+                let id = (2 * (j * cols + i) + k) as u64;
+                out.push(ShownTriangle { id, positions, radiance: positions.map(radiance) });
+            }
+        }
+    }
+    out
+}
+
+/// Looks at the wall from where it just fills a 1024×768 view.
+fn wall_camera() -> Camera {
+    let vp = Viewpoint {
+        name: "wall".into(),
+        eye: [0.0, 0.0, 2.5],
+        target: [0.0, 0.0, 0.0],
+        up: [0.0, 1.0, 0.0],
+        fov_y_deg: 60.0,
+    };
+    Camera::from_viewpoint(&vp, 1, WIDTH, HEIGHT)
+}
+
+fn random_triangle(id: u64, rng: &mut XorShift) -> ShownTriangle {
+    let mut p = || [rng.unit(), rng.unit(), rng.unit()];
+    ShownTriangle { id, positions: [p(), p(), p()], radiance: [p(), p(), p()] }
+}
+
+/// A tiny deterministic generator: the benchmark needs repeatable ids, not statistical quality.
+struct XorShift(u64);
+
+impl XorShift {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+
+    fn unit(&mut self) -> f32 {
+        (self.next() >> 40) as f32 / (1u64 << 24) as f32
+    }
+
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_wall_has_about_n_triangles_with_unique_ids() {
+        let w = wall(1000);
+        assert!((1000..1100).contains(&w.len()), "{}", w.len());
+        let ids: std::collections::HashSet<u64> = w.iter().map(|t| t.id).collect();
+        assert_eq!(ids.len(), w.len());
+    }
+}

@@ -1,0 +1,118 @@
+//! A scripted walk: keyframes of eye, target and field of view in time, interpolated linearly.
+//!
+//! File format, one keyframe a line, `#` starts a comment:
+//! ```text
+//! # time_s  eye_x eye_y eye_z   target_x target_y target_z   [fov_y_deg]
+//! 0.0       0 1.6 8             0 1.6 0
+//! 4.0       3 1.6 6             0 1.2 0                      50
+//! ```
+//! Times must increase. A missing field of view keeps the previous keyframe's (the first one's
+//! defaults to the starting view's). Up is +Y.
+
+use anyhow::{Context, bail};
+use glam::Vec3;
+use protocol::types::Viewpoint;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Keyframe {
+    pub time_s: f32,
+    pub eye: Vec3,
+    pub target: Vec3,
+    pub fov_y_deg: f32,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraPath {
+    keys: Vec<Keyframe>,
+}
+
+impl CameraPath {
+    pub fn load(path: &std::path::Path, default_fov: f32) -> anyhow::Result<CameraPath> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("reading camera path {}", path.display()))?;
+        Self::parse(&text, default_fov).with_context(|| format!("in {}", path.display()))
+    }
+
+    pub fn parse(text: &str, default_fov: f32) -> anyhow::Result<CameraPath> {
+        let mut keys: Vec<Keyframe> = Vec::new();
+        for (n, line) in text.lines().enumerate() {
+            let line = line.split('#').next().unwrap_or("").trim();
+            if line.is_empty() {
+                continue;
+            }
+            let fields = line
+                .split_whitespace()
+                .map(str::parse::<f32>)
+                .collect::<Result<Vec<_>, _>>()
+                .with_context(|| format!("line {}: not a number", n + 1))?;
+            let fov = keys.last().map_or(default_fov, |k| k.fov_y_deg);
+            let key = match fields[..] {
+                [t, ex, ey, ez, tx, ty, tz] => keyframe(t, [ex, ey, ez], [tx, ty, tz], fov),
+                [t, ex, ey, ez, tx, ty, tz, f] => keyframe(t, [ex, ey, ez], [tx, ty, tz], f),
+                _ => bail!("line {}: expected 7 or 8 numbers, found {}", n + 1, fields.len()),
+            };
+            if keys.last().is_some_and(|k| k.time_s >= key.time_s) {
+                bail!("line {}: times must increase", n + 1);
+            }
+            if !(key.fov_y_deg > 0.0 && key.fov_y_deg < 180.0) {
+                bail!("line {}: field of view must lie in (0, 180) degrees", n + 1);
+            }
+            keys.push(key);
+        }
+        if keys.is_empty() {
+            bail!("a camera path needs at least one keyframe");
+        }
+        Ok(CameraPath { keys })
+    }
+
+    /// The viewpoint at `t` seconds (held at the ends).
+    pub fn at(&self, t: f32) -> Viewpoint {
+        let i = self.keys.partition_point(|k| k.time_s <= t);
+        let (a, b) = match i {
+            0 => (&self.keys[0], &self.keys[0]),
+            i if i == self.keys.len() => (&self.keys[i - 1], &self.keys[i - 1]),
+            i => (&self.keys[i - 1], &self.keys[i]),
+        };
+        let s = if b.time_s > a.time_s { (t - a.time_s) / (b.time_s - a.time_s) } else { 0.0 };
+        Viewpoint {
+            name: "path".into(),
+            eye: a.eye.lerp(b.eye, s).to_array(),
+            target: a.target.lerp(b.target, s).to_array(),
+            up: [0.0, 1.0, 0.0],
+            fov_y_deg: a.fov_y_deg + (b.fov_y_deg - a.fov_y_deg) * s,
+        }
+    }
+
+    /// When the walk ends.
+    pub fn duration_s(&self) -> f32 {
+        self.keys.last().map_or(0.0, |k| k.time_s)
+    }
+}
+
+fn keyframe(t: f32, eye: [f32; 3], target: [f32; 3], fov: f32) -> Keyframe {
+    Keyframe { time_s: t, eye: Vec3::from(eye), target: Vec3::from(target), fov_y_deg: fov }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn interpolates_between_keyframes_and_holds_at_the_ends() {
+        let path = CameraPath::parse("# walk\n0 0 0 0  0 0 -1\n2 4 0 0  4 0 -1 30 # turn\n", 60.0)
+            .unwrap();
+        assert_eq!(path.at(-1.0).eye, [0.0, 0.0, 0.0]);
+        let mid = path.at(1.0);
+        assert_eq!((mid.eye, mid.target, mid.fov_y_deg), ([2.0, 0.0, 0.0], [2.0, 0.0, -1.0], 45.0));
+        assert_eq!(path.at(9.0).eye, [4.0, 0.0, 0.0]);
+        assert_eq!(path.duration_s(), 2.0);
+    }
+
+    #[test]
+    fn rejects_malformed_files() {
+        for bad in ["", "0 1 2", "0 0 0 0 0 0 -1\n0 1 0 0 0 0 -1", "0 a 0 0 0 0 -1", "0 0 0 0 0 0 -1 190"]
+        {
+            assert!(CameraPath::parse(bad, 60.0).is_err(), "{bad:?} accepted");
+        }
+    }
+}

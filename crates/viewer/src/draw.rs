@@ -1,0 +1,235 @@
+//! The drawing pass: Gouraud-interpolated vertex radiance, tone-mapped in the shader
+//! (`draw.wgsl`), with an optional wireframe overlay to see the refinement mesh.
+//! The same pass draws into a window surface and into offscreen targets.
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use protocol::viewer_link::Camera;
+
+use crate::table::{Extent, Vertex};
+use crate::vertex_buffer::GpuTriangles;
+
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// Tone-mapping operator (DESIGN.md §9, thesis §4.1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum ToneMap {
+    /// Drago's logarithmic mapping, eq. 4.2: L_d = log(1 + L) / log(1 + L_white).
+    #[default]
+    Drago,
+    /// Reinhard's global operator, eq. 4.1: L_d = L (1 + L / L_white²) / (1 + L).
+    Reinhard,
+}
+
+impl ToneMap {
+    pub fn next(self) -> ToneMap {
+        match self {
+            ToneMap::Drago => ToneMap::Reinhard,
+            ToneMap::Reinhard => ToneMap::Drago,
+        }
+    }
+}
+
+/// What a drawing pass writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Output {
+    /// Tone-mapped colour for display (PNG snapshots, the window).
+    Display,
+    /// Linear radiance, untouched (EXR snapshots).
+    Linear,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DrawSettings {
+    pub tone_map: ToneMap,
+    /// The smallest luminance mapped to pure white, as the SMA last sent it (thesis §2.3).
+    pub l_white: f32,
+    pub wireframe: bool,
+}
+
+impl Default for DrawSettings {
+    fn default() -> Self {
+        DrawSettings { tone_map: ToneMap::Drago, l_white: 1.0, wireframe: false }
+    }
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Uniforms {
+    view_proj: [[f32; 4]; 4],
+    l_white: f32,
+    mode: u32,
+    wireframe: u32,
+    encode_srgb: u32,
+}
+
+/// One pipeline for one target format, with its uniforms.
+pub struct Drawer {
+    pipeline: wgpu::RenderPipeline,
+    uniforms: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+    output: Output,
+    encode_srgb: bool,
+}
+
+impl Drawer {
+    pub fn new(device: &wgpu::Device, format: wgpu::TextureFormat, output: Output) -> Drawer {
+        let shader = device.create_shader_module(wgpu::include_wgsl!("draw.wgsl"));
+        let uniforms = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("draw uniforms"),
+            size: std::mem::size_of::<Uniforms>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("draw uniforms"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("draw uniforms"),
+            layout: &layout,
+            entries: &[wgpu::BindGroupEntry { binding: 0, resource: uniforms.as_entire_binding() }],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("draw"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("draw"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &shader,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<Vertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
+                })],
+            },
+            // Surfaces are two-sided (DESIGN.md §5): no culling.
+            primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Greater),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &shader,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let encode_srgb = output == Output::Display && !format.is_srgb();
+        Drawer { pipeline, uniforms, bind_group, output, encode_srgb }
+    }
+
+    /// Records one frame: clear to black (pixels that see nothing), draw every live triangle.
+    #[allow(clippy::too_many_arguments)]
+    pub fn draw(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        colour: &wgpu::TextureView,
+        depth: &wgpu::TextureView,
+        triangles: &GpuTriangles,
+        camera: &Camera,
+        depth_range: (f32, f32),
+        settings: &DrawSettings,
+    ) {
+        let (near, far) = depth_range;
+        let uniforms = Uniforms {
+            // Reversed Z (near -> 1, far -> 0): with a float depth buffer the precision then
+            // follows the float's own, so a tiny near plane costs nothing far away.
+            view_proj: camera.view_projection(far, near).to_cols_array_2d(),
+            l_white: settings.l_white.max(1e-6),
+            mode: match (self.output, settings.tone_map) {
+                (Output::Linear, _) => 0,
+                (Output::Display, ToneMap::Drago) => 1,
+                (Output::Display, ToneMap::Reinhard) => 2,
+            },
+            wireframe: u32::from(settings.wireframe),
+            encode_srgb: u32::from(self.encode_srgb),
+        };
+        queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&uniforms));
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("draw"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: colour,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(0.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        if triangles.count() > 0 {
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &self.bind_group, &[]);
+            pass.set_vertex_buffer(0, triangles.buffer().slice(..));
+            pass.draw(0..3 * triangles.count(), 0..1);
+        }
+    }
+}
+
+/// A depth texture matching a colour target.
+pub fn depth_texture(device: &wgpu::Device, width: u32, height: u32) -> wgpu::TextureView {
+    device
+        .create_texture(&wgpu::TextureDescriptor {
+            label: Some("depth"),
+            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: DEPTH_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        })
+        .create_view(&Default::default())
+}
+
+/// Near and far planes that hold the whole scene in front of the eye: far reaches the farthest
+/// corner of the box, near is a small fraction of it (reversed Z keeps 1:10⁵ well resolved).
+pub fn depth_range(camera: &Camera, extent: Option<Extent>) -> (f32, f32) {
+    let far = extent
+        .map(|e| {
+            let (lo, hi) = (Vec3::from(e.min), Vec3::from(e.max));
+            let reach = (camera.eye_vec() - (lo + hi) * 0.5).abs() + (hi - lo) * 0.5;
+            reach.length() * 1.01
+        })
+        .filter(|f| f.is_finite() && *f > 0.0)
+        .unwrap_or(1000.0);
+    (far * 1e-5, far)
+}

@@ -1,0 +1,79 @@
+// Gouraud drawing of the triangle table with tone mapping (DESIGN.md §2, §9; thesis §2.3, §4.1).
+// Vertex radiances are exact GI samples; the rasteriser interpolates them across each triangle and
+// every fragment is tone-mapped on its luminance, keeping its colour.
+
+struct Uniforms {
+    view_proj: mat4x4<f32>,
+    l_white: f32,
+    // 0: linear radiance out (EXR snapshots), 1: Drago (eq. 4.2), 2: Reinhard (eq. 4.1).
+    mode: u32,
+    wireframe: u32,
+    // 1 when the target is not an sRGB format and the shader must encode itself.
+    encode_srgb: u32,
+};
+
+@group(0) @binding(0) var<uniform> u: Uniforms;
+
+struct VertexOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) radiance: vec3<f32>,
+    // Barycentric coordinates, for the wireframe overlay: the vertex index within its triangle.
+    @location(1) bary: vec3<f32>,
+};
+
+@vertex
+fn vs_main(
+    @builtin(vertex_index) index: u32,
+    @location(0) position: vec3<f32>,
+    @location(1) radiance: vec3<f32>,
+) -> VertexOut {
+    var out: VertexOut;
+    out.clip = u.view_proj * vec4<f32>(position, 1.0);
+    out.radiance = radiance;
+    let k = index % 3u;
+    out.bary = vec3<f32>(f32(k == 0u), f32(k == 1u), f32(k == 2u));
+    return out;
+}
+
+const REC709 = vec3<f32>(0.2126, 0.7152, 0.0722);
+
+fn display_luminance(l: f32) -> f32 {
+    let lw = u.l_white;
+    if u.mode == 2u {
+        return l * (1.0 + l / (lw * lw)) / (1.0 + l);
+    }
+    return log(1.0 + l) / log(1.0 + lw);
+}
+
+fn tone_map(rgb: vec3<f32>) -> vec3<f32> {
+    let l = dot(rgb, REC709);
+    if l <= 0.0 {
+        return vec3<f32>(0.0);
+    }
+    return clamp(rgb * (display_luminance(l) / l), vec3<f32>(0.0), vec3<f32>(1.0));
+}
+
+fn srgb_encode(c: vec3<f32>) -> vec3<f32> {
+    let low = c * 12.92;
+    let high = 1.055 * pow(c, vec3<f32>(1.0 / 2.4)) - 0.055;
+    return select(high, low, c <= vec3<f32>(0.0031308));
+}
+
+@fragment
+fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+    // Derivatives first, in uniform control flow.
+    let edge = min(in.bary.x, min(in.bary.y, in.bary.z));
+    let edge_width = fwidth(edge);
+    if u.mode == 0u {
+        return vec4<f32>(in.radiance, 1.0);
+    }
+    var colour = tone_map(in.radiance);
+    if u.wireframe == 1u {
+        let line = 1.0 - smoothstep(0.0, 1.5 * edge_width, edge);
+        colour = mix(colour, vec3<f32>(0.1, 0.9, 0.3), 0.8 * line);
+    }
+    if u.encode_srgb == 1u {
+        colour = srgb_encode(colour);
+    }
+    return vec4<f32>(colour, 1.0);
+}

@@ -1,0 +1,263 @@
+//! Headless mode: the window's drawing offscreen, with snapshots at set times, at set sample
+//! counts or when the SMA goes idle (DESIGN.md §10: the convergence measurements read these).
+//! Time 0 is when the first camera is sent.
+
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use protocol::viewer_link::{Camera, Epoch, ViewerToSma};
+
+use crate::camera_path::CameraPath;
+use crate::camera_sender::{CameraSender, DEFAULT_INTERVAL};
+use crate::cli::Cli;
+use crate::draw::{DrawSettings, depth_range};
+use crate::gpu::Gpu;
+use crate::link::Link;
+use crate::offscreen::Offscreen;
+use crate::session::{pick_viewpoint, preferences};
+use crate::snapshot_files::{SnapshotRecord, SnapshotWriter};
+use crate::vertex_buffer::GpuTriangles;
+use crate::view_state::{Reaction, ViewState};
+use crate::walk_camera::WalkCamera;
+
+/// How often the loop wakes without news, to follow the camera path and the clock.
+const TICK: Duration = Duration::from_millis(20);
+/// Field of view of camera-path keyframes that give none, when the scene has no viewpoint.
+const FALLBACK_FOV_DEG: f32 = 60.0;
+
+/// When to take snapshots and when to stop.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SnapshotPlan {
+    every_s: Option<f64>,
+    next_periodic_s: f64,
+    /// Sample counts not yet reached, ascending.
+    thresholds: Vec<u64>,
+    when_idle: bool,
+    seconds: Option<f64>,
+    /// No trigger was asked for: one snapshot at the end.
+    at_end_only: bool,
+}
+
+impl SnapshotPlan {
+    pub fn new(
+        every_s: Option<f64>,
+        mut thresholds: Vec<u64>,
+        when_idle: bool,
+        seconds: Option<f64>,
+    ) -> SnapshotPlan {
+        thresholds.sort_unstable();
+        thresholds.dedup();
+        let at_end_only = every_s.is_none() && thresholds.is_empty() && !when_idle;
+        SnapshotPlan { every_s, next_periodic_s: 0.0, thresholds, when_idle, seconds, at_end_only }
+    }
+
+    /// Whether to take a snapshot now, at `t` seconds, given the latest epoch and the sequence
+    /// number of the camera in force; the triggers it answers are used up.
+    pub fn due(&mut self, t: f64, epoch: Option<&Epoch>, camera_seq: u64) -> bool {
+        let mut due = false;
+        if let Some(every) = self.every_s
+            && t >= self.next_periodic_s
+            && self.seconds.is_none_or(|end| self.next_periodic_s <= end)
+        {
+            // Skipped slots (a slow snapshot) are not made up: one snapshot, then the next slot.
+            while self.next_periodic_s <= t {
+                self.next_periodic_s += every;
+            }
+            due = true;
+        }
+        if let Some(e) = epoch {
+            let reached = self.thresholds.partition_point(|&n| n <= e.samples);
+            if reached > 0 {
+                self.thresholds.drain(..reached);
+                due = true;
+            }
+            if self.when_idle && e.camera_seq == camera_seq && e.outstanding == 0 {
+                self.when_idle = false;
+                due = true;
+            }
+        }
+        due || (self.at_end_only && self.out_of_time(t))
+    }
+
+    fn out_of_time(&self, t: f64) -> bool {
+        self.seconds.is_some_and(|end| t >= end)
+    }
+
+    /// Whether the run is over: out of time, or every finite trigger used up and none periodic.
+    pub fn finished(&self, t: f64) -> bool {
+        let triggers_done = self.every_s.is_none()
+            && self.thresholds.is_empty()
+            && !self.when_idle
+            && !self.at_end_only;
+        self.out_of_time(t) || triggers_done
+    }
+}
+
+pub fn run(cli: &Cli) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        cli.seconds.is_some() || !cli.snapshot_at_samples.is_empty() || cli.snapshot_when_idle,
+        "headless needs an end: --seconds, --snapshot-at-samples or --snapshot-when-idle"
+    );
+    let gpu = Gpu::headless()?;
+    tracing::info!(adapter = %gpu.describe(), "headless viewer");
+    let offscreen = Offscreen::new(&gpu, cli.width, cli.height);
+    let mut triangles = GpuTriangles::new(&gpu.device);
+    let mut writer = SnapshotWriter::create(&cli.out)?;
+    let mut plan = SnapshotPlan::new(
+        cli.snapshot_every,
+        cli.snapshot_at_samples.clone(),
+        cli.snapshot_when_idle,
+        cli.seconds,
+    );
+    let path_text = cli
+        .camera_path
+        .as_ref()
+        .map(|p| std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display())))
+        .transpose()?;
+
+    let (tx, events) = mpsc::channel();
+    let link = Link::spawn(cli.connect.clone(), move |event| {
+        let _ = tx.send(event);
+    })?;
+    let launched = Instant::now();
+    let mut state = ViewState::default();
+    let mut sender = CameraSender::new(DEFAULT_INTERVAL);
+    let mut walk: Option<(Camera, Option<CameraPath>)> = None;
+    let mut started: Option<Instant> = None;
+    let mut index = 0;
+    let settings = |state: &ViewState| DrawSettings {
+        tone_map: cli.tonemap,
+        l_white: state.l_white,
+        wireframe: cli.wireframe,
+    };
+
+    loop {
+        for event in first_and_pending(&events, TICK) {
+            match state.handle(event) {
+                Reaction::Resend => {
+                    let scene = state.scene.as_ref().expect("Connected carries the scene");
+                    if walk.is_none() {
+                        walk = Some(start_camera(cli, scene, path_text.as_deref())?);
+                    }
+                    let (camera, _) = walk.as_ref().expect("set above");
+                    link.send(ViewerToSma::Camera(sender.force(camera, Instant::now())));
+                    preferences(cli.criterion.as_deref(), cli.no_refine)
+                        .into_iter()
+                        .for_each(|m| link.send(m));
+                    started.get_or_insert_with(Instant::now);
+                }
+                Reaction::Drawn(_) | Reaction::Nothing => {}
+            }
+        }
+        let Some(t0) = started else {
+            if cli.seconds.is_some_and(|s| launched.elapsed().as_secs_f64() >= s) {
+                anyhow::bail!("no SMA answered at {} within {:?} s", cli.connect, cli.seconds);
+            }
+            continue;
+        };
+        let t = t0.elapsed().as_secs_f64();
+        let (camera, path) = walk.as_mut().expect("set with `started`");
+        if let Some(path) = path {
+            let vp = path.at(t as f32);
+            *camera = Camera::from_viewpoint(&vp, 0, cli.width, cli.height);
+            if let Some(sent) = sender.offer(camera, Instant::now()) {
+                link.send(ViewerToSma::Camera(sent));
+            }
+        }
+        if plan.due(t, state.epoch.as_ref(), sender.seq()) {
+            triangles.sync(&gpu.device, &gpu.queue, &mut state.table);
+            let depth = depth_range(camera, state.table.extent());
+            let snapshot = offscreen.snapshot(&gpu, &triangles, camera, depth, &settings(&state))?;
+            let (inserted, removed) = state.take_interval();
+            let epoch = state.epoch.unwrap_or_default();
+            let record = SnapshotRecord {
+                index,
+                time_s: t,
+                camera_seq: epoch.camera_seq,
+                shown: state.table.len() as u64,
+                inserted,
+                removed,
+                samples: epoch.samples,
+                outstanding: epoch.outstanding,
+            };
+            writer.write(&record, &snapshot)?;
+            tracing::info!(index, t, shown = record.shown, samples = record.samples, "snapshot");
+            index += 1;
+        }
+        if plan.finished(t) {
+            break;
+        }
+    }
+    link.close();
+    Ok(())
+}
+
+/// The first camera and the walk to follow, once the scene is known.
+fn start_camera(
+    cli: &Cli,
+    scene: &protocol::viewer_link::SceneInfo,
+    path_text: Option<&str>,
+) -> anyhow::Result<(Camera, Option<CameraPath>)> {
+    let start = pick_viewpoint(scene, cli.view.as_deref())?;
+    let fov = start.as_ref().map_or(FALLBACK_FOV_DEG, |vp| vp.fov_y_deg);
+    let path = path_text.map(|text| CameraPath::parse(text, fov)).transpose()?;
+    let camera = match (&path, &start) {
+        (Some(path), _) => Camera::from_viewpoint(&path.at(0.0), 0, cli.width, cli.height),
+        (None, Some(vp)) => Camera::from_viewpoint(vp, 0, cli.width, cli.height),
+        (None, None) => WalkCamera::overlooking(&scene.bounds, 1.0).camera(cli.width, cli.height),
+    };
+    Ok((camera, path))
+}
+
+/// Waits up to `timeout` for one event, then takes whatever else is already queued.
+fn first_and_pending<T>(rx: &mpsc::Receiver<T>, timeout: Duration) -> Vec<T> {
+    let mut events: Vec<T> = rx.recv_timeout(timeout).into_iter().collect();
+    events.extend(rx.try_iter());
+    events
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn epoch(samples: u64, outstanding: u64, camera_seq: u64) -> Epoch {
+        Epoch { samples, outstanding, camera_seq, ..Epoch::default() }
+    }
+
+    #[test]
+    fn periodic_snapshots_start_at_zero_and_stop_at_the_end() {
+        let mut plan = SnapshotPlan::new(Some(1.0), vec![], false, Some(2.0));
+        let taken: Vec<f64> =
+            [0.0, 0.5, 1.02, 1.5, 2.3, 3.5].into_iter().filter(|&t| plan.due(t, None, 1)).collect();
+        assert_eq!(taken, vec![0.0, 1.02, 2.3]);
+        assert!(!plan.finished(1.9) && plan.finished(2.0));
+    }
+
+    #[test]
+    fn sample_thresholds_fire_once_and_end_the_run() {
+        let mut plan = SnapshotPlan::new(None, vec![200, 100], false, None);
+        assert!(!plan.due(0.1, Some(&epoch(50, 9, 1)), 1));
+        assert!(plan.due(0.2, Some(&epoch(150, 9, 1)), 1));
+        assert!(!plan.due(0.3, Some(&epoch(150, 9, 1)), 1));
+        assert!(!plan.finished(0.3));
+        assert!(plan.due(0.4, Some(&epoch(500, 9, 1)), 1));
+        assert!(plan.finished(0.4));
+    }
+
+    #[test]
+    fn idle_means_nothing_outstanding_for_the_current_camera() {
+        let mut plan = SnapshotPlan::new(None, vec![], true, Some(60.0));
+        assert!(!plan.due(0.1, Some(&epoch(10, 0, 1)), 2), "an epoch of an older camera");
+        assert!(!plan.due(0.2, Some(&epoch(10, 3, 2)), 2));
+        assert!(plan.due(0.3, Some(&epoch(13, 0, 2)), 2));
+        assert!(plan.finished(0.3));
+    }
+
+    #[test]
+    fn without_triggers_one_snapshot_at_the_end() {
+        let mut plan = SnapshotPlan::new(None, vec![], false, Some(1.0));
+        assert!(!plan.due(0.5, Some(&epoch(1, 0, 1)), 1) && !plan.finished(0.5));
+        assert!(plan.due(1.0, None, 1) && plan.finished(1.0));
+    }
+}

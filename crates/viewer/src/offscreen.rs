@@ -1,0 +1,200 @@
+//! Offscreen drawing: the window's pass into textures, read back as a tone-mapped sRGB image and a
+//! linear radiance image. Headless snapshots, tests and the end-to-end benchmark draw through here.
+
+use anyhow::{Context, anyhow};
+use protocol::viewer_link::{Camera, ShownTriangle};
+
+use crate::draw::{DrawSettings, Drawer, Output, depth_range, depth_texture};
+use crate::gpu::Gpu;
+use crate::table::TriangleTable;
+use crate::update::TableOp;
+use crate::vertex_buffer::GpuTriangles;
+
+const DISPLAY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+const LINEAR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+
+/// One snapshot of the viewer's image.
+pub struct Snapshot {
+    /// Tone-mapped, sRGB-encoded (what the window shows).
+    pub display: image::RgbaImage,
+    /// Linear radiance, row-major from the top-left pixel.
+    pub linear: Vec<[f32; 3]>,
+    pub width: u32,
+    pub height: u32,
+}
+
+struct Target {
+    view: wgpu::TextureView,
+    texture: wgpu::Texture,
+    drawer: Drawer,
+    bytes_per_pixel: u32,
+}
+
+pub struct Offscreen {
+    width: u32,
+    height: u32,
+    display: Target,
+    linear: Target,
+    depth: wgpu::TextureView,
+}
+
+impl Offscreen {
+    pub fn new(gpu: &Gpu, width: u32, height: u32) -> Offscreen {
+        let target = |format, output, bytes_per_pixel| {
+            let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("offscreen colour"),
+                size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            });
+            Target {
+                view: texture.create_view(&Default::default()),
+                texture,
+                drawer: Drawer::new(&gpu.device, format, output),
+                bytes_per_pixel,
+            }
+        };
+        Offscreen {
+            width,
+            height,
+            display: target(DISPLAY_FORMAT, Output::Display, 4),
+            linear: target(LINEAR_FORMAT, Output::Linear, 16),
+            depth: depth_texture(&gpu.device, width, height),
+        }
+    }
+
+    /// Draws one tone-mapped frame and waits for the GPU to finish it (frame-time benchmark).
+    pub fn draw_frame(
+        &self,
+        gpu: &Gpu,
+        triangles: &GpuTriangles,
+        camera: &Camera,
+        depth: (f32, f32),
+        settings: &DrawSettings,
+    ) -> anyhow::Result<()> {
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        self.record(gpu, &mut encoder, &self.display, triangles, camera, depth, settings);
+        gpu.queue.submit([encoder.finish()]);
+        gpu.wait_idle()
+    }
+
+    /// Draws both images and reads them back. The camera's own size is ignored: the target's is
+    /// used (a camera sent to the SMA carries the same size anyway).
+    pub fn snapshot(
+        &self,
+        gpu: &Gpu,
+        triangles: &GpuTriangles,
+        camera: &Camera,
+        depth: (f32, f32),
+        settings: &DrawSettings,
+    ) -> anyhow::Result<Snapshot> {
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        self.record(gpu, &mut encoder, &self.display, triangles, camera, depth, settings);
+        self.record(gpu, &mut encoder, &self.linear, triangles, camera, depth, settings);
+        gpu.queue.submit([encoder.finish()]);
+        let display = self.read(gpu, &self.display)?;
+        let linear = self.read(gpu, &self.linear)?;
+        let display = image::RgbaImage::from_raw(self.width, self.height, display)
+            .ok_or_else(|| anyhow!("display readback has the wrong size"))?;
+        let linear = bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(&linear)
+            .into_iter()
+            .map(|[r, g, b, _]| [r, g, b])
+            .collect();
+        Ok(Snapshot { display, linear, width: self.width, height: self.height })
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn record(
+        &self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &Target,
+        triangles: &GpuTriangles,
+        camera: &Camera,
+        depth: (f32, f32),
+        settings: &DrawSettings,
+    ) {
+        let camera = Camera { width: self.width, height: self.height, ..camera.clone() };
+        target.drawer.draw(
+            &gpu.queue,
+            encoder,
+            &target.view,
+            &self.depth,
+            triangles,
+            &camera,
+            depth,
+            settings,
+        );
+    }
+
+    /// Copies a target into a mappable buffer and returns its rows without padding.
+    fn read(&self, gpu: &Gpu, target: &Target) -> anyhow::Result<Vec<u8>> {
+        let row = self.width * target.bytes_per_pixel;
+        let padded_row = row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
+            * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: padded_row as u64 * self.height as u64,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        encoder.copy_texture_to_buffer(
+            target.texture.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(padded_row),
+                    rows_per_image: Some(self.height),
+                },
+            },
+            wgpu::Extent3d { width: self.width, height: self.height, depth_or_array_layers: 1 },
+        );
+        gpu.queue.submit([encoder.finish()]);
+        let (tx, rx) = std::sync::mpsc::channel();
+        buffer.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        gpu.wait_idle()?;
+        rx.recv().context("readback callback dropped")?.context("mapping the readback")?;
+        let mapped = buffer.get_mapped_range(..).map_err(|e| anyhow!("readback: {e:?}"))?;
+        let mut pixels = Vec::with_capacity((row * self.height) as usize);
+        for y in 0..self.height as usize {
+            let start = y * padded_row as usize;
+            pixels.extend_from_slice(&mapped[start..start + row as usize]);
+        }
+        Ok(pixels)
+    }
+}
+
+/// Draws `triangles` as the viewer would, seen by `camera` at the camera's image size: for the
+/// end-to-end benchmark and tests. Opens its own headless device.
+pub fn render_offscreen(
+    triangles: &[ShownTriangle],
+    camera: &Camera,
+    settings: &DrawSettings,
+) -> anyhow::Result<Snapshot> {
+    let gpu = Gpu::headless()?;
+    render_offscreen_with(&gpu, triangles, camera, settings)
+}
+
+/// [`render_offscreen`] on a device the caller keeps.
+pub fn render_offscreen_with(
+    gpu: &Gpu,
+    triangles: &[ShownTriangle],
+    camera: &Camera,
+    settings: &DrawSettings,
+) -> anyhow::Result<Snapshot> {
+    let mut table = TriangleTable::new();
+    table.apply(&[TableOp::Insert(triangles.to_vec())]);
+    let mut gpu_triangles = GpuTriangles::new(&gpu.device);
+    gpu_triangles.sync(&gpu.device, &gpu.queue, &mut table);
+    let offscreen = Offscreen::new(gpu, camera.width.max(1), camera.height.max(1));
+    let depth = depth_range(camera, table.extent());
+    offscreen.snapshot(gpu, &gpu_triangles, camera, depth, settings)
+}

@@ -1,0 +1,108 @@
+//! `views.csv` in the output folder: which views were measured and on what terms. Views can be
+//! measured one at a time (the full benchmark is long on two cores); each new measurement replaces
+//! that view's line, and the Markdown section and `bench accuracy` cover every line.
+
+use std::path::Path;
+
+use anyhow::Context;
+
+const FILE: &str = "views.csv";
+const HEADER: &str = "label,scene,view,width,height,gt_spp,seconds,sample_counts,ground_truth";
+
+/// One measured view and its terms.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ViewRecord {
+    /// The scene's name, used in file names (`bracara`, `sponza`).
+    pub label: String,
+    /// The scene as given on the command line (a TOML path or a built-in name).
+    pub scene: String,
+    pub view: String,
+    pub width: u32,
+    pub height: u32,
+    pub gt_spp: u32,
+    pub seconds: f64,
+    /// The viewer's `--snapshot-at-samples` list.
+    pub sample_counts: Vec<u64>,
+    /// The ground truth EXR (in the ignored cache folder).
+    pub ground_truth: String,
+}
+
+impl ViewRecord {
+    /// `<label>-<view>`: the stem of this view's files.
+    pub fn stem(&self) -> String {
+        format!("{}-{}", self.label, self.view)
+    }
+
+    fn line(&self) -> String {
+        let r = self;
+        let counts: Vec<String> = r.sample_counts.iter().map(u64::to_string).collect();
+        let (width, height, spp, seconds) = (r.width, r.height, r.gt_spp, r.seconds);
+        format!("{},{},{},{width},{height},{spp},{seconds},{},{}", r.label, r.scene, r.view, counts.join(";"), r.ground_truth)
+    }
+
+    fn parse(line: &str) -> anyhow::Result<ViewRecord> {
+        let f: Vec<&str> = line.split(',').collect();
+        anyhow::ensure!(f.len() == 9, "expected 9 fields");
+        Ok(ViewRecord {
+            label: f[0].into(),
+            scene: f[1].into(),
+            view: f[2].into(),
+            width: f[3].parse()?,
+            height: f[4].parse()?,
+            gt_spp: f[5].parse()?,
+            seconds: f[6].parse()?,
+            sample_counts: f[7].split(';').filter(|s| !s.is_empty()).map(str::parse).collect::<Result<_, _>>()?,
+            ground_truth: f[8].into(),
+        })
+    }
+}
+
+pub fn read(dir: &Path) -> anyhow::Result<Vec<ViewRecord>> {
+    let path = dir.join(FILE);
+    let text = std::fs::read_to_string(&path).with_context(|| format!("reading {} (run `bench convergence` first)", path.display()))?;
+    text.lines()
+        .skip(1)
+        .filter(|l| !l.is_empty())
+        .map(|l| ViewRecord::parse(l).with_context(|| format!("{}: {l:?}", path.display())))
+        .collect()
+}
+
+/// Adds or replaces `record`'s line, keeping the others in their order.
+pub fn upsert(dir: &Path, record: &ViewRecord) -> anyhow::Result<()> {
+    let mut records = read(dir).unwrap_or_default();
+    match records.iter_mut().find(|r| r.stem() == record.stem()) {
+        Some(old) => *old = record.clone(),
+        None => records.push(record.clone()),
+    }
+    let lines: Vec<String> = std::iter::once(HEADER.to_string()).chain(records.iter().map(ViewRecord::line)).collect();
+    std::fs::write(dir.join(FILE), lines.join("\n") + "\n")?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(view: &str, seconds: f64) -> ViewRecord {
+        ViewRecord {
+            label: "bracara".into(),
+            scene: "bracara".into(),
+            view: view.into(),
+            width: 320,
+            height: 240,
+            gt_spp: 256,
+            seconds,
+            sample_counts: vec![1000, 2000],
+            ground_truth: "out/gt/x.exr".into(),
+        }
+    }
+
+    #[test]
+    fn upsert_replaces_a_view_and_keeps_the_others() {
+        let dir = tempfile::tempdir().unwrap();
+        upsert(dir.path(), &record("MC", 5.0)).unwrap();
+        upsert(dir.path(), &record("VT", 5.0)).unwrap();
+        upsert(dir.path(), &record("MC", 20.0)).unwrap();
+        assert_eq!(read(dir.path()).unwrap(), vec![record("MC", 20.0), record("VT", 5.0)]);
+    }
+}

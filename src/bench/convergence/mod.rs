@@ -1,0 +1,274 @@
+//! `walkthrough bench convergence` (issue 7, DESIGN.md §10, thesis §5.2 and appendix B): for each
+//! view, the ground truth once; then for each criterion a fresh system on loopback (empty cache,
+//! t = 0 at the viewer's first camera) with snapshots at 0, 1, 2, … s and at fixed sample counts;
+//! and one run with refinement switched off. Every snapshot's error against the ground truth goes
+//! into a CSV; tables, plots and strips are drawn from it into the output folder, and the Markdown
+//! section into `docs/bench/convergence.md`.
+
+pub mod ground_truth;
+pub mod loopback;
+pub mod manifest;
+pub mod record;
+pub mod snapshots;
+pub mod tables;
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use clap::Args;
+
+use crate::bench::metrics::{LinearImage, Reference};
+use crate::bench::{plots, strips};
+use ground_truth::GroundTruth;
+use loopback::{System, SystemConfig, ViewerConfig};
+use manifest::ViewRecord;
+use record::{Measurement, NO_REFINE};
+
+/// Bounce depth of the interactive preset (DESIGN.md §10: 64 paths × 2 bounces per sample); the
+/// ground truth uses the same estimator and depth, per pixel.
+pub const INTERACTIVE_BOUNCES: u32 = 2;
+
+/// Where Sponza lives when the shared scenes are there (DESIGN.md §11).
+const SHARED_SCENES: &str = "../shared/scenes";
+const SPONZA: &str = "scenes/sponza.toml";
+
+pub const SECTION: &str = "docs/bench/convergence.md";
+
+#[derive(Args, Debug, Clone)]
+pub struct ConvergenceArgs {
+    /// One scene (a TOML file or a built-in name). Default: `bracara`, and Sponza when
+    /// ../shared/scenes is there.
+    #[arg(long)]
+    pub scene: Option<String>,
+    /// Views to measure. Default: MC, VR, VT of bracara and S1, S2, S3 of Sponza; with --scene, all
+    /// of that scene's views.
+    #[arg(long, value_delimiter = ',')]
+    pub views: Vec<String>,
+    /// Criteria to compare. Default: every criterion the SMA offers.
+    #[arg(long, value_delimiter = ',')]
+    pub criteria: Vec<String>,
+    /// Length of each run; snapshots every second.
+    #[arg(long, default_value_t = 20.0)]
+    pub seconds: f64,
+    /// Fixed sample counts at which snapshots are also taken.
+    #[arg(long, value_delimiter = ',', default_value = "1000,2000,4000,8000,16000,32000,64000,128000,256000")]
+    pub at_samples: Vec<u64>,
+    #[arg(long, default_value_t = 1024)]
+    pub width: u32,
+    #[arg(long, default_value_t = 768)]
+    pub height: u32,
+    /// Paths per pixel of the ground truth (DESIGN.md §10: at least 256).
+    #[arg(long, default_value_t = 256)]
+    pub gt_spp: u32,
+    /// Tables, plots, strips and CSVs (committed: keep it small).
+    #[arg(long, default_value = "docs/convergence")]
+    pub out: PathBuf,
+    /// Ground truth EXRs (big: an ignored folder).
+    #[arg(long, default_value = "out/gt")]
+    pub gt_cache: PathBuf,
+    /// Raw snapshots and process logs of every run (big: an ignored folder).
+    #[arg(long, default_value = "out/convergence")]
+    pub runs: PathBuf,
+    /// Renderer processes per run (the cores are shared among them).
+    #[arg(long, default_value_t = 1)]
+    pub renderers: usize,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Do not write docs/bench/convergence.md nor BENCHMARKS.md.
+    #[arg(long)]
+    pub no_report: bool,
+}
+
+/// A view of a scene to measure.
+#[derive(Clone, Debug)]
+struct ViewSpec {
+    scene: String,
+    label: String,
+    view: String,
+}
+
+pub fn run(args: ConvergenceArgs) -> anyhow::Result<()> {
+    let exe = std::env::current_exe().context("locating the walkthrough binary")?;
+    let criteria = if args.criteria.is_empty() { default_criteria() } else { args.criteria.clone() };
+    std::fs::create_dir_all(&args.out)?;
+    for spec in views(&args)? {
+        eprintln!("convergence: {} {}", spec.label, spec.view);
+        let record = measure_view(&args, &exe, &spec, &criteria)?;
+        manifest::upsert(&args.out, &record)?;
+    }
+    if !args.no_report {
+        std::fs::create_dir_all(Path::new(SECTION).parent().expect("a folder"))?;
+        std::fs::write(SECTION, section(&args.out)?)?;
+        crate::bench::report::assemble(Path::new("BENCHMARKS.md"))?;
+    }
+    Ok(())
+}
+
+/// The criteria the SMA offers, the thesis's three first.
+pub fn default_criteria() -> Vec<String> {
+    sma::criteria::CRITERIA.iter().map(|c| c.to_string()).collect()
+}
+
+fn views(args: &ConvergenceArgs) -> anyhow::Result<Vec<ViewSpec>> {
+    let scenes: Vec<(String, Vec<String>)> = match &args.scene {
+        Some(scene) => vec![(scene.clone(), vec![])],
+        None => {
+            let mut s = vec![("bracara".to_string(), strings(&["MC", "VR", "VT"]))];
+            if Path::new(SHARED_SCENES).is_dir() && Path::new(SPONZA).is_file() {
+                s.push((SPONZA.to_string(), strings(&["S1", "S2", "S3"])));
+            }
+            s
+        }
+    };
+    let mut specs = Vec::new();
+    for (scene, defaults) in scenes {
+        let loaded = scene::load(&scene).with_context(|| format!("loading {scene}"))?;
+        let known: Vec<String> = loaded.settings.viewpoints.iter().map(|v| v.name.clone()).collect();
+        let wanted = if !args.views.is_empty() {
+            args.views.iter().filter(|v| known.contains(v)).cloned().collect()
+        } else if defaults.is_empty() {
+            known.clone()
+        } else {
+            defaults
+        };
+        for view in wanted {
+            anyhow::ensure!(known.contains(&view), "scene {scene} has no view {view} (it has {known:?})");
+            specs.push(ViewSpec { scene: scene.clone(), label: loaded.name.clone(), view });
+        }
+    }
+    anyhow::ensure!(!specs.is_empty(), "no view to measure: {:?} matches none of the scenes' views", args.views);
+    Ok(specs)
+}
+
+fn strings(v: &[&str]) -> Vec<String> {
+    v.iter().map(|s| s.to_string()).collect()
+}
+
+/// Ground truth, the run without refinement and one run per criterion; writes the view's CSV, plot
+/// and strip.
+fn measure_view(args: &ConvergenceArgs, exe: &Path, spec: &ViewSpec, criteria: &[String]) -> anyhow::Result<ViewRecord> {
+    let gt = GroundTruth {
+        scene: spec.scene.clone(),
+        view: spec.view.clone(),
+        width: args.width,
+        height: args.height,
+        spp: args.gt_spp,
+        bounces: INTERACTIVE_BOUNCES,
+        seed: args.seed,
+    }
+    .ensure(&args.gt_cache)?;
+    let reference = Reference::read_exr(&gt)?;
+    let record = ViewRecord {
+        label: spec.label.clone(),
+        scene: spec.scene.clone(),
+        view: spec.view.clone(),
+        width: args.width,
+        height: args.height,
+        gt_spp: args.gt_spp,
+        seconds: args.seconds,
+        sample_counts: args.at_samples.clone(),
+        ground_truth: gt.to_string_lossy().into_owned(),
+    };
+    let runs_dir = args.runs.join(record.stem());
+    let mut rows = Vec::new();
+    let labelled = std::iter::once((NO_REFINE, &criteria[0], false)).chain(criteria.iter().map(|c| (c.as_str(), c, true)));
+    for (label, criterion, refine) in labelled {
+        eprintln!("  run {label}…");
+        let system = SystemConfig { exe: exe.to_path_buf(), scene: spec.scene.clone(), criterion: criterion.clone(), refine, seed: args.seed, renderers: args.renderers };
+        let viewer = ViewerConfig {
+            view: spec.view.clone(),
+            width: args.width,
+            height: args.height,
+            seconds: args.seconds,
+            every_seconds: Some(1.0),
+            at_samples: args.at_samples.clone(),
+            when_idle: !refine,
+        };
+        rows.extend(measure_run(&system, &viewer, label, &reference, &runs_dir.join(label))?);
+    }
+    record::write_csv(&args.out.join(format!("{}.csv", record.stem())), &rows)?;
+    let title = format!("{} {}: error against the ground truth", spec.label, spec.view);
+    plots::error_panels(&args.out.join(format!("{}.svg", record.stem())), &title, &rows)?;
+    let base = base_mesh(&rows);
+    strips::write_strip(&args.out.join(format!("{}-strip.png", record.stem())), &reference, &rows, base, criteria)?;
+    Ok(record)
+}
+
+/// Starts a fresh system, runs the viewer, and measures every snapshot it wrote.
+pub fn measure_run(system: &SystemConfig, viewer: &ViewerConfig, label: &str, reference: &Reference, dir: &Path) -> anyhow::Result<Vec<Measurement>> {
+    if dir.exists() {
+        std::fs::remove_dir_all(dir)?;
+    }
+    let snapshots_dir = dir.join("snapshots");
+    System::start(system, dir)?.run_viewer(viewer, &snapshots_dir)?;
+    snapshots::read_run(&snapshots_dir)?
+        .into_iter()
+        .map(|s| {
+            let error = reference.error_of(&LinearImage::read_exr(&s.exr)?)?;
+            Ok(Measurement {
+                run: label.to_string(),
+                time_s: s.time_s,
+                samples: s.samples,
+                shown: s.shown,
+                inserted: s.inserted,
+                removed: s.removed,
+                outstanding: s.outstanding,
+                error,
+                exr: Some(s.exr),
+            })
+        })
+        .collect()
+}
+
+/// The unrefined base mesh at full quality: the last snapshot of the run without refinement taken
+/// with no request outstanding (the last one when it never got there).
+pub fn base_mesh(rows: &[Measurement]) -> Option<&Measurement> {
+    let run = record::run_rows(rows, NO_REFINE);
+    run.iter().rev().find(|m| m.outstanding == 0).or(run.last()).copied()
+}
+
+/// The Markdown section over every view in the output folder's manifest.
+pub fn section(out: &Path) -> anyhow::Result<String> {
+    let records = manifest::read(out)?;
+    let mut md = String::from("## convergence\n\n");
+    md.push_str(
+        "Convergence per viewpoint (thesis §5.2, DESIGN.md §10), regenerated by `walkthrough bench convergence` \
+         (options: `--views`, `--criteria`, `--seconds`, `--width/--height`, `--gt-spp`). For each view and criterion a \
+         fresh renderer + SMA + headless viewer run on loopback, as separate processes, from an empty cache (t = 0 at \
+         the viewer's first camera); samples at the SMA's interactive quality (64 paths × 2 bounces). Δvis = triangles \
+         shown, Δins / Δrem = triangles inserted / removed since t = 0 (as in the thesis's tables 5.2–5.4), samples = \
+         vertex samples computed. The error is against the renderer's per-pixel ground truth at the same bounce \
+         depth, both images tone-mapped alike (Drago with the ground truth's L_white, sRGB), over the pixels that see \
+         geometry: mean LDR-FLIP (67 ppd) and RMSE. `no-refine` is the same system with refinement switched off: its \
+         last picture is the unrefined base mesh at full GI quality. Strips (appendix B): first row without \
+         refinement; one row per criterion at 1, 2, 3, 4, 5 s; last row the ground truth.\n\n",
+    );
+    let _ = writeln!(md, "Machine: {}.\n", crate::bench::machine::describe());
+    for record in &records {
+        let rows = record::read_csv(&out.join(format!("{}.csv", record.stem())))?;
+        let _ = writeln!(
+            md,
+            "### {} {} ({}×{}, ground truth {} paths per pixel, runs of {} s)\n",
+            record.label, record.view, record.width, record.height, record.gt_spp, record.seconds
+        );
+        if let Some(base) = base_mesh(&rows) {
+            let _ = writeln!(
+                md,
+                "Without refinement: {} triangles shown, {} samples, FLIP {:.3}, RMSE {:.3} (at {:.1} s).\n",
+                tables::thousands(base.shown),
+                tables::thousands(base.samples),
+                base.error.flip,
+                base.error.rmse,
+                base.time_s
+            );
+        }
+        md.push_str(&tables::time_table(record, &rows));
+        md.push_str("\nMean FLIP at fixed sample counts (time when reached):\n\n");
+        md.push_str(&tables::samples_table(record, &rows));
+        let dir = out.to_string_lossy();
+        let stem = record.stem();
+        let _ = writeln!(md, "\n![error plots]({dir}/{stem}.svg)\n\n![strip]({dir}/{stem}-strip.png)\n");
+    }
+    Ok(md)
+}

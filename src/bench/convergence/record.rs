@@ -1,0 +1,137 @@
+//! Measured snapshots of one view, kept as `<scene>-<view>.csv` under the output folder: the
+//! convergence tables, plots and strips are drawn from them, and `bench accuracy` reads them back.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+
+use crate::bench::metrics::ImageError;
+
+/// The run label of the control run with refinement switched off.
+pub const NO_REFINE: &str = "no-refine";
+
+/// One snapshot of one run and its error against the ground truth.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Measurement {
+    /// The criterion, or [`NO_REFINE`].
+    pub run: String,
+    pub time_s: f64,
+    pub samples: u64,
+    pub shown: u64,
+    pub inserted: u64,
+    pub removed: u64,
+    pub outstanding: u64,
+    pub error: ImageError,
+    /// The viewer's linear image (in the raw runs folder; absent from CSVs read back).
+    pub exr: Option<PathBuf>,
+}
+
+const HEADER: &str = "run,time_s,samples,shown,inserted,removed,outstanding,flip,rmse";
+
+pub fn write_csv(path: &Path, rows: &[Measurement]) -> anyhow::Result<()> {
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?);
+    writeln!(out, "{HEADER}")?;
+    for m in rows {
+        writeln!(
+            out,
+            "{},{:.3},{},{},{},{},{},{:.5},{:.5}",
+            m.run, m.time_s, m.samples, m.shown, m.inserted, m.removed, m.outstanding, m.error.flip, m.error.rmse
+        )?;
+    }
+    Ok(out.flush()?)
+}
+
+pub fn read_csv(path: &Path) -> anyhow::Result<Vec<Measurement>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let mut lines = text.lines();
+    anyhow::ensure!(lines.next() == Some(HEADER), "{} does not start with {HEADER:?}", path.display());
+    lines.filter(|l| !l.is_empty()).map(|l| parse_row(l).with_context(|| format!("{}: {l:?}", path.display()))).collect()
+}
+
+fn parse_row(line: &str) -> anyhow::Result<Measurement> {
+    let f: Vec<&str> = line.split(',').collect();
+    anyhow::ensure!(f.len() == 9, "expected 9 fields");
+    Ok(Measurement {
+        run: f[0].to_string(),
+        time_s: f[1].parse()?,
+        samples: f[2].parse()?,
+        shown: f[3].parse()?,
+        inserted: f[4].parse()?,
+        removed: f[5].parse()?,
+        outstanding: f[6].parse()?,
+        error: ImageError { flip: f[7].parse()?, rmse: f[8].parse()? },
+        exr: None,
+    })
+}
+
+/// The rows of one run, in the order taken.
+pub fn run_rows<'a>(rows: &'a [Measurement], run: &str) -> Vec<&'a Measurement> {
+    rows.iter().filter(|m| m.run == run).collect()
+}
+
+/// The run labels in first-seen order.
+pub fn run_labels(rows: &[Measurement]) -> Vec<String> {
+    let mut labels: Vec<String> = Vec::new();
+    for m in rows {
+        if !labels.contains(&m.run) {
+            labels.push(m.run.clone());
+        }
+    }
+    labels
+}
+
+/// The snapshot taken at `t` seconds (the viewer's `--snapshot-every` ticks land within a few
+/// milliseconds of the second; a quarter second of slack tolerates a busy machine).
+pub fn at_time<'a>(run: &[&'a Measurement], t: f64) -> Option<&'a Measurement> {
+    run.iter().copied().filter(|m| (m.time_s - t).abs() < 0.25).min_by(|a, b| (a.time_s - t).abs().total_cmp(&(b.time_s - t).abs()))
+}
+
+/// The first snapshot with at least `n` samples (the viewer's `--snapshot-at-samples` ticks).
+pub fn at_samples<'a>(run: &[&'a Measurement], n: u64) -> Option<&'a Measurement> {
+    run.iter().copied().find(|m| m.samples >= n)
+}
+
+/// The first time the mean FLIP is at or below `level`.
+pub fn time_to_reach(run: &[&Measurement], level: f64) -> Option<f64> {
+    run.iter().filter(|m| m.error.flip <= level).map(|m| m.time_s).min_by(f64::total_cmp)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn m(run: &str, time_s: f64, samples: u64, flip: f64) -> Measurement {
+        Measurement {
+            run: run.into(),
+            time_s,
+            samples,
+            shown: 10,
+            inserted: 12,
+            removed: 2,
+            outstanding: 0,
+            error: ImageError { flip, rmse: flip / 2.0 },
+            exr: None,
+        }
+    }
+
+    #[test]
+    fn csv_round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("v.csv");
+        let rows = vec![m("nld-os", 1.0, 100, 0.25), m(NO_REFINE, 2.5, 40, 0.5)];
+        write_csv(&path, &rows).unwrap();
+        assert_eq!(read_csv(&path).unwrap(), rows);
+    }
+
+    #[test]
+    fn picks_snapshots_by_time_samples_and_level() {
+        let rows = [m("a", 0.0, 0, 1.0), m("a", 1.01, 500, 0.3), m("a", 1.4, 1000, 0.2), m("a", 2.0, 1500, 0.09)];
+        let run: Vec<&Measurement> = rows.iter().collect();
+        assert_eq!(at_time(&run, 1.0).unwrap().samples, 500);
+        assert!(at_time(&run, 3.0).is_none());
+        assert_eq!(at_samples(&run, 800).unwrap().time_s, 1.4);
+        assert_eq!(time_to_reach(&run, 0.1), Some(2.0));
+        assert_eq!(time_to_reach(&run, 0.05), None);
+    }
+}

@@ -1,0 +1,105 @@
+//! Convergence plots (issue 7): the error against time and against samples, one line per
+//! criterion and one for the run without refinement. SVG, because text in plotters' bitmap backend
+//! needs system font libraries (DEPENDENCY-NOTES.md).
+
+use std::path::Path;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use crate::bench::convergence::record::{Measurement, run_labels, run_rows};
+
+type Metric = (&'static str, fn(&Measurement) -> f64);
+type Axis = (&'static str, fn(&Measurement) -> f64);
+
+const METRICS: [Metric; 2] = [("mean LDR-FLIP", |m| m.error.flip), ("RMSE (sRGB, 0..1)", |m| m.error.rmse)];
+const AXES: [Axis; 2] = [("time (s)", |m| m.time_s), ("samples", |m| m.samples as f64)];
+
+/// A 2×2 SVG: FLIP and RMSE (rows) against time and samples (columns).
+pub fn error_panels(path: &Path, title: &str, rows: &[Measurement]) -> anyhow::Result<()> {
+    let root = SVGBackend::new(path, (1100, 760)).into_drawing_area();
+    root.fill(&WHITE).map_err(plot_error)?;
+    let root = root.titled(title, ("sans-serif", 22)).map_err(plot_error)?;
+    let panels = root.split_evenly((2, 2));
+    for (i, panel) in panels.iter().enumerate() {
+        panel_chart(panel, rows, METRICS[i / 2], AXES[i % 2])?;
+    }
+    root.present().map_err(plot_error)?;
+    Ok(())
+}
+
+fn panel_chart(area: &DrawingArea<SVGBackend, Shift>, rows: &[Measurement], metric: Metric, axis: Axis) -> anyhow::Result<()> {
+    let (y_name, y_of) = metric;
+    let (x_name, x_of) = axis;
+    // Samples span decades (0 at t = 0 is left out of the log axis).
+    let log_x = x_name == "samples";
+    let series: Vec<(String, Vec<(f64, f64)>)> = run_labels(rows)
+        .into_iter()
+        .map(|label| {
+            let points = run_rows(rows, &label).into_iter().map(|m| (x_of(m), y_of(m))).filter(|(x, _)| !log_x || *x > 0.0).collect();
+            (label, points)
+        })
+        .collect();
+    let all = series.iter().flat_map(|(_, p)| p.iter());
+    let x_max = all.clone().map(|p| p.0).fold(1.0, f64::max);
+    let y_max = all.map(|p| p.1).fold(0.0, f64::max).max(1e-3) * 1.05;
+    let mut builder = ChartBuilder::on(area);
+    builder.margin(12).x_label_area_size(40).y_label_area_size(55);
+    if log_x {
+        let mut chart = builder.build_cartesian_2d((1.0..x_max).log_scale(), 0.0..y_max).map_err(plot_error)?;
+        chart.configure_mesh().x_desc(x_name).y_desc(y_name).draw().map_err(plot_error)?;
+        draw_series(&mut chart, &series)
+    } else {
+        let mut chart = builder.build_cartesian_2d(0.0..x_max, 0.0..y_max).map_err(plot_error)?;
+        chart.configure_mesh().x_desc(x_name).y_desc(y_name).draw().map_err(plot_error)?;
+        draw_series(&mut chart, &series)
+    }
+}
+
+fn draw_series<'a, X>(chart: &mut ChartContext<'a, SVGBackend<'a>, Cartesian2d<X, plotters::coord::types::RangedCoordf64>>, series: &[(String, Vec<(f64, f64)>)]) -> anyhow::Result<()>
+where
+    X: Ranged<ValueType = f64>,
+{
+    for (i, (label, points)) in series.iter().enumerate() {
+        let colour = Palette99::pick(i).to_rgba();
+        chart
+            .draw_series(LineSeries::new(points.iter().copied(), colour.stroke_width(2)))
+            .map_err(plot_error)?
+            .label(label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2)));
+    }
+    chart.configure_series_labels().border_style(BLACK).background_style(WHITE.mix(0.85)).position(SeriesLabelPosition::UpperRight).draw().map_err(plot_error)?;
+    Ok(())
+}
+
+/// plotters' errors borrow the backend; keep the message only.
+fn plot_error(e: impl std::fmt::Display) -> anyhow::Error {
+    anyhow::anyhow!("plotting: {e}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bench::metrics::ImageError;
+
+    #[test]
+    fn writes_an_svg_with_every_run_in_the_legend() {
+        let m = |run: &str, t: f64, flip: f64| Measurement {
+            run: run.into(),
+            time_s: t,
+            samples: (t * 1000.0) as u64,
+            shown: 1,
+            inserted: 1,
+            removed: 0,
+            outstanding: 0,
+            error: ImageError { flip, rmse: flip / 2.0 },
+            exr: None,
+        };
+        let rows = [m("nld-os", 0.0, 0.9), m("nld-os", 1.0, 0.2), m("rnd", 0.0, 0.9), m("rnd", 1.0, 0.4)];
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("p.svg");
+        error_panels(&path, "bracara VT", &rows).unwrap();
+        let svg = std::fs::read_to_string(&path).unwrap();
+        assert!(svg.contains("nld-os") && svg.contains("rnd") && svg.contains("bracara VT"));
+    }
+}
