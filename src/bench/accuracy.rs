@@ -13,7 +13,9 @@ use anyhow::Context;
 use clap::Args;
 
 use crate::bench::convergence::manifest::{self, ViewRecord};
-use crate::bench::convergence::record::{self, Measurement, NO_REFINE, at_samples, run_labels, run_rows, time_to_reach};
+use crate::bench::convergence::record::{
+    self, Measurement, NO_REFINE, at_samples, run_labels, run_rows, time_to_reach,
+};
 use crate::bench::convergence::{INTERACTIVE_BOUNCES, default_criteria};
 use crate::bench::metrics::Reference;
 
@@ -63,10 +65,17 @@ pub fn run(args: AccuracyArgs) -> anyhow::Result<()> {
     let exe = std::env::current_exe().context("locating the walkthrough binary")?;
     let mut results = Vec::new();
     for record in manifest::read(&args.convergence)? {
-        eprintln!("accuracy: direct render of {} {} at {} paths per pixel…", record.label, record.view, args.spp);
+        eprintln!(
+            "accuracy: direct render of {} {} at {} paths per pixel…",
+            record.label, record.view, args.spp
+        );
         let direct = direct_render(&exe, &record, &args)?;
         let rows = record::read_csv(&args.convergence.join(format!("{}.csv", record.stem())))?;
-        results.push(ViewResult { record, rows, direct });
+        results.push(ViewResult {
+            record,
+            rows,
+            direct,
+        });
     }
     let md = section(&results, &args);
     print!("{md}");
@@ -81,12 +90,35 @@ pub fn run(args: AccuracyArgs) -> anyhow::Result<()> {
 /// load and BVH build included, as in the thesis's Radiance times), and measures its image.
 fn direct_render(exe: &Path, r: &ViewRecord, args: &AccuracyArgs) -> anyhow::Result<Direct> {
     std::fs::create_dir_all(&args.direct)?;
-    let out = args.direct.join(format!("{}-{}x{}-{}spp.exr", r.stem(), r.width, r.height, args.spp));
+    let out = args.direct.join(format!(
+        "{}-{}x{}-{}spp.exr",
+        r.stem(),
+        r.width,
+        r.height,
+        args.spp
+    ));
     let started = Instant::now();
     let status = Command::new(exe)
-        .args(["renderer", "reference", "--scene", &r.scene, "--view", &r.view])
-        .args(["--width", &r.width.to_string(), "--height", &r.height.to_string()])
-        .args(["--spp", &args.spp.to_string(), "--bounces", &INTERACTIVE_BOUNCES.to_string()])
+        .args([
+            "renderer",
+            "reference",
+            "--scene",
+            &r.scene,
+            "--view",
+            &r.view,
+        ])
+        .args([
+            "--width",
+            &r.width.to_string(),
+            "--height",
+            &r.height.to_string(),
+        ])
+        .args([
+            "--spp",
+            &args.spp.to_string(),
+            "--bounces",
+            &INTERACTIVE_BOUNCES.to_string(),
+        ])
         .arg("--out")
         .arg(&out)
         .stdin(Stdio::null())
@@ -94,14 +126,23 @@ fn direct_render(exe: &Path, r: &ViewRecord, args: &AccuracyArgs) -> anyhow::Res
         .status()
         .context("starting the direct render")?;
     let seconds = started.elapsed().as_secs_f64();
-    anyhow::ensure!(status.success(), "the direct render of {} failed ({status})", r.stem());
+    anyhow::ensure!(
+        status.success(),
+        "the direct render of {} failed ({status})",
+        r.stem()
+    );
     let reference = Reference::read_exr(Path::new(&r.ground_truth))?;
-    let flip = reference.error_of(&crate::bench::metrics::LinearImage::read_exr(&out)?)?.flip;
+    let flip = reference
+        .error_of(&crate::bench::metrics::LinearImage::read_exr(&out)?)?
+        .flip;
     Ok(Direct { seconds, flip })
 }
 
 fn criteria_of(rows: &[Measurement]) -> Vec<String> {
-    run_labels(rows).into_iter().filter(|l| l != NO_REFINE).collect()
+    run_labels(rows)
+        .into_iter()
+        .filter(|l| l != NO_REFINE)
+        .collect()
 }
 
 fn section(results: &[ViewResult], args: &AccuracyArgs) -> String {
@@ -164,27 +205,44 @@ fn target_speedup(v: &ViewResult, criterion: &str) -> Option<f64> {
 fn targets(results: &[ViewResult]) -> String {
     let mut md = String::from("### Targets of issue 7\n\n");
     let n = results.len();
-    let criteria: Vec<String> = results.first().map(|v| criteria_of(&v.rows)).unwrap_or_else(default_criteria);
+    let criteria: Vec<String> = results
+        .first()
+        .map(|v| criteria_of(&v.rows))
+        .unwrap_or_else(default_criteria);
     md.push_str("| view |");
     for c in &criteria {
         let _ = write!(md, " {c}: speed-up to FLIP {TARGET_FLIP} |");
     }
-    let _ = writeln!(md, " {THESIS_BEST} ≤ others at equal samples |\n|---|{}---|", "---:|".repeat(criteria.len()));
+    let _ = writeln!(
+        md,
+        " {THESIS_BEST} ≤ others at equal samples |\n|---|{}---|",
+        "---:|".repeat(criteria.len())
+    );
     let mut best_speedups = Vec::new();
     let mut equal_sample_wins = 0;
     for v in results {
         let _ = write!(md, "| {} {} |", v.record.label, v.record.view);
         for c in &criteria {
-            let cell = target_speedup(v, c).map(|s| format!("{s:.1}×")).unwrap_or_else(|| "not reached".into());
+            let cell = target_speedup(v, c)
+                .map(|s| format!("{s:.1}×"))
+                .unwrap_or_else(|| "not reached".into());
             let _ = write!(md, " {cell} |");
         }
-        best_speedups.push(criteria.iter().filter_map(|c| target_speedup(v, c)).fold(0.0, f64::max));
+        best_speedups.push(
+            criteria
+                .iter()
+                .filter_map(|c| target_speedup(v, c))
+                .fold(0.0, f64::max),
+        );
         let (holds, text) = equal_samples(v);
         equal_sample_wins += usize::from(holds);
         let _ = writeln!(md, " {text} |");
     }
     let every = best_speedups.iter().all(|s| *s >= SPEEDUP_EVERY_VIEW);
-    let twenty = best_speedups.iter().filter(|s| **s >= SPEEDUP_HALF_THE_VIEWS).count();
+    let twenty = best_speedups
+        .iter()
+        .filter(|s| **s >= SPEEDUP_HALF_THE_VIEWS)
+        .count();
     let verdict = |met: bool| if met { "**met**" } else { "**missed**" };
     let _ = writeln!(
         md,
@@ -193,10 +251,18 @@ fn targets(results: &[ViewResult]) -> String {
          - At equal samples, {THESIS_BEST}'s error ≤ every other criterion's on at least 5 of the 6 default views: {} \
          ({equal_sample_wins} of {n} measured views).{}\n",
         verdict(every && n > 0),
-        best_speedups.iter().map(|s| format!("{s:.1}×")).collect::<Vec<_>>().join(", "),
+        best_speedups
+            .iter()
+            .map(|s| format!("{s:.1}×"))
+            .collect::<Vec<_>>()
+            .join(", "),
         verdict(2 * twenty >= n && n > 0),
         verdict(equal_sample_wins >= 5),
-        if n < 6 { " Fewer than the 6 default views were measured, so this target cannot be met by these figures." } else { "" }
+        if n < 6 {
+            " Fewer than the 6 default views were measured, so this target cannot be met by these figures."
+        } else {
+            ""
+        }
     );
     md
 }
@@ -205,13 +271,38 @@ fn targets(results: &[ViewResult]) -> String {
 /// count all of them reached, with the figures.
 fn equal_samples(v: &ViewResult) -> (bool, String) {
     let criteria = criteria_of(&v.rows);
-    let reached_by_all = |n: u64| criteria.iter().all(|c| at_samples(&run_rows(&v.rows, c), n).is_some());
-    let Some(n) = v.record.sample_counts.iter().rev().copied().find(|n| reached_by_all(*n)) else {
+    let reached_by_all = |n: u64| {
+        criteria
+            .iter()
+            .all(|c| at_samples(&run_rows(&v.rows, c), n).is_some())
+    };
+    let Some(n) = v
+        .record
+        .sample_counts
+        .iter()
+        .rev()
+        .copied()
+        .find(|n| reached_by_all(*n))
+    else {
         return (false, "no common sample count".into());
     };
-    let flip = |c: &str| at_samples(&run_rows(&v.rows, c), n).map(|m| m.error.flip).unwrap_or(f64::NAN);
+    let flip = |c: &str| {
+        at_samples(&run_rows(&v.rows, c), n)
+            .map(|m| m.error.flip)
+            .unwrap_or(f64::NAN)
+    };
     let best = flip(THESIS_BEST);
     let holds = criteria.iter().all(|c| best <= flip(c));
-    let figures: Vec<String> = criteria.iter().map(|c| format!("{c} {:.3}", flip(c))).collect();
-    (holds, format!("{} at {n} samples: {}", if holds { "yes" } else { "no" }, figures.join(", ")))
+    let figures: Vec<String> = criteria
+        .iter()
+        .map(|c| format!("{c} {:.3}", flip(c)))
+        .collect();
+    (
+        holds,
+        format!(
+            "{} at {n} samples: {}",
+            if holds { "yes" } else { "no" },
+            figures.join(", ")
+        ),
+    )
 }

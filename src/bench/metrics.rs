@@ -90,8 +90,12 @@ impl ToneMap {
             .filter(|l| l.is_finite())
             .collect();
         lum.sort_by(f32::total_cmp);
-        let at = ((lum.len() as f64 - 1.0) * L_WHITE_QUANTILE).round().max(0.0) as usize;
-        ToneMap { l_white: lum.get(at).copied().unwrap_or(1.0).max(1e-6) }
+        let at = ((lum.len() as f64 - 1.0) * L_WHITE_QUANTILE)
+            .round()
+            .max(0.0) as usize;
+        ToneMap {
+            l_white: lum.get(at).copied().unwrap_or(1.0).max(1e-6),
+        }
     }
 
     fn map(&self, rgb: [f32; 3]) -> [u8; 3] {
@@ -111,7 +115,11 @@ impl ToneMap {
 }
 
 fn srgb8(linear: f32) -> u8 {
-    let v = if linear <= 0.003_130_8 { 12.92 * linear } else { 1.055 * linear.powf(1.0 / 2.4) - 0.055 };
+    let v = if linear <= 0.003_130_8 {
+        12.92 * linear
+    } else {
+        1.055 * linear.powf(1.0 / 2.4) - 0.055
+    };
     (v * 255.0).round().clamp(0.0, 255.0) as u8
 }
 
@@ -147,7 +155,12 @@ impl Reference {
         let covered = coverage(&image);
         let tone_map = ToneMap::of_ground_truth(&image, &covered);
         let srgb = masked(tone_map.srgb8(&image), &covered);
-        Reference { image, covered, tone_map, srgb }
+        Reference {
+            image,
+            covered,
+            tone_map,
+            srgb,
+        }
     }
 
     pub fn read_exr(path: &Path) -> anyhow::Result<Reference> {
@@ -172,9 +185,15 @@ impl Reference {
             self.image.width,
             self.image.height
         );
-        anyhow::ensure!(self.covered_pixels() > 0, "the ground truth sees no geometry");
+        anyhow::ensure!(
+            self.covered_pixels() > 0,
+            "the ground truth sees no geometry"
+        );
         let test = self.tone_mapped(test);
-        Ok(ImageError { flip: self.mean_flip(&test), rmse: self.rmse(&test) })
+        Ok(ImageError {
+            flip: self.mean_flip(&test),
+            rmse: self.rmse(&test),
+        })
     }
 
     /// FLIP filters across neighbouring pixels, so uncovered pixels are black in both images: equal
@@ -225,7 +244,12 @@ mod tests {
 
     fn flat(width: u32, height: u32, rgb: [f32; 3]) -> LinearImage {
         let n = (width * height) as usize;
-        LinearImage { width, height, rgb: vec![rgb; n], alpha: None }
+        LinearImage {
+            width,
+            height,
+            rgb: vec![rgb; n],
+            alpha: None,
+        }
     }
 
     #[test]
@@ -241,7 +265,13 @@ mod tests {
     fn identical_images_have_no_error_and_different_ones_do() {
         let gt = Reference::new(flat(64, 48, [0.5, 0.4, 0.3]));
         let same = gt.error_of(&flat(64, 48, [0.5, 0.4, 0.3])).unwrap();
-        assert_eq!(same, ImageError { flip: 0.0, rmse: 0.0 });
+        assert_eq!(
+            same,
+            ImageError {
+                flip: 0.0,
+                rmse: 0.0
+            }
+        );
         let darker = gt.error_of(&flat(64, 48, [0.1, 0.08, 0.06])).unwrap();
         assert!(darker.flip > 0.05 && darker.rmse > 0.05, "{darker:?}");
     }
@@ -250,7 +280,11 @@ mod tests {
     fn uncovered_pixels_are_left_out() {
         let mut gt = flat(64, 48, [0.5, 0.4, 0.3]);
         // Left half sees geometry, right half the sky.
-        gt.alpha = Some((0..64 * 48).map(|i| if i % 64 < 32 { 1.0 } else { 0.0 }).collect());
+        gt.alpha = Some(
+            (0..64 * 48)
+                .map(|i| if i % 64 < 32 { 1.0 } else { 0.0 })
+                .collect(),
+        );
         let reference = Reference::new(gt);
         assert_eq!(reference.covered_pixels(), 32 * 48);
         let mut test = flat(64, 48, [0.5, 0.4, 0.3]);
@@ -259,7 +293,13 @@ mod tests {
                 *p = [9.0, 0.0, 9.0];
             }
         }
-        assert_eq!(reference.error_of(&test).unwrap(), ImageError { flip: 0.0, rmse: 0.0 });
+        assert_eq!(
+            reference.error_of(&test).unwrap(),
+            ImageError {
+                flip: 0.0,
+                rmse: 0.0
+            }
+        );
     }
 
     #[test]

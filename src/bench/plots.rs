@@ -5,15 +5,23 @@
 use std::path::Path;
 
 use plotters::coord::Shift;
+use plotters::coord::ranged1d::ValueFormatter;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
-use crate::bench::convergence::record::{Measurement, run_labels, run_rows};
+use crate::bench::convergence::record::{Measurement, Schedule, run_labels, run_rows, scheduled};
 
 type Metric = (&'static str, fn(&Measurement) -> f64);
 type Axis = (&'static str, fn(&Measurement) -> f64);
 
-const METRICS: [Metric; 2] = [("mean LDR-FLIP", |m| m.error.flip), ("RMSE (sRGB, 0..1)", |m| m.error.rmse)];
-const AXES: [Axis; 2] = [("time (s)", |m| m.time_s), ("samples", |m| m.samples as f64)];
+const METRICS: [Metric; 2] = [
+    ("mean LDR-FLIP", |m| m.error.flip),
+    ("RMSE (sRGB, 0..1)", |m| m.error.rmse),
+];
+const AXES: [Axis; 2] = [
+    ("time (s)", |m| m.time_s),
+    ("samples", |m| m.samples as f64),
+];
 
 /// A 2×2 SVG: FLIP and RMSE (rows) against time and samples (columns).
 pub fn error_panels(path: &Path, title: &str, rows: &[Measurement]) -> anyhow::Result<()> {
@@ -28,7 +36,12 @@ pub fn error_panels(path: &Path, title: &str, rows: &[Measurement]) -> anyhow::R
     Ok(())
 }
 
-fn panel_chart(area: &DrawingArea<SVGBackend, Shift>, rows: &[Measurement], metric: Metric, axis: Axis) -> anyhow::Result<()> {
+fn panel_chart(
+    area: &DrawingArea<SVGBackend, Shift>,
+    rows: &[Measurement],
+    metric: Metric,
+    axis: Axis,
+) -> anyhow::Result<()> {
     let (y_name, y_of) = metric;
     let (x_name, x_of) = axis;
     // Samples span decades (0 at t = 0 is left out of the log axis).
@@ -36,39 +49,76 @@ fn panel_chart(area: &DrawingArea<SVGBackend, Shift>, rows: &[Measurement], metr
     let series: Vec<(String, Vec<(f64, f64)>)> = run_labels(rows)
         .into_iter()
         .map(|label| {
-            let points = run_rows(rows, &label).into_iter().map(|m| (x_of(m), y_of(m))).filter(|(x, _)| !log_x || *x > 0.0).collect();
+            let points = panel_rows(&run_rows(rows, &label), log_x)
+                .into_iter()
+                .map(|m| (x_of(m), y_of(m)))
+                .filter(|(x, _)| !log_x || *x > 0.0)
+                .collect();
             (label, points)
         })
         .collect();
     let all = series.iter().flat_map(|(_, p)| p.iter());
+    let x_min = all.clone().map(|p| p.0).fold(f64::INFINITY, f64::min);
     let x_max = all.clone().map(|p| p.0).fold(1.0, f64::max);
     let y_max = all.map(|p| p.1).fold(0.0, f64::max).max(1e-3) * 1.05;
     let mut builder = ChartBuilder::on(area);
-    builder.margin(12).x_label_area_size(40).y_label_area_size(55);
+    builder
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(55);
+    let names = (x_name, y_name);
     if log_x {
-        let mut chart = builder.build_cartesian_2d((1.0..x_max).log_scale(), 0.0..y_max).map_err(plot_error)?;
-        chart.configure_mesh().x_desc(x_name).y_desc(y_name).draw().map_err(plot_error)?;
-        draw_series(&mut chart, &series)
+        let x_range = (x_min.min(x_max) * 0.8).max(1.0)..x_max * 1.25;
+        let chart = builder.build_cartesian_2d(x_range.log_scale(), 0.0..y_max);
+        draw_chart(chart.map_err(plot_error)?, names, &series)
     } else {
-        let mut chart = builder.build_cartesian_2d(0.0..x_max, 0.0..y_max).map_err(plot_error)?;
-        chart.configure_mesh().x_desc(x_name).y_desc(y_name).draw().map_err(plot_error)?;
-        draw_series(&mut chart, &series)
+        let chart = builder.build_cartesian_2d(0.0..x_max, 0.0..y_max);
+        draw_chart(chart.map_err(plot_error)?, names, &series)
     }
 }
 
-fn draw_series<'a, X>(chart: &mut ChartContext<'a, SVGBackend<'a>, Cartesian2d<X, plotters::coord::types::RangedCoordf64>>, series: &[(String, Vec<(f64, f64)>)]) -> anyhow::Result<()>
+/// Against time: the periodic snapshots. Against samples: the run at fixed sample counts where
+/// there is one (the run without refinement has only periodic snapshots).
+fn panel_rows<'a>(run: &[&'a Measurement], against_samples: bool) -> Vec<&'a Measurement> {
+    let by_samples = scheduled(run, Schedule::Samples);
+    if against_samples && !by_samples.is_empty() {
+        by_samples
+    } else {
+        scheduled(run, Schedule::Time)
+    }
+}
+
+fn draw_series<'a, X>(
+    chart: &mut ChartContext<
+        'a,
+        SVGBackend<'a>,
+        Cartesian2d<X, plotters::coord::types::RangedCoordf64>,
+    >,
+    series: &[(String, Vec<(f64, f64)>)],
+) -> anyhow::Result<()>
 where
     X: Ranged<ValueType = f64>,
 {
     for (i, (label, points)) in series.iter().enumerate() {
         let colour = Palette99::pick(i).to_rgba();
         chart
-            .draw_series(LineSeries::new(points.iter().copied(), colour.stroke_width(2)))
+            .draw_series(LineSeries::new(
+                points.iter().copied(),
+                colour.stroke_width(2),
+            ))
             .map_err(plot_error)?
             .label(label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2)));
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
+            });
     }
-    chart.configure_series_labels().border_style(BLACK).background_style(WHITE.mix(0.85)).position(SeriesLabelPosition::UpperRight).draw().map_err(plot_error)?;
+    chart
+        .configure_series_labels()
+        .border_style(BLACK)
+        .background_style(WHITE.mix(0.85))
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(plot_error)?;
     Ok(())
 }
 
@@ -86,16 +136,25 @@ mod tests {
     fn writes_an_svg_with_every_run_in_the_legend() {
         let m = |run: &str, t: f64, flip: f64| Measurement {
             run: run.into(),
+            schedule: Schedule::Time,
             time_s: t,
             samples: (t * 1000.0) as u64,
             shown: 1,
             inserted: 1,
             removed: 0,
             outstanding: 0,
-            error: ImageError { flip, rmse: flip / 2.0 },
+            error: ImageError {
+                flip,
+                rmse: flip / 2.0,
+            },
             exr: None,
         };
-        let rows = [m("nld-os", 0.0, 0.9), m("nld-os", 1.0, 0.2), m("rnd", 0.0, 0.9), m("rnd", 1.0, 0.4)];
+        let rows = [
+            m("nld-os", 0.0, 0.9),
+            m("nld-os", 1.0, 0.2),
+            m("rnd", 0.0, 0.9),
+            m("rnd", 1.0, 0.4),
+        ];
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("p.svg");
         error_panels(&path, "bracara VT", &rows).unwrap();

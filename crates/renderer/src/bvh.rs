@@ -55,7 +55,11 @@ pub fn bvh_triangles(mesh: &Mesh) -> Vec<BvhTriangle> {
     (0..mesh.triangles.len())
         .map(|t| {
             let [a, b, c] = mesh.triangle_positions(t);
-            BvhTriangle { v0: a.into(), v1: b.into(), v2: c.into() }
+            BvhTriangle {
+                v0: a.into(),
+                v1: b.into(),
+                v2: c.into(),
+            }
         })
         .collect()
 }
@@ -72,8 +76,16 @@ impl SceneBvh {
             build_cwbvh_from_tris(&tris, preset.params(), &mut Duration::default())
         };
         let prim_triangle = bvh.primitive_indices.clone();
-        let prims = prim_triangle.iter().map(|&i| RtTriangle::from(&tris[i as usize])).collect();
-        SceneBvh { bvh, prims, prim_triangle, build_time: start.elapsed() }
+        let prims = prim_triangle
+            .iter()
+            .map(|&i| RtTriangle::from(&tris[i as usize]))
+            .collect();
+        SceneBvh {
+            bvh,
+            prims,
+            prim_triangle,
+            build_time: start.elapsed(),
+        }
     }
 
     /// Wall time of `build`, triangle conversion included.
@@ -86,8 +98,14 @@ impl SceneBvh {
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
         let ray = Ray::new(origin.into(), dir.into(), 0.0, tmax);
         let mut hit = RayHit::none();
-        if self.bvh.ray_traverse(ray, &mut hit, |ray, id| self.prims[id].intersect(ray)) {
-            Some(Hit { triangle: self.prim_triangle[hit.primitive_id as usize], t: hit.t })
+        if self
+            .bvh
+            .ray_traverse(ray, &mut hit, |ray, id| self.prims[id].intersect(ray))
+        {
+            Some(Hit {
+                triangle: self.prim_triangle[hit.primitive_id as usize],
+                t: hit.t,
+            })
         } else {
             None
         }
@@ -97,7 +115,9 @@ impl SceneBvh {
     /// first hit found (obvhs' `ray_traverse_miss` returns true on a miss).
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         let ray = Ray::new(origin.into(), dir.into(), 0.0, tmax);
-        !self.bvh.ray_traverse_miss(ray, |ray, id| self.prims[id].intersect(ray))
+        !self
+            .bvh
+            .ray_traverse_miss(ray, |ray, id| self.prims[id].intersect(ray))
     }
 
     /// Number of BVH primitive references (more than triangles when the preset splits).
@@ -121,8 +141,14 @@ mod tests {
             ],
             normals: vec![Vec3::Y; 4],
             triangles: vec![
-                Triangle { vertices: [0, 2, 1], material: 0 },
-                Triangle { vertices: [0, 3, 2], material: 0 },
+                Triangle {
+                    vertices: [0, 2, 1],
+                    material: 0,
+                },
+                Triangle {
+                    vertices: [0, 3, 2],
+                    material: 0,
+                },
             ],
         }
     }
@@ -134,18 +160,26 @@ mod tests {
         let base = mesh.positions.len() as u32;
         mesh.positions.extend(upper.positions);
         mesh.normals.extend(upper.normals);
-        mesh.triangles.extend(upper.triangles.iter().map(|t| Triangle {
-            vertices: t.vertices.map(|v| v + base),
-            material: 0,
-        }));
+        mesh.triangles
+            .extend(upper.triangles.iter().map(|t| Triangle {
+                vertices: t.vertices.map(|v| v + base),
+                material: 0,
+            }));
         for preset in [BuildPreset::Fast, BuildPreset::Medium, BuildPreset::Slow] {
             let bvh = SceneBvh::build(&mesh, preset);
-            let hit = bvh.closest_hit(Vec3::new(0.3, 5.0, 0.2), Vec3::NEG_Y, f32::INFINITY).unwrap();
+            let hit = bvh
+                .closest_hit(Vec3::new(0.3, 5.0, 0.2), Vec3::NEG_Y, f32::INFINITY)
+                .unwrap();
             assert!((hit.t - 3.0).abs() < 1e-5);
             assert!(hit.triangle >= 2, "upper plane is triangles 2 and 3");
-            let hit = bvh.closest_hit(Vec3::new(0.3, 1.0, 0.2), Vec3::NEG_Y, f32::INFINITY).unwrap();
+            let hit = bvh
+                .closest_hit(Vec3::new(0.3, 1.0, 0.2), Vec3::NEG_Y, f32::INFINITY)
+                .unwrap();
             assert!((hit.t - 1.0).abs() < 1e-5 && hit.triangle < 2);
-            assert!(bvh.closest_hit(Vec3::new(3.0, 1.0, 0.2), Vec3::NEG_Y, f32::INFINITY).is_none());
+            assert!(
+                bvh.closest_hit(Vec3::new(3.0, 1.0, 0.2), Vec3::NEG_Y, f32::INFINITY)
+                    .is_none()
+            );
         }
     }
 
@@ -161,7 +195,10 @@ mod tests {
     #[test]
     fn empty_mesh_hits_nothing() {
         let bvh = SceneBvh::build(&Mesh::default(), BuildPreset::Slow);
-        assert!(bvh.closest_hit(Vec3::ZERO, Vec3::X, f32::INFINITY).is_none());
+        assert!(
+            bvh.closest_hit(Vec3::ZERO, Vec3::X, f32::INFINITY)
+                .is_none()
+        );
         assert!(!bvh.occluded(Vec3::ZERO, Vec3::X, 1.0));
     }
 }

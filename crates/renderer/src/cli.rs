@@ -16,7 +16,10 @@ use crate::service::Service;
 use crate::world::World;
 
 #[derive(Parser, Debug, Clone)]
-#[command(name = "renderer", about = "Path-tracing service for object-space shading requests, and reference images")]
+#[command(
+    name = "renderer",
+    about = "Path-tracing service for object-space shading requests, and reference images"
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -69,6 +72,13 @@ pub enum Command {
         #[arg(long, default_value_t = 0)]
         threads: usize,
     },
+    /// Print the renderer's BENCHMARKS.md section (run from the repository root, where
+    /// scenes/sponza.toml is).
+    Bench {
+        /// A few-second version with small sizes.
+        #[arg(long)]
+        quick: bool,
+    },
 }
 
 /// A bounce depth on the command line: a number, or "unbounded" (`None`, Russian roulette).
@@ -80,7 +90,10 @@ impl std::str::FromStr for BounceDepth {
     fn from_str(s: &str) -> Result<Self, String> {
         match s {
             "unbounded" | "inf" | "none" => Ok(BounceDepth(None)),
-            _ => s.parse::<u32>().map(|b| BounceDepth(Some(b))).map_err(|e| format!("{e} (a number or \"unbounded\")")),
+            _ => s
+                .parse::<u32>()
+                .map(|b| BounceDepth(Some(b)))
+                .map_err(|e| format!("{e} (a number or \"unbounded\")")),
         }
     }
 }
@@ -93,10 +106,36 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         .with_writer(std::io::stderr)
         .try_init();
     match cli.command {
-        Command::Serve { scene, listen, threads, max_frame } => serve(&scene, &listen, threads, max_frame),
-        Command::Reference { scene, view, width, height, spp, bounces, out, seed, l_white, threads } => {
-            let settings = ReferenceSettings { width, height, spp, bounces: bounces.0, seed };
+        Command::Serve {
+            scene,
+            listen,
+            threads,
+            max_frame,
+        } => serve(&scene, &listen, threads, max_frame),
+        Command::Reference {
+            scene,
+            view,
+            width,
+            height,
+            spp,
+            bounces,
+            out,
+            seed,
+            l_white,
+            threads,
+        } => {
+            let settings = ReferenceSettings {
+                width,
+                height,
+                spp,
+                bounces: bounces.0,
+                seed,
+            };
             reference(&scene, &view, &settings, &out, l_white, threads)
+        }
+        Command::Bench { quick } => {
+            print!("{}", crate::bench::section(quick)?);
+            Ok(())
         }
     }
 }
@@ -119,9 +158,14 @@ fn load_world(spec: &str) -> anyhow::Result<World> {
 fn serve(spec: &str, listen: &str, threads: usize, max_frame: usize) -> anyhow::Result<()> {
     let world = Arc::new(load_world(spec)?);
     let service = Service::new(world, threads, max_frame)?;
-    let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()?;
     runtime.block_on(async move {
-        let listener = TcpListener::bind(listen).await.with_context(|| format!("binding {listen}"))?;
+        let listener = TcpListener::bind(listen)
+            .await
+            .with_context(|| format!("binding {listen}"))?;
         let addr = listener.local_addr()?;
         // A machine-readable line for launchers and tests that asked for port 0.
         println!("listening on {addr}");
@@ -135,13 +179,28 @@ fn serve(spec: &str, listen: &str, threads: usize, max_frame: usize) -> anyhow::
     })
 }
 
-fn reference(spec: &str, view: &str, s: &ReferenceSettings, out: &std::path::Path, l_white: Option<f32>, threads: usize) -> anyhow::Result<()> {
+fn reference(
+    spec: &str,
+    view: &str,
+    s: &ReferenceSettings,
+    out: &std::path::Path,
+    l_white: Option<f32>,
+    threads: usize,
+) -> anyhow::Result<()> {
     let world = load_world(spec)?;
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()?;
     let start = Instant::now();
     let (_, counts) = pool.install(|| render_to_files(&world, view, s, out, l_white))?;
     let secs = start.elapsed().as_secs_f64();
-    tracing::info!(seconds = secs, rays = counts.total(), mrays_per_s = counts.total() as f64 / secs / 1e6, "reference written to {}", out.display());
+    tracing::info!(
+        seconds = secs,
+        rays = counts.total(),
+        mrays_per_s = counts.total() as f64 / secs / 1e6,
+        "reference written to {}",
+        out.display()
+    );
     Ok(())
 }
 
@@ -151,14 +210,59 @@ mod tests {
 
     #[test]
     fn parses_both_subcommands() {
-        let cli = Cli::try_parse_from(["renderer", "serve", "--scene", "cornell", "--listen", "127.0.0.1:0", "--threads", "2"]).unwrap();
-        assert!(matches!(cli.command, Command::Serve { ref scene, threads: 2, .. } if scene == "cornell"));
         let cli = Cli::try_parse_from([
-            "renderer", "reference", "--scene", "cornell", "--view", "main", "--width", "64", "--height", "48",
-            "--spp", "4", "--bounces", "unbounded", "--out", "x.exr",
+            "renderer",
+            "serve",
+            "--scene",
+            "cornell",
+            "--listen",
+            "127.0.0.1:0",
+            "--threads",
+            "2",
         ])
         .unwrap();
-        assert!(matches!(cli.command, Command::Reference { bounces: BounceDepth(None), width: 64, .. }));
-        assert!(Cli::try_parse_from(["renderer", "reference", "--view", "v", "--out", "o.exr", "--bounces", "x"]).is_err());
+        assert!(
+            matches!(cli.command, Command::Serve { ref scene, threads: 2, .. } if scene == "cornell")
+        );
+        let cli = Cli::try_parse_from([
+            "renderer",
+            "reference",
+            "--scene",
+            "cornell",
+            "--view",
+            "main",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--spp",
+            "4",
+            "--bounces",
+            "unbounded",
+            "--out",
+            "x.exr",
+        ])
+        .unwrap();
+        assert!(matches!(
+            cli.command,
+            Command::Reference {
+                bounces: BounceDepth(None),
+                width: 64,
+                ..
+            }
+        ));
+        assert!(
+            Cli::try_parse_from([
+                "renderer",
+                "reference",
+                "--view",
+                "v",
+                "--out",
+                "o.exr",
+                "--bounces",
+                "x"
+            ])
+            .is_err()
+        );
     }
 }

@@ -18,8 +18,13 @@ pub enum Specular {
     /// Blinn–Phong: half-vector density D(h) = (ns + 1) / (2 pi) cos^ns(theta_h) and
     /// f = ks D(h) / (4 (wo . h)). Sampling h from D gives the weight f cos / pdf = ks cos(theta_i)
     /// <= ks, so the lobe never reflects more than ks of what it receives.
-    Glossy { ks: Vec3, ns: f32 },
-    Mirror { ks: Vec3 },
+    Glossy {
+        ks: Vec3,
+        ns: f32,
+    },
+    Mirror {
+        ks: Vec3,
+    },
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -41,7 +46,10 @@ impl Bsdf {
     pub fn from_material(m: &Material) -> Bsdf {
         let specular = match m.scattering {
             Scattering::Diffuse => Specular::None,
-            Scattering::Glossy => Specular::Glossy { ks: m.ks, ns: m.ns.max(0.0) },
+            Scattering::Glossy => Specular::Glossy {
+                ks: m.ks,
+                ns: m.ns.max(0.0),
+            },
             Scattering::Mirror => Specular::Mirror { ks: m.ks },
         };
         Bsdf { kd: m.kd, specular }
@@ -83,7 +91,11 @@ impl Bsdf {
         let p_diffuse = self.diffuse_probability();
         if u[2] < p_diffuse {
             let dir = cosine_hemisphere(n, [u[0], u[1]]);
-            return Some(BsdfSample { dir, weight: self.kd / p_diffuse, kind: RayKind::Bounce });
+            return Some(BsdfSample {
+                dir,
+                weight: self.kd / p_diffuse,
+                kind: RayKind::Bounce,
+            });
         }
         let p_specular = 1.0 - p_diffuse;
         if p_specular <= 0.0 {
@@ -93,7 +105,11 @@ impl Bsdf {
             Specular::None => None,
             Specular::Mirror { ks } => {
                 let dir = reflect(wo, n);
-                Some(BsdfSample { dir, weight: ks / p_specular, kind: RayKind::Mirror })
+                Some(BsdfSample {
+                    dir,
+                    weight: ks / p_specular,
+                    kind: RayKind::Mirror,
+                })
             }
             Specular::Glossy { ks, ns } => {
                 let h = sample_blinn_half_vector(n, ns, [u[0], u[1]]);
@@ -136,7 +152,13 @@ mod tests {
     use crate::sampling::{stream, uniform2, uniform3};
 
     fn glossy(kd: f32, ks: f32, ns: f32) -> Bsdf {
-        Bsdf { kd: Vec3::splat(kd), specular: Specular::Glossy { ks: Vec3::splat(ks), ns } }
+        Bsdf {
+            kd: Vec3::splat(kd),
+            specular: Specular::Glossy {
+                ks: Vec3::splat(ks),
+                ns,
+            },
+        }
     }
 
     /// Albedo for outgoing `wo`, integrated by uniform hemisphere sampling of f cos (independent
@@ -193,7 +215,10 @@ mod tests {
             let wo = Vec3::new(0.0, t.sin(), t.cos());
             let k = 20_000;
             let mean: f32 = (0..k)
-                .map(|_| b.sample(n, wo, uniform3(&mut rng)).map_or(0.0, |s| s.weight.x))
+                .map(|_| {
+                    b.sample(n, wo, uniform3(&mut rng))
+                        .map_or(0.0, |s| s.weight.x)
+                })
                 .sum::<f32>()
                 / k as f32;
             assert!(mean <= 1.0 && mean > 0.5, "{theta_deg}: {mean}");
@@ -202,10 +227,18 @@ mod tests {
 
     #[test]
     fn mirror_reflects_about_the_normal_with_weight_ks() {
-        let b = Bsdf { kd: Vec3::ZERO, specular: Specular::Mirror { ks: Vec3::splat(0.9) } };
+        let b = Bsdf {
+            kd: Vec3::ZERO,
+            specular: Specular::Mirror {
+                ks: Vec3::splat(0.9),
+            },
+        };
         let wo = Vec3::new(1.0, 1.0, 0.0).normalize();
         let s = b.sample(Vec3::Y, wo, [0.3, 0.3, 0.3]).unwrap();
-        assert!(s.dir.abs_diff_eq(Vec3::new(-1.0, 1.0, 0.0).normalize(), 1e-6));
+        assert!(
+            s.dir
+                .abs_diff_eq(Vec3::new(-1.0, 1.0, 0.0).normalize(), 1e-6)
+        );
         assert_eq!(s.weight, Vec3::splat(0.9));
         assert_eq!(s.kind, RayKind::Mirror);
         assert_eq!(b.eval(Vec3::Y, wo, s.dir), Vec3::ZERO);
@@ -213,7 +246,10 @@ mod tests {
 
     #[test]
     fn lambert_eval_is_kd_over_pi_above_and_zero_below() {
-        let b = Bsdf { kd: Vec3::splat(0.6), specular: Specular::None };
+        let b = Bsdf {
+            kd: Vec3::splat(0.6),
+            specular: Specular::None,
+        };
         let f = b.eval(Vec3::Y, Vec3::Y, Vec3::new(0.0, 1.0, 1.0).normalize());
         assert!((f.x - 0.6 / PI).abs() < 1e-7);
         assert_eq!(b.eval(Vec3::Y, Vec3::Y, Vec3::NEG_Y), Vec3::ZERO);

@@ -27,8 +27,14 @@ pub struct Offsetter {
 
 impl Offsetter {
     pub fn new(scene_extent: f32) -> Offsetter {
-        let extent = if scene_extent.is_finite() { scene_extent } else { 1.0 };
-        Offsetter { absolute: (ABSOLUTE_OF_EXTENT * extent).max(f32::MIN_POSITIVE) }
+        let extent = if scene_extent.is_finite() {
+            scene_extent
+        } else {
+            1.0
+        };
+        Offsetter {
+            absolute: (ABSOLUTE_OF_EXTENT * extent).max(f32::MIN_POSITIVE),
+        }
     }
 
     /// The margin at point `p`.

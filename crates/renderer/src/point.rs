@@ -21,9 +21,9 @@ const PROBES: usize = 16;
 /// three quarters of its hemisphere close to the walls: 12 of 16, below the threshold.
 const HIDDEN_WHEN_BLOCKED: usize = 15;
 /// "Very close" as a fraction of the scene's extent.
-const CLOSE_OF_EXTENT: f32 = 0.02;
+const CLOSE_OF_EXTENT: f32 = 0.005;
 /// How far a back face still counts as the inside of a solid around the point.
-const BACK_FACE_OF_EXTENT: f32 = 0.25;
+const BACK_FACE_OF_EXTENT: f32 = 0.1;
 /// Candidate spots on a triangle: centroids of a 1:N² split (N = 5: 25 candidates).
 const CANDIDATE_GRID: u32 = 5;
 /// Barycentric coordinates may stray this far outside the triangle (rounding in the SMA).
@@ -65,31 +65,61 @@ pub fn surface_of(world: &World, p: &ShadePoint) -> Result<Surface, InvalidPoint
         return Err(InvalidPoint::DegenerateTriangle);
     }
     let (u, v) = (u.clamp(0.0, 1.0), v.clamp(0.0, 1.0));
-    let (u, v) = if u + v > 1.0 { (u / (u + v), v / (u + v)) } else { (u, v) };
+    let (u, v) = if u + v > 1.0 {
+        (u / (u + v), v / (u + v))
+    } else {
+        (u, v)
+    };
     let mesh = &world.scene.mesh;
     let corners = mesh.triangle_positions(t);
     let weights = [1.0 - u - v, u, v];
     let blend = |f: &dyn Fn(usize) -> Vec3| (0..3).map(|i| f(i) * weights[i]).sum::<Vec3>();
     let position = blend(&|i| corners[i]);
     let vertices = mesh.triangles[t].vertices;
-    let canonical = blend(&|i| mesh.normals.get(vertices[i] as usize).copied().unwrap_or(Vec3::ZERO));
+    let canonical = blend(&|i| {
+        mesh.normals
+            .get(vertices[i] as usize)
+            .copied()
+            .unwrap_or(Vec3::ZERO)
+    });
     // The side is relative to the vertex's canonical normal (DESIGN.md §5); the geometric normal,
     // flipped into that hemisphere, is the normal of the shaded side.
-    let toward = if canonical.dot(ng).abs() > 1e-6 { canonical * p.side.sign() } else { ng * p.side.sign() };
+    let toward = if canonical.dot(ng).abs() > 1e-6 {
+        canonical * p.side.sign()
+    } else {
+        ng * p.side.sign()
+    };
     let normal = if ng.dot(toward) >= 0.0 { ng } else { -ng };
     let position = world.offset.inset(position, corners);
-    Ok(Surface { position, normal, triangle: p.base_triangle })
+    Ok(Surface {
+        position,
+        normal,
+        triangle: p.base_triangle,
+    })
 }
 
 /// The point of a request, moved off a hidden spot when needed.
-pub fn locate(world: &World, p: &ShadePoint, counts: &mut RayCounts) -> Result<Located, InvalidPoint> {
+pub fn locate(
+    world: &World,
+    p: &ShadePoint,
+    counts: &mut RayCounts,
+) -> Result<Located, InvalidPoint> {
     let surface = surface_of(world, p)?;
     if !is_hidden(world, &surface, counts) {
-        return Ok(Located { surface, moved: false });
+        return Ok(Located {
+            surface,
+            moved: false,
+        });
     }
     Ok(match nearest_visible_spot(world, &surface, counts) {
-        Some(visible) => Located { surface: visible, moved: true },
-        None => Located { surface, moved: false },
+        Some(visible) => Located {
+            surface: visible,
+            moved: true,
+        },
+        None => Located {
+            surface,
+            moved: false,
+        },
     })
 }
 
@@ -101,7 +131,9 @@ pub fn is_hidden(world: &World, s: &Surface, counts: &mut RayCounts) -> bool {
     let mut blocked = 0;
     for (i, local) in probe_pattern().enumerate() {
         let dir = crate::sampling::to_world(s.normal, local);
-        let Some(hit) = world.trace(origin, dir, RayKind::Probe, counts) else { continue };
+        let Some(hit) = world.trace(origin, dir, RayKind::Probe, counts) else {
+            continue;
+        };
         let back_face = world.face_normal(hit.triangle).dot(dir) > 0.0;
         if hit.t < close || (back_face && hit.t < back_face_range) {
             blocked += 1;
@@ -131,7 +163,10 @@ fn nearest_visible_spot(world: &World, s: &Surface, counts: &mut RayCounts) -> O
     let mut spots: Vec<Vec3> = candidate_barycentrics()
         .map(|[u, v]| corners[0] * (1.0 - u - v) + corners[1] * u + corners[2] * v)
         .collect();
-    spots.sort_by(|a, b| a.distance_squared(s.position).total_cmp(&b.distance_squared(s.position)));
+    spots.sort_by(|a, b| {
+        a.distance_squared(s.position)
+            .total_cmp(&b.distance_squared(s.position))
+    });
     spots
         .into_iter()
         .map(|position| Surface { position, ..*s })

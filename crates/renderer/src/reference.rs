@@ -44,15 +44,33 @@ pub struct Image {
 pub fn camera_for(world: &World, name: &str, width: u32, height: u32) -> anyhow::Result<Camera> {
     let settings = &world.scene.settings;
     let Some(vp) = settings.viewpoints.iter().find(|v| v.name == name) else {
-        let names: Vec<&str> = settings.viewpoints.iter().map(|v| v.name.as_str()).collect();
-        bail!("scene {} has no viewpoint {name:?} (it has {names:?})", world.scene.name);
+        let names: Vec<&str> = settings
+            .viewpoints
+            .iter()
+            .map(|v| v.name.as_str())
+            .collect();
+        bail!(
+            "scene {} has no viewpoint {name:?} (it has {names:?})",
+            world.scene.name
+        );
     };
-    let vp = Viewpoint { name: vp.name.clone(), eye: vp.eye, target: vp.target, up: vp.up, fov_y_deg: vp.fov_y_deg };
+    let vp = Viewpoint {
+        name: vp.name.clone(),
+        eye: vp.eye,
+        target: vp.target,
+        up: vp.up,
+        fov_y_deg: vp.fov_y_deg,
+    };
     Ok(Camera::from_viewpoint(&vp, 0, width, height))
 }
 
 /// Renders the image; `progress` advances by one per row.
-pub fn render(world: &World, camera: &Camera, s: &ReferenceSettings, progress: Option<&ProgressBar>) -> (Image, RayCounts) {
+pub fn render(
+    world: &World,
+    camera: &Camera,
+    s: &ReferenceSettings,
+    progress: Option<&ProgressBar>,
+) -> (Image, RayCounts) {
     let width = s.width as usize;
     let rows: Vec<(Vec<(Vec3, bool)>, RayCounts)> = (0..s.height)
         .into_par_iter()
@@ -80,11 +98,27 @@ pub fn render(world: &World, camera: &Camera, s: &ReferenceSettings, progress: O
             covered.push(hit);
         }
     }
-    (Image { width: s.width, height: s.height, pixels, covered }, counts)
+    (
+        Image {
+            width: s.width,
+            height: s.height,
+            pixels,
+            covered,
+        },
+        counts,
+    )
 }
 
 /// Mean radiance over `spp` jittered camera rays through pixel (x, y) (a box filter).
-fn pixel(world: &World, camera: &Camera, s: &ReferenceSettings, x: u32, y: u32, rng: &mut Rng, counts: &mut RayCounts) -> (Vec3, bool) {
+fn pixel(
+    world: &World,
+    camera: &Camera,
+    s: &ReferenceSettings,
+    x: u32,
+    y: u32,
+    rng: &mut Rng,
+    counts: &mut RayCounts,
+) -> (Vec3, bool) {
     let origin = camera.eye_vec();
     let mut sum = Vec3::ZERO;
     let mut covered = false;
@@ -93,11 +127,12 @@ fn pixel(world: &World, camera: &Camera, s: &ReferenceSettings, x: u32, y: u32, 
         let [jx, jy] = uniform2(rng);
         let dir = camera.ray_direction(x as f32 + jx, y as f32 + jy);
         let l = match world.trace(origin, dir, RayKind::Camera, counts) {
-            None => world.lights.escaped_radiance(dir),
+            None => world.lights.escaped_radiance(dir, true),
             Some(hit) => {
                 covered = true;
                 let surface = world.surface_at(origin, dir, hit);
-                world.emission(hit.triangle, dir) + path_radiance(world, surface, -dir, s.bounces, rng, counts)
+                world.emission(hit.triangle, dir)
+                    + path_radiance(world, surface, -dir, s.bounces, rng, counts)
             }
         };
         if l.is_finite() {
@@ -109,17 +144,34 @@ fn pixel(world: &World, camera: &Camera, s: &ReferenceSettings, x: u32, y: u32, 
 
 /// Renders viewpoint `view` and writes `out` (EXR) and the PNG beside it (same name, `.png`).
 /// `l_white`: the tone-mapping white; the image's maximum luminance when `None`.
-pub fn render_to_files(world: &World, view: &str, s: &ReferenceSettings, out: &Path, l_white: Option<f32>) -> anyhow::Result<(Image, RayCounts)> {
+pub fn render_to_files(
+    world: &World,
+    view: &str,
+    s: &ReferenceSettings,
+    out: &Path,
+    l_white: Option<f32>,
+) -> anyhow::Result<(Image, RayCounts)> {
     let camera = camera_for(world, view, s.width, s.height)?;
     let bar = ProgressBar::new(s.height as u64).with_style(
-        ProgressStyle::with_template("{msg} [{elapsed_precise}] {wide_bar} {pos}/{len} rows (eta {eta})")
-            .context("progress template")?,
+        ProgressStyle::with_template(
+            "{msg} [{elapsed_precise}] {wide_bar} {pos}/{len} rows (eta {eta})",
+        )
+        .context("progress template")?,
     );
-    bar.set_message(format!("{} {view} {}x{} {} spp", world.scene.name, s.width, s.height, s.spp));
+    bar.set_message(format!(
+        "{} {view} {}x{} {} spp",
+        world.scene.name, s.width, s.height, s.spp
+    ));
     let (image, counts) = render(world, &camera, s, Some(&bar));
     bar.finish();
     tonemap::write_exr(out, s.width, s.height, &image.pixels)?;
     let l_white = l_white.unwrap_or_else(|| tonemap::max_luminance(&image.pixels));
-    tonemap::write_png(&out.with_extension("png"), s.width, s.height, &image.pixels, l_white)?;
+    tonemap::write_png(
+        &out.with_extension("png"),
+        s.width,
+        s.height,
+        &image.pixels,
+        l_white,
+    )?;
     Ok((image, counts))
 }

@@ -12,7 +12,9 @@ pub type Rng = Pcg64Mcg;
 /// The stream for item `index` of a job seeded with `seed`. Depends on nothing else, so an answer
 /// does not depend on thread scheduling (the service test compares it with in-process shading).
 pub fn stream(seed: u64, index: u64) -> Rng {
-    Pcg64Mcg::seed_from_u64(splitmix(seed ^ splitmix(index.wrapping_add(0x9E37_79B9_7F4A_7C15))))
+    Pcg64Mcg::seed_from_u64(splitmix(
+        seed ^ splitmix(index.wrapping_add(0x9E37_79B9_7F4A_7C15)),
+    ))
 }
 
 /// SplitMix64 finaliser: decorrelates nearby seeds.
@@ -28,7 +30,11 @@ pub fn uniform2(rng: &mut Rng) -> [f32; 2] {
 }
 
 pub fn uniform3(rng: &mut Rng) -> [f32; 3] {
-    [rng.random::<f32>(), rng.random::<f32>(), rng.random::<f32>()]
+    [
+        rng.random::<f32>(),
+        rng.random::<f32>(),
+        rng.random::<f32>(),
+    ]
 }
 
 /// An orthonormal frame (t, b, n) around unit `n` (Duff et al. 2017, branchless).
@@ -88,7 +94,12 @@ mod tests {
 
     #[test]
     fn frame_is_orthonormal() {
-        for n in [Vec3::X, Vec3::NEG_Z, Vec3::new(0.3, -0.4, 0.5).normalize(), Vec3::Z] {
+        for n in [
+            Vec3::X,
+            Vec3::NEG_Z,
+            Vec3::new(0.3, -0.4, 0.5).normalize(),
+            Vec3::Z,
+        ] {
             let (t, b) = frame(n);
             assert!(t.dot(b).abs() < 1e-5 && t.dot(n).abs() < 1e-5 && b.dot(n).abs() < 1e-5);
             assert!((t.length() - 1.0).abs() < 1e-5 && (b.length() - 1.0).abs() < 1e-5);
@@ -100,9 +111,15 @@ mod tests {
         let n = Vec3::new(1.0, 2.0, -0.5).normalize();
         let mut rng = stream(1, 2);
         let k = 20_000;
-        let mean: f32 = (0..k).map(|_| cosine_hemisphere(n, uniform2(&mut rng)).dot(n)).sum::<f32>() / k as f32;
+        let mean: f32 = (0..k)
+            .map(|_| cosine_hemisphere(n, uniform2(&mut rng)).dot(n))
+            .sum::<f32>()
+            / k as f32;
         // E[cos] under pdf cos/pi is 2/3; standard deviation of cos is sqrt(1/2 - 4/9) = 0.236.
-        assert!((mean - 2.0 / 3.0).abs() < 4.0 * 0.236 / (k as f32).sqrt(), "{mean}");
+        assert!(
+            (mean - 2.0 / 3.0).abs() < 4.0 * 0.236 / (k as f32).sqrt(),
+            "{mean}"
+        );
     }
 
     #[test]

@@ -24,13 +24,28 @@ pub struct Shaded {
 
 /// Outgoing radiance of `p` toward its eye (or its normal, for a diffuse material), averaged over
 /// `quality.paths` paths, plus the point's own emission on its emitting side.
-pub fn shade_point(world: &World, p: &ShadePoint, quality: Quality, rng: &mut Rng, counts: &mut RayCounts) -> Shaded {
+pub fn shade_point(
+    world: &World,
+    p: &ShadePoint,
+    quality: Quality,
+    rng: &mut Rng,
+    counts: &mut RayCounts,
+) -> Shaded {
     let located = match locate(world, p, counts) {
         Ok(l) => l,
-        Err(_) => return Shaded { rgb: Vec3::ZERO, flags: point_flags::INVALID_POINT },
+        Err(_) => {
+            return Shaded {
+                rgb: Vec3::ZERO,
+                flags: point_flags::INVALID_POINT,
+            };
+        }
     };
     let s = located.surface;
-    let mut flags = if located.moved { point_flags::MOVED_OFF_HIDDEN } else { 0 };
+    let mut flags = if located.moved {
+        point_flags::MOVED_OFF_HIDDEN
+    } else {
+        0
+    };
     let material = world.scene.material_of(s.triangle as usize);
     if material.is_view_dependent() {
         flags |= point_flags::VIEW_DEPENDENT;
@@ -47,7 +62,10 @@ pub fn shade_point(world: &World, p: &ShadePoint, quality: Quality, rng: &mut Rn
         }
     }
     let emitted = world.emission(s.triangle, -s.normal);
-    Shaded { rgb: emitted + sum / paths as f32, flags }
+    Shaded {
+        rgb: emitted + sum / paths as f32,
+        flags,
+    }
 }
 
 /// Toward the eye when it is on the shaded side; otherwise along the normal (a diffuse surface
@@ -68,7 +86,10 @@ pub fn shade_batch(world: &World, batch: &ShadeBatch) -> (Radiance, RayCounts) {
         .map(|(i, p)| {
             let mut counts = RayCounts::default();
             let mut rng = stream(batch.seed, i as u64);
-            (shade_point(world, p, batch.quality, &mut rng, &mut counts), counts)
+            (
+                shade_point(world, p, batch.quality, &mut rng, &mut counts),
+                counts,
+            )
         })
         .collect();
     let mut counts = RayCounts::default();

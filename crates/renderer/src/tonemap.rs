@@ -12,7 +12,9 @@ use crate::sampling::luminance;
 /// Drago-mapped display RGB (0..1 where `L <= L_white`) of linear radiance `rgb`.
 pub fn drago(rgb: Vec3, l_white: f32) -> Vec3 {
     let l = luminance(rgb);
-    if !(l > 0.0) || !(l_white > 0.0) {
+    // Also rejects NaN: comparisons with NaN are false.
+    let usable = l > 0.0 && l_white > 0.0;
+    if !usable {
         return Vec3::ZERO;
     }
     let ld = (1.0 + l).ln() / (1.0 + l_white).ln();
@@ -22,12 +24,20 @@ pub fn drago(rgb: Vec3, l_white: f32) -> Vec3 {
 /// sRGB transfer function of a linear value in 0..1.
 pub fn srgb_encode(x: f32) -> f32 {
     let x = x.clamp(0.0, 1.0);
-    if x <= 0.003_130_8 { 12.92 * x } else { 1.055 * x.powf(1.0 / 2.4) - 0.055 }
+    if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
 }
 
 /// The largest finite luminance of an image (the default `L_white`).
 pub fn max_luminance(pixels: &[Vec3]) -> f32 {
-    pixels.iter().map(|&p| luminance(p)).filter(|l| l.is_finite()).fold(0.0, f32::max)
+    pixels
+        .iter()
+        .map(|&p| luminance(p))
+        .filter(|l| l.is_finite())
+        .fold(0.0, f32::max)
 }
 
 /// 8-bit sRGB pixels (row-major RGB) of a linear image, Drago-mapped with `l_white`.
@@ -39,7 +49,13 @@ pub fn to_srgb8(pixels: &[Vec3], l_white: f32) -> Vec<u8> {
         .collect()
 }
 
-pub fn write_png(path: &Path, width: u32, height: u32, pixels: &[Vec3], l_white: f32) -> anyhow::Result<()> {
+pub fn write_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    pixels: &[Vec3],
+    l_white: f32,
+) -> anyhow::Result<()> {
     let bytes = to_srgb8(pixels, l_white);
     image::save_buffer(path, &bytes, width, height, image::ExtendedColorType::Rgb8)
         .with_context(|| format!("writing {}", path.display()))

@@ -40,12 +40,24 @@ impl World {
         let bvh = SceneBvh::build(&scene.mesh, preset);
         let lights = Lights::from_scene(&scene);
         let (lo, hi) = scene.mesh.bounds();
-        let extent = if lo.is_finite() && hi.is_finite() { (hi - lo).length() } else { 1.0 };
+        let extent = if lo.is_finite() && hi.is_finite() {
+            (hi - lo).length()
+        } else {
+            1.0
+        };
         let face_normals = (0..scene.mesh.triangles.len())
             .map(|t| scene.mesh.face_normal(t).normalize_or_zero())
             .collect();
         let bsdfs = scene.materials.iter().map(Bsdf::from_material).collect();
-        World { offset: Offsetter::new(extent), extent, bvh, lights, bsdfs, face_normals, scene }
+        World {
+            offset: Offsetter::new(extent),
+            extent,
+            bvh,
+            lights,
+            bsdfs,
+            face_normals,
+            scene,
+        }
     }
 
     pub fn effects(&self) -> Effects {
@@ -68,7 +80,11 @@ impl World {
     /// when it arrives on the counter-clockwise side (emitters are one-sided, DESIGN.md §7).
     pub fn emission(&self, triangle: u32, dir: Vec3) -> Vec3 {
         let ke = self.scene.material_of(triangle as usize).ke;
-        if self.face_normal(triangle).dot(dir) < 0.0 { ke } else { Vec3::ZERO }
+        if self.face_normal(triangle).dot(dir) < 0.0 {
+            ke
+        } else {
+            Vec3::ZERO
+        }
     }
 
     /// Whether a scattering ray of this kind belongs to an effect the scene calls for.
@@ -82,12 +98,25 @@ impl World {
         }
     }
 
-    pub fn trace(&self, origin: Vec3, dir: Vec3, kind: RayKind, counts: &mut RayCounts) -> Option<Hit> {
+    pub fn trace(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        kind: RayKind,
+        counts: &mut RayCounts,
+    ) -> Option<Hit> {
         counts.count(kind);
         self.bvh.closest_hit(origin, dir, f32::INFINITY)
     }
 
-    pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32, kind: RayKind, counts: &mut RayCounts) -> bool {
+    pub fn occluded(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmax: f32,
+        kind: RayKind,
+        counts: &mut RayCounts,
+    ) -> bool {
         counts.count(kind);
         self.bvh.occluded(origin, dir, tmax)
     }
@@ -101,6 +130,10 @@ impl World {
         let p = origin + dir * hit.t;
         let position = p - n * n.dot(p - v0);
         let normal = if n.dot(dir) > 0.0 { -n } else { n };
-        Surface { position, normal, triangle: hit.triangle }
+        Surface {
+            position,
+            normal,
+            triangle: hit.triangle,
+        }
     }
 }

@@ -16,7 +16,13 @@ const ALBEDO: f32 = 0.6;
 const SUN_RADIANCE: f32 = 1.0e5;
 
 /// Per-path samples (red channel) of the radiance leaving `p` toward its normal.
-fn path_samples(world: &World, p: &protocol::renderer_link::ShadePoint, paths: usize, bounces: Option<u32>, seed: u64) -> Vec<f64> {
+fn path_samples(
+    world: &World,
+    p: &protocol::renderer_link::ShadePoint,
+    paths: usize,
+    bounces: Option<u32>,
+    seed: u64,
+) -> Vec<f64> {
     let mut counts = RayCounts::default();
     let located = locate(world, p, &mut counts).expect("valid point");
     let s = located.surface;
@@ -35,7 +41,12 @@ fn path_samples(world: &World, p: &protocol::renderer_link::ShadePoint, paths: u
 fn expected_sunlit(theta: f32) -> f64 {
     let alpha = (0.53f64 / 2.0).to_radians();
     let solid_angle = 2.0 * std::f64::consts::PI * (1.0 - alpha.cos());
-    ALBEDO as f64 / std::f64::consts::PI * SUN_RADIANCE as f64 * solid_angle * (theta as f64).cos() * (1.0 + alpha.cos()) / 2.0
+    ALBEDO as f64 / std::f64::consts::PI
+        * SUN_RADIANCE as f64
+        * solid_angle
+        * (theta as f64).cos()
+        * (1.0 + alpha.cos())
+        / 2.0
 }
 
 fn sunlit_plane(centre: Vec3, theta: f32) -> World {
@@ -55,8 +66,14 @@ fn check_sunlit(centre: Vec3) {
         let samples = path_samples(&w, &p, 2000, Some(2), 5);
         let (mean, se) = mean_and_standard_error(&samples);
         let want = expected_sunlit(theta);
-        assert!((mean - want).abs() <= 3.0 * se + 1e-6 * want, "theta {theta_deg}: {mean} vs {want} (se {se})");
-        assert!((mean - want).abs() <= 0.005 * want, "theta {theta_deg}: {mean} vs {want}");
+        assert!(
+            (mean - want).abs() <= 3.0 * se + 1e-6 * want,
+            "theta {theta_deg}: {mean} vs {want} (se {se})"
+        );
+        assert!(
+            (mean - want).abs() <= 0.005 * want,
+            "theta {theta_deg}: {mean} vs {want}"
+        );
     }
 }
 
@@ -73,7 +90,10 @@ fn sunlit_plane_matches_lambert_far_from_the_origin() {
 
 #[test]
 fn point_under_an_occluder_gets_no_sun() {
-    let mut b = SceneBuilder::new(settings(Some(sun(Vec3::new(0.2, 1.0, 0.1), SUN_RADIANCE)), Sky::None));
+    let mut b = SceneBuilder::new(settings(
+        Some(sun(Vec3::new(0.2, 1.0, 0.1), SUN_RADIANCE)),
+        Sky::None,
+    ));
     let m = b.material(grey(ALBEDO));
     floor(&mut b, Vec3::ZERO, 10.0, m);
     floor(&mut b, Vec3::new(0.0, 1.0, 0.0), 1.0, m);
@@ -81,13 +101,20 @@ fn point_under_an_occluder_gets_no_sun() {
     let shadowed = point_hit_by(&w, Vec3::new(0.0, 0.5, 0.0), Vec3::NEG_Y);
     let lit = point_hit_by(&w, Vec3::new(5.0, 0.5, 5.0), Vec3::NEG_Y);
     let mut counts = RayCounts::default();
-    let direct = Quality { paths: 256, bounces: Some(0) };
+    let direct = Quality {
+        paths: 256,
+        bounces: Some(0),
+    };
     let dark = shade_point(&w, &shadowed, direct, &mut stream(1, 0), &mut counts);
     assert_eq!(dark.rgb, Vec3::ZERO);
     assert!(counts.shadow_sun > 0, "the sun was tried and found blocked");
     let bright = shade_point(&w, &lit, direct, &mut stream(1, 1), &mut counts);
     let theta = Vec3::new(0.2, 1.0, 0.1).normalize().y.acos();
-    assert!((bright.rgb.x as f64 - expected_sunlit(theta)).abs() < 0.01 * expected_sunlit(theta), "{}", bright.rgb);
+    assert!(
+        (bright.rgb.x as f64 - expected_sunlit(theta)).abs() < 0.01 * expected_sunlit(theta),
+        "{}",
+        bright.rgb
+    );
 }
 
 /// A closed box whose walls, of albedo a, all emit Le toward the inside: the radiance inside is
@@ -100,19 +127,38 @@ fn white_furnace_converges_to_le_over_one_minus_a() {
     cube(&mut b, Vec3::ZERO, Vec3::new(2.0, 1.0, 1.5), true, m);
     let w = world(b);
     assert!(w.effects().area_lights && w.effects().interreflection);
-    for (origin, dir) in [(Vec3::new(0.7, 0.5, 0.6), Vec3::NEG_Y), (Vec3::new(1.0, 0.5, 0.2), Vec3::X)] {
+    for (origin, dir) in [
+        (Vec3::new(0.7, 0.5, 0.6), Vec3::NEG_Y),
+        (Vec3::new(1.0, 0.5, 0.2), Vec3::X),
+    ] {
         let p = point_hit_by(&w, origin, dir);
         let samples = path_samples(&w, &p, 20_000, None, 9);
         let (mean, se) = mean_and_standard_error(&samples);
         // The query point's own emission, Le, is added by shade_point, not by the path.
         let total = mean + le as f64;
         let want = le as f64 / (1.0 - a as f64);
-        assert!((total - want).abs() <= 3.0 * se, "{total} vs {want} (se {se})");
+        assert!(
+            (total - want).abs() <= 3.0 * se,
+            "{total} vs {want} (se {se})"
+        );
         assert!(se < 0.01 * want, "enough paths for a sharp check: se {se}");
         // The same through the public entry point, own emission included.
         let mut counts = RayCounts::default();
-        let shaded = shade_point(&w, &p, Quality { paths: 4000, bounces: None }, &mut stream(2, 0), &mut counts);
-        assert!((shaded.rgb.x as f64 - want).abs() < 0.05 * want, "{} vs {want}", shaded.rgb);
+        let shaded = shade_point(
+            &w,
+            &p,
+            Quality {
+                paths: 4000,
+                bounces: None,
+            },
+            &mut stream(2, 0),
+            &mut counts,
+        );
+        assert!(
+            (shaded.rgb.x as f64 - want).abs() < 0.05 * want,
+            "{} vs {want}",
+            shaded.rgb
+        );
     }
 }
 
@@ -128,5 +174,29 @@ fn bounded_furnace_truncates_the_series() {
     let samples = path_samples(&w, &p, 20_000, Some(1), 4);
     let (mean, se) = mean_and_standard_error(&samples);
     let want = (a * le + a * a * le) as f64;
-    assert!((mean - want).abs() <= 3.0 * se, "{mean} vs {want} (se {se})");
+    assert!(
+        (mean - want).abs() <= 3.0 * se,
+        "{mean} vs {want} (se {se})"
+    );
+}
+
+/// A plane under a uniform sky of radiance L receives pi L and reflects albedo × L, whether the
+/// sky is reached by next-event estimation (depth 0) or by the path's continuation ray.
+#[test]
+fn plane_under_the_sky_reflects_albedo_times_sky() {
+    let sky = 0.8f32;
+    let mut b = SceneBuilder::new(settings(None, Sky::Uniform { radiance: [sky; 3] }));
+    let m = b.material(grey(ALBEDO));
+    floor(&mut b, Vec3::ZERO, 10.0, m);
+    let w = world(b);
+    let p = point_hit_by(&w, Vec3::new(0.3, 5.0, -0.2), Vec3::NEG_Y);
+    for bounces in [Some(0), Some(1), Some(3), None] {
+        let samples = path_samples(&w, &p, 500, bounces, 3);
+        let (mean, _) = mean_and_standard_error(&samples);
+        let want = (ALBEDO * sky) as f64;
+        assert!(
+            (mean - want).abs() < 1e-4 * want,
+            "{bounces:?}: {mean} vs {want}"
+        );
+    }
 }

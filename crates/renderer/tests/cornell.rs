@@ -22,7 +22,8 @@ fn error_falls_like_one_over_sqrt_paths() {
     let bounces = Some(2);
     let estimate = |paths: u32, seed: u64| {
         let q = Quality { paths, bounces };
-        luminance(shade_point(&w, &p, q, &mut stream(seed, 0), &mut RayCounts::default()).rgb) as f64
+        luminance(shade_point(&w, &p, q, &mut stream(seed, 0), &mut RayCounts::default()).rgb)
+            as f64
     };
     let truth = estimate(65_536, 999);
     let levels = [4u32, 16, 64, 256];
@@ -30,7 +31,9 @@ fn error_falls_like_one_over_sqrt_paths() {
     let rms: Vec<f64> = levels
         .iter()
         .map(|&paths| {
-            let sq: f64 = (0..repeats).map(|r| (estimate(paths, 1000 + r) - truth).powi(2)).sum();
+            let sq: f64 = (0..repeats)
+                .map(|r| (estimate(paths, 1000 + r) - truth).powi(2))
+                .sum();
             (sq / repeats as f64).sqrt()
         })
         .collect();
@@ -38,7 +41,11 @@ fn error_falls_like_one_over_sqrt_paths() {
     let xs: Vec<f64> = levels.iter().map(|&p| (p as f64).ln()).collect();
     let ys: Vec<f64> = rms.iter().map(|r| r.ln()).collect();
     let (mx, my) = (xs.iter().sum::<f64>() / 4.0, ys.iter().sum::<f64>() / 4.0);
-    let slope = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum::<f64>()
+    let slope = xs
+        .iter()
+        .zip(&ys)
+        .map(|(x, y)| (x - mx) * (y - my))
+        .sum::<f64>()
         / xs.iter().map(|x| (x - mx).powi(2)).sum::<f64>();
     assert!((slope + 0.5).abs() < 0.12, "slope {slope}, rms {rms:?}");
 }
@@ -51,11 +58,11 @@ fn region_mean(w: &World, img: &Image, select: impl Fn(u32, Vec3) -> bool) -> (V
     for y in 0..img.height {
         for x in 0..img.width {
             let dir = cam.ray_direction(x as f32 + 0.5, y as f32 + 0.5);
-            if let Some(hit) = w.bvh.closest_hit(cam.eye_vec(), dir, f32::INFINITY) {
-                if select(hit.triangle, cam.eye_vec() + dir * hit.t) {
-                    sum += img.pixels[(y * img.width + x) as usize];
-                    n += 1;
-                }
+            if let Some(hit) = w.bvh.closest_hit(cam.eye_vec(), dir, f32::INFINITY)
+                && select(hit.triangle, cam.eye_vec() + dir * hit.t)
+            {
+                sum += img.pixels[(y * img.width + x) as usize];
+                n += 1;
             }
         }
     }
@@ -70,7 +77,12 @@ fn material_name(w: &World, t: u32) -> &str {
 fn distance_to_blocks(p: Vec3) -> f32 {
     let blocks = [
         [(130.0, 65.0), (82.0, 225.0), (240.0, 272.0), (290.0, 114.0)],
-        [(423.0, 247.0), (265.0, 296.0), (314.0, 456.0), (472.0, 406.0)],
+        [
+            (423.0, 247.0),
+            (265.0, 296.0),
+            (314.0, 456.0),
+            (472.0, 406.0),
+        ],
     ];
     let q = glam::Vec2::new(p.x, p.z) * 1e3;
     blocks
@@ -90,7 +102,11 @@ fn distance_to_blocks(p: Vec3) -> f32 {
                 let s0 = (corners[1] - corners[0]).perp_dot(corners[2] - corners[0]);
                 s * s0 >= 0.0
             });
-            if inside { -edge_distance } else { edge_distance }
+            if inside {
+                -edge_distance
+            } else {
+                edge_distance
+            }
         })
         .fold(f32::INFINITY, f32::min)
         * 1e-3
@@ -99,27 +115,63 @@ fn distance_to_blocks(p: Vec3) -> f32 {
 #[test]
 fn reference_image_of_main_has_the_known_regions() {
     let w = cornell();
-    let settings = ReferenceSettings { width: 80, height: 80, spp: 48, bounces: Some(3), seed: 1 };
+    let settings = ReferenceSettings {
+        width: 80,
+        height: 80,
+        spp: 48,
+        bounces: Some(3),
+        seed: 1,
+    };
     let cam = camera_for(&w, "main", settings.width, settings.height).unwrap();
     let (img, counts) = render(&w, &cam, &settings, None);
     assert!(counts.camera >= 80 * 80 * 48);
-    assert!(img.pixels.iter().all(|p| p.is_finite() && p.min_element() >= 0.0));
+    assert!(
+        img.pixels
+            .iter()
+            .all(|p| p.is_finite() && p.min_element() >= 0.0)
+    );
     let (left, nl) = region_mean(&w, &img, |t, _| material_name(&w, t) == "red");
     let (right, nr) = region_mean(&w, &img, |t, _| material_name(&w, t) == "green");
     assert!(nl > 100 && nr > 100, "{nl} {nr}");
-    assert!(left.x > 2.0 * left.y && left.x > 2.0 * left.z, "left wall {left}");
-    assert!(right.y > 1.5 * right.x && right.y > 1.5 * right.z, "right wall {right}");
+    assert!(
+        left.x > 2.0 * left.y && left.x > 2.0 * left.z,
+        "left wall {left}"
+    );
+    assert!(
+        right.y > 1.5 * right.x && right.y > 1.5 * right.z,
+        "right wall {right}"
+    );
     // The red wall is on the image's left: the camera looks along +z, so image-left is +x.
-    let left_px = (0..img.width / 4).map(|x| img.pixels[(40 * img.width + x) as usize]).sum::<Vec3>();
+    let left_px = (0..img.width / 4)
+        .map(|x| img.pixels[(40 * img.width + x) as usize])
+        .sum::<Vec3>();
     assert!(left_px.x > left_px.y, "{left_px}");
     let is_floor = |t: u32| w.face_normal(t).y.abs() > 0.99 && material_name(&w, t) == "white";
-    let (near, nn) = region_mean(&w, &img, |t, p| is_floor(t) && p.y < 0.01 && (0.0..0.02).contains(&distance_to_blocks(p)));
-    let (open, no) = region_mean(&w, &img, |t, p| is_floor(t) && p.y < 0.01 && distance_to_blocks(p) > 0.08);
+    let (near, nn) = region_mean(&w, &img, |t, p| {
+        is_floor(t) && p.y < 0.01 && (0.0..0.02).contains(&distance_to_blocks(p))
+    });
+    let (open, no) = region_mean(&w, &img, |t, p| {
+        is_floor(t) && p.y < 0.01 && distance_to_blocks(p) > 0.08
+    });
     assert!(nn > 10 && no > 100, "{nn} {no}");
-    assert!(luminance(near) < 0.85 * luminance(open), "floor at the blocks {near} vs open floor {open}");
+    assert!(
+        luminance(near) < 0.85 * luminance(open),
+        "floor at the blocks {near} vs open floor {open}"
+    );
     // Mean luminance is stable across seeds.
-    let other = render(&w, &cam, &ReferenceSettings { seed: 2, ..settings }, None).0;
-    let mean = |i: &Image| i.pixels.iter().map(|&p| luminance(p) as f64).sum::<f64>() / i.pixels.len() as f64;
+    let other = render(
+        &w,
+        &cam,
+        &ReferenceSettings {
+            seed: 2,
+            ..settings
+        },
+        None,
+    )
+    .0;
+    let mean = |i: &Image| {
+        i.pixels.iter().map(|&p| luminance(p) as f64).sum::<f64>() / i.pixels.len() as f64
+    };
     let (a, b) = (mean(&img), mean(&other));
     assert!((a - b).abs() < 0.02 * a, "{a} vs {b}");
 }

@@ -12,12 +12,24 @@ use renderer::sampling::stream;
 use renderer::{RayCounts, World, shade_point};
 use scene::{SceneBuilder, Sky};
 
-const DIRECT: Quality = Quality { paths: 512, bounces: Some(0) };
+const DIRECT: Quality = Quality {
+    paths: 512,
+    bounces: Some(0),
+};
 
 fn vertex_points(w: &World) -> Vec<ShadePoint> {
     (0..w.triangle_count() as u32)
         .flat_map(|t| {
-            [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.5, 0.0], [0.5, 0.5], [0.0, 0.5]].into_iter().flat_map(move |bary| {
+            [
+                [0.0, 0.0],
+                [1.0, 0.0],
+                [0.0, 1.0],
+                [0.5, 0.0],
+                [0.5, 0.5],
+                [0.0, 0.5],
+            ]
+            .into_iter()
+            .flat_map(move |bary| {
                 [Side::Front, Side::Back].map(|side| ShadePoint {
                     key: SampleKey { vertex: 0, side },
                     base_triangle: t,
@@ -33,7 +45,10 @@ fn vertex_points(w: &World) -> Vec<ShadePoint> {
 /// A closed room of single-sided-thickness walls with the sun and sky outside: every point on
 /// the inner side of a wall, corners and edges included, must be exactly dark at direct quality.
 fn check_closed_room_is_dark(offset: Vec3) {
-    let mut b = SceneBuilder::new(settings(Some(sun(Vec3::new(0.4, 1.0, 0.3), 1.0e5)), Sky::Uniform { radiance: [1.0; 3] }));
+    let mut b = SceneBuilder::new(settings(
+        Some(sun(Vec3::new(0.4, 1.0, 0.3), 1.0e5)),
+        Sky::Uniform { radiance: [1.0; 3] },
+    ));
     let m = b.material(grey(0.7));
     cube(&mut b, offset, offset + Vec3::new(3.0, 2.5, 4.0), true, m);
     let w = world(b);
@@ -66,10 +81,19 @@ fn no_leak_at_concave_corners_far_from_the_origin() {
 /// A floor of two large triangles with a closed box standing on one of its vertices: that
 /// vertex is inside the box.
 fn floor_with_box_on_a_vertex() -> World {
-    let mut b = SceneBuilder::new(settings(Some(sun(Vec3::new(0.3, 1.0, 0.2), 1.0e5)), Sky::None));
+    let mut b = SceneBuilder::new(settings(
+        Some(sun(Vec3::new(0.3, 1.0, 0.2), 1.0e5)),
+        Sky::None,
+    ));
     let m = b.material(grey(0.5));
     floor(&mut b, Vec3::ZERO, 10.0, m);
-    cube(&mut b, Vec3::new(-10.5, 0.0, -10.5), Vec3::new(-9.0, 1.0, -9.0), false, m);
+    cube(
+        &mut b,
+        Vec3::new(-10.5, 0.0, -10.5),
+        Vec3::new(-9.0, 1.0, -9.0),
+        false,
+        m,
+    );
     world(b)
 }
 
@@ -85,9 +109,23 @@ fn hidden_vertex_is_moved_and_flagged_and_lit() {
             continue;
         }
         found += 1;
-        let shaded = shade_point(&w, &p, DIRECT, &mut stream(1, found), &mut RayCounts::default());
-        assert_eq!(shaded.flags & point_flags::MOVED_OFF_HIDDEN, point_flags::MOVED_OFF_HIDDEN, "{p:?}");
-        assert!(shaded.rgb.x > 0.5, "moved into the sunlit part: {}", shaded.rgb);
+        let shaded = shade_point(
+            &w,
+            &p,
+            DIRECT,
+            &mut stream(1, found),
+            &mut RayCounts::default(),
+        );
+        assert_eq!(
+            shaded.flags & point_flags::MOVED_OFF_HIDDEN,
+            point_flags::MOVED_OFF_HIDDEN,
+            "{p:?}"
+        );
+        assert!(
+            shaded.rgb.x > 0.5,
+            "moved into the sunlit part: {}",
+            shaded.rgb
+        );
     }
     assert!(found > 0, "the corner vertex is on the floor");
 }
@@ -107,7 +145,16 @@ fn open_points_and_room_corners_are_not_moved() {
     for p in vertex_points(&w) {
         let s = renderer::point::surface_of(&w, &p).unwrap();
         if s.normal.dot(Vec3::new(1.5, 1.25, 2.0) - s.position) > 0.0 {
-            let shaded = shade_point(&w, &p, Quality { paths: 1, bounces: Some(0) }, &mut stream(1, 0), &mut counts);
+            let shaded = shade_point(
+                &w,
+                &p,
+                Quality {
+                    paths: 1,
+                    bounces: Some(0),
+                },
+                &mut stream(1, 0),
+                &mut counts,
+            );
             assert_eq!(shaded.flags & point_flags::MOVED_OFF_HIDDEN, 0, "{p:?}");
         }
     }
@@ -118,17 +165,36 @@ fn invalid_requests_are_flagged_not_fatal() {
     let w = floor_with_box_on_a_vertex();
     let good = point_hit_by(&w, Vec3::new(3.0, 1.0, 2.0), Vec3::NEG_Y);
     let bad = [
-        ShadePoint { base_triangle: 1_000_000, ..good },
-        ShadePoint { bary: [f32::NAN, 0.2], ..good },
-        ShadePoint { bary: [0.9, 0.9], ..good },
-        ShadePoint { bary: [-0.5, 0.2], ..good },
+        ShadePoint {
+            base_triangle: 1_000_000,
+            ..good
+        },
+        ShadePoint {
+            bary: [f32::NAN, 0.2],
+            ..good
+        },
+        ShadePoint {
+            bary: [0.9, 0.9],
+            ..good
+        },
+        ShadePoint {
+            bary: [-0.5, 0.2],
+            ..good
+        },
     ];
     for p in bad {
         let s = shade_point(&w, &p, DIRECT, &mut stream(1, 0), &mut RayCounts::default());
-        assert_eq!((s.rgb, s.flags), (Vec3::ZERO, point_flags::INVALID_POINT), "{p:?}");
+        assert_eq!(
+            (s.rgb, s.flags),
+            (Vec3::ZERO, point_flags::INVALID_POINT),
+            "{p:?}"
+        );
     }
     // A non-finite eye is ignored rather than poisoning the answer.
-    let p = ShadePoint { eye: Some([f32::NAN, f32::INFINITY, 0.0]), ..good };
+    let p = ShadePoint {
+        eye: Some([f32::NAN, f32::INFINITY, 0.0]),
+        ..good
+    };
     let s = shade_point(&w, &p, DIRECT, &mut stream(1, 0), &mut RayCounts::default());
     assert!(s.rgb.is_finite() && s.rgb.x > 0.0);
 }

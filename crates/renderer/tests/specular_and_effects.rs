@@ -10,7 +10,10 @@ use renderer::sampling::stream;
 use renderer::{RayCounts, World, shade_point};
 use scene::{Material, SceneBuilder, Sky};
 
-const INTERACTIVE: Quality = Quality { paths: 64, bounces: Some(2) };
+const INTERACTIVE: Quality = Quality {
+    paths: 64,
+    bounces: Some(2),
+};
 
 fn counts_for(w: &World, points: &[ShadePoint], q: Quality) -> RayCounts {
     let mut counts = RayCounts::default();
@@ -23,17 +26,32 @@ fn counts_for(w: &World, points: &[ShadePoint], q: Quality) -> RayCounts {
 
 /// A floor with a box on it and a roof beam, under the given lights; `extra` is the material of
 /// the box.
-fn scene_with(sun: Option<scene::Sun>, sky: Sky, box_material: Material, emitter: bool) -> (World, Vec<ShadePoint>) {
+fn scene_with(
+    sun: Option<scene::Sun>,
+    sky: Sky,
+    box_material: Material,
+    emitter: bool,
+) -> (World, Vec<ShadePoint>) {
     let mut b = SceneBuilder::new(settings(sun, sky));
     let g = b.material(grey(0.5));
     let m = b.material(box_material);
     floor(&mut b, Vec3::ZERO, 5.0, g);
-    cube(&mut b, Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 1.0, 1.0), false, m);
+    cube(
+        &mut b,
+        Vec3::new(-1.0, 0.0, -1.0),
+        Vec3::new(1.0, 1.0, 1.0),
+        false,
+        m,
+    );
     if emitter {
         let e = b.material(Material::emitter("lamp", Vec3::ZERO, Vec3::splat(5.0)));
         // Facing down.
         let c = |x: f32, z: f32| Vec3::new(x, 3.0, z);
-        quad(&mut b, [c(-1.0, -1.0), c(1.0, -1.0), c(1.0, 1.0), c(-1.0, 1.0)], e);
+        quad(
+            &mut b,
+            [c(-1.0, -1.0), c(1.0, -1.0), c(1.0, 1.0), c(-1.0, 1.0)],
+            e,
+        );
     }
     let w = world(b);
     let mut points = vec![
@@ -56,30 +74,52 @@ fn diffuse_sunlit_scene_traces_no_specular_no_sky_no_area_rays() {
     let (w, points) = scene_with(sun_above(), Sky::None, grey(0.7), false);
     let c = counts_for(&w, &points, INTERACTIVE);
     assert!(c.shadow_sun > 0 && c.bounce > 0, "{c:?}");
-    assert_eq!((c.glossy, c.mirror, c.shadow_sky, c.shadow_area), (0, 0, 0, 0), "{c:?}");
+    assert_eq!(
+        (c.glossy, c.mirror, c.shadow_sky, c.shadow_area),
+        (0, 0, 0, 0),
+        "{c:?}"
+    );
 }
 
 #[test]
 fn direct_quality_traces_no_bounce_rays() {
     let (w, points) = scene_with(sun_above(), Sky::None, grey(0.7), false);
-    let c = counts_for(&w, &points, Quality { paths: 16, bounces: Some(0) });
+    let c = counts_for(
+        &w,
+        &points,
+        Quality {
+            paths: 16,
+            bounces: Some(0),
+        },
+    );
     assert!(c.shadow_sun > 0);
     assert_eq!(c.bounce, 0, "{c:?}");
 }
 
 #[test]
 fn positive_controls_count_each_kind() {
-    let (w, points) = scene_with(sun_above(), Sky::None, Material::mirror("m", Vec3::ZERO, Vec3::splat(0.9)), false);
+    let (w, points) = scene_with(
+        sun_above(),
+        Sky::None,
+        Material::mirror("m", Vec3::ZERO, Vec3::splat(0.9)),
+        false,
+    );
     assert!(counts_for(&w, &points, INTERACTIVE).mirror > 0);
     let glossy = Material::from_mtl("g", Vec3::splat(0.3), Vec3::ZERO, Vec3::splat(0.5), 50.0, 2);
     let (w, points) = scene_with(sun_above(), Sky::None, glossy, false);
     assert!(counts_for(&w, &points, INTERACTIVE).glossy > 0);
     let (w, points) = scene_with(None, Sky::Uniform { radiance: [1.0; 3] }, grey(0.7), false);
     let c = counts_for(&w, &points, INTERACTIVE);
-    assert!(c.shadow_sky > 0 && c.shadow_sun == 0 && c.shadow_area == 0, "{c:?}");
+    assert!(
+        c.shadow_sky > 0 && c.shadow_sun == 0 && c.shadow_area == 0,
+        "{c:?}"
+    );
     let (w, points) = scene_with(None, Sky::None, grey(0.7), true);
     let c = counts_for(&w, &points, INTERACTIVE);
-    assert!(c.shadow_area > 0 && c.shadow_sun == 0 && c.shadow_sky == 0, "{c:?}");
+    assert!(
+        c.shadow_area > 0 && c.shadow_sun == 0 && c.shadow_sky == 0,
+        "{c:?}"
+    );
 }
 
 #[test]
@@ -102,22 +142,52 @@ fn mirror_facing_an_emitter_returns_its_radiance() {
     floor(&mut b, Vec3::ZERO, 1.0, mirror);
     // A large emitter 1 above, facing down (clockwise seen from above = counter-clockwise below).
     let c = |x: f32, z: f32| Vec3::new(x, 1.0, z);
-    quad(&mut b, [c(-20.0, -20.0), c(20.0, -20.0), c(20.0, 20.0), c(-20.0, 20.0)], lamp);
+    quad(
+        &mut b,
+        [
+            c(-20.0, -20.0),
+            c(20.0, -20.0),
+            c(20.0, 20.0),
+            c(-20.0, 20.0),
+        ],
+        lamp,
+    );
     let w = world(b);
     let mut p = point_hit_by(&w, Vec3::new(0.1, 0.5, 0.2), Vec3::NEG_Y);
     p.eye = Some([0.6, 0.8, -0.3]);
     for bounces in [Some(0), Some(2), None] {
         let mut counts = RayCounts::default();
-        let s = shade_point(&w, &p, Quality { paths: 8, bounces }, &mut stream(1, 0), &mut counts);
+        let s = shade_point(
+            &w,
+            &p,
+            Quality { paths: 8, bounces },
+            &mut stream(1, 0),
+            &mut counts,
+        );
         assert!(s.rgb.abs_diff_eq(ke, 1e-5), "{bounces:?}: {}", s.rgb);
-        assert_eq!(s.flags & protocol::renderer_link::point_flags::VIEW_DEPENDENT, protocol::renderer_link::point_flags::VIEW_DEPENDENT);
+        assert_eq!(
+            s.flags & protocol::renderer_link::point_flags::VIEW_DEPENDENT,
+            protocol::renderer_link::point_flags::VIEW_DEPENDENT
+        );
         assert!(counts.mirror >= 8);
     }
     // Seen from below the mirror (the back side of the emitter faces away): the lamp's back is
     // dark, so a mirror under it looking up at its back sees nothing.
     let back = with_side_facing(&w, p, Vec3::NEG_Y);
     let mut counts = RayCounts::default();
-    let s = shade_point(&w, &ShadePoint { eye: Some([0.3, -1.0, 0.1]), ..back }, Quality { paths: 4, bounces: Some(0) }, &mut stream(1, 0), &mut counts);
+    let s = shade_point(
+        &w,
+        &ShadePoint {
+            eye: Some([0.3, -1.0, 0.1]),
+            ..back
+        },
+        Quality {
+            paths: 4,
+            bounces: Some(0),
+        },
+        &mut stream(1, 0),
+        &mut counts,
+    );
     assert_eq!(s.rgb, Vec3::ZERO);
 }
 
@@ -129,16 +199,36 @@ fn glossy_surface_in_a_furnace_reflects_no_more_than_it_receives() {
     let le = 1.0f32;
     let mut b = SceneBuilder::new(settings(None, Sky::None));
     let wall = b.material(Material::emitter("wall", Vec3::ZERO, Vec3::splat(le)));
-    let glossy = b.material(Material::from_mtl("g", Vec3::ZERO, Vec3::ZERO, Vec3::ONE, 20.0, 2));
+    let glossy = b.material(Material::from_mtl(
+        "g",
+        Vec3::ZERO,
+        Vec3::ZERO,
+        Vec3::ONE,
+        20.0,
+        2,
+    ));
     cube(&mut b, Vec3::ZERO, Vec3::splat(2.0), true, wall);
     floor(&mut b, Vec3::new(1.0, 0.5, 1.0), 0.5, glossy);
     let w = world(b);
     let mut p = point_hit_by(&w, Vec3::new(1.05, 1.5, 0.95), Vec3::NEG_Y);
     // Near-normal view: the lobe stays above the horizon; grazing views lose part of it below.
-    for (eye, at_least) in [([1.0, 1.9, 1.0], 0.8), ([1.9, 0.9, 1.0], 0.2), ([1.98, 0.55, 1.0], 0.0)] {
+    for (eye, at_least) in [
+        ([1.0, 1.9, 1.0], 0.8),
+        ([1.9, 0.9, 1.0], 0.2),
+        ([1.98, 0.55, 1.0], 0.0),
+    ] {
         p.eye = Some(eye);
         let mut counts = RayCounts::default();
-        let s = shade_point(&w, &p, Quality { paths: 20_000, bounces: Some(0) }, &mut stream(4, 0), &mut counts);
+        let s = shade_point(
+            &w,
+            &p,
+            Quality {
+                paths: 20_000,
+                bounces: Some(0),
+            },
+            &mut stream(4, 0),
+            &mut counts,
+        );
         assert!(s.rgb.x <= le * 1.01, "eye {eye:?}: {}", s.rgb);
         assert!(s.rgb.x > at_least * le, "eye {eye:?}: {}", s.rgb);
     }

@@ -19,9 +19,18 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
     let runs = if quick { 3 } else { 11 };
     let mut out = String::from("## scene\n\n");
     let sponza = Path::new(SPONZA);
-    let scene = load(SPONZA).with_context(|| format!("loading {} (needs ../shared/scenes/sponza)", sponza.display()))?;
+    let scene = load(SPONZA).with_context(|| {
+        format!(
+            "loading {} (needs ../shared/scenes/sponza)",
+            sponza.display()
+        )
+    })?;
     let t = median_seconds(runs, || load(SPONZA).map(drop))?;
-    let verdict = if t <= TARGET_SECONDS { "met" } else { "NOT met" };
+    let verdict = if t <= TARGET_SECONDS {
+        "met"
+    } else {
+        "NOT met"
+    };
     writeln!(
         out,
         "Load + validate + fingerprint of Dabrovic Sponza ({} triangles, {} vertices after splits; \
@@ -30,7 +39,10 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
         scene.mesh.positions.len(),
         t
     )?;
-    writeln!(out, "| scene | build (median of {runs}) | triangles | CPU visibility estimate at 1024×768 |")?;
+    writeln!(
+        out,
+        "| scene | build (median of {runs}) | triangles | CPU visibility estimate at 1024×768 |"
+    )?;
     writeln!(out, "|---|---|---|---|")?;
     for spec in ["bracara", "cornell", SPONZA] {
         let scene = load(spec)?;
@@ -46,7 +58,7 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
         let per_view = started.elapsed().as_secs_f64() / views.len().max(1) as f64;
         writeln!(
             out,
-            "| {} | {:.1} ms | {} | {} visible ({:.0} ms a view) |",
+            "| {} | {:.2} ms | {} | {} visible ({:.0} ms a view) |",
             scene.name,
             t * 1e3,
             scene.mesh.triangles.len(),

@@ -48,7 +48,9 @@ impl SceneBuilder {
     }
 
     /// Something the scene's user should know (a missing MTL, say), kept in the report.
+    /// Logged as well, for services that load a scene without printing its report.
     pub fn warn(&mut self, warning: String) {
+        tracing::warn!("{}: {warning}", self.settings.name);
         self.warnings.push(warning);
     }
 
@@ -64,7 +66,10 @@ impl SceneBuilder {
         for t in &self.triangles {
             let vertices = t.vertices.map(|v| welded[v as usize]);
             if !is_degenerate(vertices.map(|v| positions[v as usize])) {
-                kept.push(Triangle { vertices, material: t.material });
+                kept.push(Triangle {
+                    vertices,
+                    material: t.material,
+                });
             }
         }
         if kept.is_empty() {
@@ -96,8 +101,14 @@ impl SceneBuilder {
             return Err(SceneError::Builder(format!("vertex {i} is not finite")));
         }
         for (i, t) in self.triangles.iter().enumerate() {
-            if let Some(v) = t.vertices.iter().find(|&&v| v as usize >= self.positions.len()) {
-                return Err(SceneError::Builder(format!("triangle {i} uses undefined vertex {v}")));
+            if let Some(v) = t
+                .vertices
+                .iter()
+                .find(|&&v| v as usize >= self.positions.len())
+            {
+                return Err(SceneError::Builder(format!(
+                    "triangle {i} uses undefined vertex {v}"
+                )));
             }
             if t.material as usize >= self.materials.len() {
                 return Err(SceneError::Builder(format!(
@@ -119,25 +130,32 @@ fn weld(positions: &[Vec3]) -> (Vec<Vec3>, Vec<u32>) {
         .iter()
         .map(|p| {
             let p = *p + Vec3::ZERO;
-            *index.entry(p.to_array().map(f32::to_bits)).or_insert_with(|| {
-                unique.push(p);
-                unique.len() as u32 - 1
-            })
+            *index
+                .entry(p.to_array().map(f32::to_bits))
+                .or_insert_with(|| {
+                    unique.push(p);
+                    unique.len() as u32 - 1
+                })
         })
         .collect();
     (unique, welded)
 }
 
 /// Zero area, or so thin that its normal means nothing: twice its area is below 1e-7 of its
-/// longest edge squared (a sine of the smallest angle below ~1e-7).
+/// longest edge squared (a sine of the smallest angle below ~1e-7), or it overflows.
 fn is_degenerate([a, b, c]: [Vec3; 3]) -> bool {
     let twice_area = (b - a).cross(c - a).length();
-    let longest = (b - a).length_squared().max((c - b).length_squared()).max((a - c).length_squared());
-    !(twice_area > 1e-7 * longest)
+    let longest = (b - a)
+        .length_squared()
+        .max((c - b).length_squared())
+        .max((a - c).length_squared());
+    twice_area.is_nan() || twice_area <= 1e-7 * longest
 }
 
 #[cfg(test)]
 mod tests {
+    use proptest::prelude::*;
+
     use super::*;
 
     fn unit_quad(b: &mut SceneBuilder, material: u32) {
@@ -166,7 +184,12 @@ mod tests {
         assert_eq!(s.report.source_vertices, 11);
         assert_eq!(s.mesh.positions.len(), 4);
         assert_eq!(s.mesh.triangles.len(), 4);
-        assert!(s.mesh.normals.iter().all(|n| n.abs_diff_eq(Vec3::Y, 1e-6) || n.abs_diff_eq(Vec3::NEG_Y, 1e-6)));
+        assert!(
+            s.mesh
+                .normals
+                .iter()
+                .all(|n| n.abs_diff_eq(Vec3::Y, 1e-6) || n.abs_diff_eq(Vec3::NEG_Y, 1e-6))
+        );
     }
 
     #[test]
@@ -174,15 +197,21 @@ mod tests {
         let mut b = SceneBuilder::new(settings());
         let m = b.material(Material::diffuse("grey", Vec3::splat(0.5)));
         b.triangle([0, 1, 2], m);
-        assert!(matches!(b.build(), Err(SceneError::Builder(msg)) if msg == "triangle 0 uses undefined vertex 0"));
+        assert!(
+            matches!(b.build(), Err(SceneError::Builder(msg)) if msg == "triangle 0 uses undefined vertex 0")
+        );
 
         let mut b = SceneBuilder::new(settings());
         unit_quad(&mut b, 3);
-        assert!(matches!(b.build(), Err(SceneError::Builder(msg)) if msg == "triangle 0 uses undefined material 3"));
+        assert!(
+            matches!(b.build(), Err(SceneError::Builder(msg)) if msg == "triangle 0 uses undefined material 3")
+        );
 
         let mut b = SceneBuilder::new(settings());
         b.vertex(Vec3::new(f32::NAN, 0.0, 0.0));
-        assert!(matches!(b.build(), Err(SceneError::Builder(msg)) if msg == "vertex 0 is not finite"));
+        assert!(
+            matches!(b.build(), Err(SceneError::Builder(msg)) if msg == "vertex 0 is not finite")
+        );
     }
 
     #[test]
@@ -192,5 +221,66 @@ mod tests {
         let v = b.vertex(Vec3::ONE);
         b.triangle([v, v, v], m);
         assert!(matches!(b.build(), Err(SceneError::Empty)));
+    }
+
+    /// A random triangle soup over a small grid of points (so vertices are shared, welded,
+    /// duplicated and degenerate triangles occur), with two materials.
+    fn soup() -> impl Strategy<Value = (Vec<Vec3>, Vec<([u32; 3], u32)>)> {
+        let point = (0..3i32, 0..3i32, 0..2i32)
+            .prop_map(|(x, y, z)| Vec3::new(x as f32, y as f32, z as f32));
+        prop::collection::vec(point, 3..12).prop_flat_map(|points| {
+            let n = points.len() as u32;
+            let triangle = ([0..n, 0..n, 0..n], 0..2u32);
+            (Just(points), prop::collection::vec(triangle, 1..20))
+        })
+    }
+
+    fn build_soup(
+        points: &[Vec3],
+        triangles: &[([u32; 3], u32)],
+        order: &[usize],
+    ) -> Result<Scene, SceneError> {
+        let mut b = SceneBuilder::new(settings());
+        b.material(Material::diffuse("a", Vec3::splat(0.5)));
+        b.material(Material::diffuse("b", Vec3::splat(0.6)));
+        // Add the points in `order`; `slot[i]` is where point i went.
+        let mut slot = vec![0; points.len()];
+        for &i in order {
+            slot[i] = b.vertex(points[i]);
+        }
+        for (v, m) in triangles {
+            b.triangle(v.map(|i| slot[i as usize]), *m);
+        }
+        b.build()
+    }
+
+    proptest! {
+        #[test]
+        fn splitting_keeps_geometry_and_separates_materials((points, triangles) in soup(), seed in any::<u64>()) {
+            let identity: Vec<usize> = (0..points.len()).collect();
+            let Ok(scene) = build_soup(&points, &triangles, &identity) else {
+                // Only a soup of degenerate triangles may fail.
+                prop_assert!(triangles.iter().all(|(v, _)| is_degenerate(v.map(|i| points[i as usize]))));
+                return Ok(());
+            };
+            let kept: Vec<_> = triangles.iter().filter(|(v, _)| !is_degenerate(v.map(|i| points[i as usize]))).collect();
+            prop_assert_eq!(scene.mesh.triangles.len(), kept.len());
+            prop_assert_eq!(scene.report.dropped_triangles, triangles.len() - kept.len());
+            let mut material_of_vertex = vec![None; scene.mesh.positions.len()];
+            for (t, (v, m)) in scene.mesh.triangles.iter().zip(kept) {
+                prop_assert_eq!(t.material, *m);
+                for k in 0..3 {
+                    prop_assert_eq!(scene.mesh.positions[t.vertices[k] as usize], points[v[k] as usize]);
+                    let owner = material_of_vertex[t.vertices[k] as usize].get_or_insert(*m);
+                    prop_assert_eq!(*owner, *m);
+                }
+            }
+            prop_assert!(scene.mesh.normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-5));
+            // The same soup with its vertices added in another order gives the same scene.
+            let mut order = identity.clone();
+            order.rotate_left(seed as usize % points.len());
+            let again = build_soup(&points, &triangles, &order).expect("same triangles");
+            prop_assert_eq!(again.fingerprint, scene.fingerprint);
+        }
     }
 }

@@ -10,15 +10,24 @@ pub fn analyse_effects(settings: &SceneSettings, materials: &[Material], mesh: &
     for t in &mesh.triangles {
         used[t.material as usize] = true;
     }
-    let used: Vec<&Material> = materials.iter().zip(used).filter_map(|(m, u)| u.then_some(m)).collect();
-    let sun = settings.sun.as_ref().is_some_and(|s| s.radiance.iter().any(|c| *c > 0.0));
-    let sky = matches!(&settings.sky, Sky::Uniform { radiance } if radiance.iter().any(|c| *c > 0.0));
+    let used: Vec<&Material> = materials
+        .iter()
+        .zip(used)
+        .filter_map(|(m, u)| u.then_some(m))
+        .collect();
+    let sun = settings
+        .sun
+        .as_ref()
+        .is_some_and(|s| s.radiance.iter().any(|c| *c > 0.0));
+    let sky =
+        matches!(&settings.sky, Sky::Uniform { radiance } if radiance.iter().any(|c| *c > 0.0));
     let area_lights = used.iter().any(|m| m.is_emitter());
     Effects {
         sun,
         sky,
         area_lights,
-        interreflection: (sun || sky || area_lights) && used.iter().any(|m| m.kd.max_element() > 0.0),
+        interreflection: (sun || sky || area_lights)
+            && used.iter().any(|m| m.kd.max_element() > 0.0),
         glossy: used.iter().any(|m| m.scattering == Scattering::Glossy),
         mirror: used.iter().any(|m| m.scattering == Scattering::Mirror),
     }
@@ -34,8 +43,15 @@ impl std::fmt::Display for Effects {
             (self.glossy, "glossy"),
             (self.mirror, "mirror"),
         ];
-        let on: Vec<&str> = names.iter().filter_map(|(on, name)| on.then_some(*name)).collect();
-        if on.is_empty() { f.write_str("none") } else { f.write_str(&on.join(", ")) }
+        let on: Vec<&str> = names
+            .iter()
+            .filter_map(|(on, name)| on.then_some(*name))
+            .collect();
+        if on.is_empty() {
+            f.write_str("none")
+        } else {
+            f.write_str(&on.join(", "))
+        }
     }
 }
 
@@ -47,8 +63,18 @@ mod tests {
     use crate::model::Triangle;
 
     fn mesh_using(materials: &[u32]) -> Mesh {
-        let triangles = materials.iter().map(|&material| Triangle { vertices: [0, 1, 2], material }).collect();
-        Mesh { positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y], normals: vec![Vec3::Z; 3], triangles }
+        let triangles = materials
+            .iter()
+            .map(|&material| Triangle {
+                vertices: [0, 1, 2],
+                material,
+            })
+            .collect();
+        Mesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            normals: vec![Vec3::Z; 3],
+            triangles,
+        }
     }
 
     fn settings(extra: &str) -> SceneSettings {
@@ -57,8 +83,14 @@ mod tests {
 
     #[test]
     fn unlit_scene_calls_for_nothing_even_with_a_mirror_in_the_mtl() {
-        let materials = [Material::diffuse("d", Vec3::splat(0.5)), Material::mirror("m", Vec3::ZERO, Vec3::ONE)];
-        assert_eq!(analyse_effects(&settings(""), &materials, &mesh_using(&[0])), Effects::default());
+        let materials = [
+            Material::diffuse("d", Vec3::splat(0.5)),
+            Material::mirror("m", Vec3::ZERO, Vec3::ONE),
+        ];
+        assert_eq!(
+            analyse_effects(&settings(""), &materials, &mesh_using(&[0])),
+            Effects::default()
+        );
     }
 
     #[test]
@@ -71,20 +103,43 @@ mod tests {
         ];
         let sun = "[sun]\ndirection = [0, 1, 0]\nradiance = [1, 1, 1]\nangular_diameter_deg = 0.5";
         let e = analyse_effects(&settings(sun), &materials, &mesh_using(&[0]));
-        assert_eq!(e, Effects { sun: true, interreflection: true, ..Effects::default() });
+        assert_eq!(
+            e,
+            Effects {
+                sun: true,
+                interreflection: true,
+                ..Effects::default()
+            }
+        );
         let sky = "[sky]\nkind = \"uniform\"\nradiance = [0.1, 0.2, 0.3]";
         let e = analyse_effects(&settings(sky), &materials, &mesh_using(&[1, 2, 3]));
         assert_eq!(
             e,
-            Effects { sky: true, area_lights: true, interreflection: true, glossy: true, mirror: true, sun: false }
+            Effects {
+                sky: true,
+                area_lights: true,
+                interreflection: true,
+                glossy: true,
+                mirror: true,
+                sun: false
+            }
         );
-        assert_eq!(e.to_string(), "sky, area lights, diffuse interreflection, glossy, mirror");
+        assert_eq!(
+            e.to_string(),
+            "sky, area lights, diffuse interreflection, glossy, mirror"
+        );
     }
 
     #[test]
     fn black_surfaces_pass_no_light_on() {
         let materials = [Material::emitter("e", Vec3::ZERO, Vec3::ONE)];
         let e = analyse_effects(&settings(""), &materials, &mesh_using(&[0]));
-        assert_eq!(e, Effects { area_lights: true, ..Effects::default() });
+        assert_eq!(
+            e,
+            Effects {
+                area_lights: true,
+                ..Effects::default()
+            }
+        );
     }
 }

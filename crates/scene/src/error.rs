@@ -7,7 +7,10 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     #[error("{}: {source}", path.display())]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
 
     #[error("'{0}' is neither a built-in scene (bracara, cornell) nor a scene file")]
     UnknownScene(String),
@@ -19,13 +22,23 @@ pub enum SceneError {
     NoObj { file: PathBuf },
 
     #[error("{}:{line}: {message}", file.display())]
-    Syntax { file: PathBuf, line: usize, message: String },
+    Syntax {
+        file: PathBuf,
+        line: usize,
+        message: String,
+    },
 
     #[error("{}:{line}: non-finite number (NaN or infinity)", file.display())]
     NonFinite { file: PathBuf, line: usize },
 
     #[error("{}:{line}: {what} index {index} out of range ({count} defined before this line)", file.display())]
-    IndexOutOfRange { file: PathBuf, line: usize, what: &'static str, index: i64, count: usize },
+    IndexOutOfRange {
+        file: PathBuf,
+        line: usize,
+        what: &'static str,
+        index: i64,
+        count: usize,
+    },
 
     /// tobj refused the file for a reason the line check did not foresee.
     #[error("{}: {message}", file.display())]

@@ -12,7 +12,10 @@ const DOMAIN: &[u8] = b"walkthrough scene fingerprint v1";
 pub fn fingerprint(settings: &SceneSettings, mesh: &Mesh, materials: &[Material]) -> [u8; 32] {
     let mut h = blake3::Hasher::new();
     h.update(DOMAIN);
-    let located_nowhere = SceneSettings { obj: String::new(), ..settings.clone() };
+    let located_nowhere = SceneSettings {
+        obj: String::new(),
+        ..settings.clone()
+    };
     // Debug of plain data is deterministic and covers every field, including ones added later.
     text(&mut h, &format!("{located_nowhere:?}"));
     count(&mut h, mesh.positions.len());

@@ -22,7 +22,11 @@ pub fn describe(scene: &Scene) -> String {
     );
     let _ = writeln!(out, "materials    {}", scene.materials.len());
     let _ = writeln!(out, "bounds       {lo} .. {hi} ({})", scene.settings.units);
-    let _ = writeln!(out, "dropped      {} zero-area triangles", r.dropped_triangles);
+    let _ = writeln!(
+        out,
+        "dropped      {} zero-area triangles",
+        r.dropped_triangles
+    );
     let _ = writeln!(out, "effects      {}", scene.effects);
     let _ = writeln!(out, "fingerprint  {}", hex(&scene.fingerprint));
     for w in &r.warnings {

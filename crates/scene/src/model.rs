@@ -51,7 +51,10 @@ impl Material {
 
     /// A Lambertian reflector that also emits `ke` from its counter-clockwise side (DESIGN.md §7).
     pub fn emitter(name: impl Into<String>, kd: Vec3, ke: Vec3) -> Material {
-        Material { ke, ..Material::diffuse(name, kd) }
+        Material {
+            ke,
+            ..Material::diffuse(name, kd)
+        }
     }
 
     /// A perfect mirror of reflectance `ks` (MTL `illum` 3).
@@ -62,13 +65,28 @@ impl Material {
     /// A material as an MTL file states it; the scattering follows from `Ks` and `illum`: `illum`
     /// 3 or 5 with some `Ks` is a mirror, other `Ks` > 0 a Blinn–Phong lobe unless `illum` 0 or 1
     /// (the MTL models without highlights) turns it off.
-    pub fn from_mtl(name: impl Into<String>, kd: Vec3, ke: Vec3, ks: Vec3, ns: f32, illum: u32) -> Material {
+    pub fn from_mtl(
+        name: impl Into<String>,
+        kd: Vec3,
+        ke: Vec3,
+        ks: Vec3,
+        ns: f32,
+        illum: u32,
+    ) -> Material {
         let scattering = match (illum, ks.max_element() > 0.0) {
             (_, false) | (0 | 1, true) => Scattering::Diffuse,
             (3 | 5, true) => Scattering::Mirror,
             _ => Scattering::Glossy,
         };
-        Material { name: name.into(), kd, ke, ks, ns, illum, scattering }
+        Material {
+            name: name.into(),
+            kd,
+            ke,
+            ks,
+            ns,
+            illum,
+            scattering,
+        }
     }
 
     pub fn is_emitter(&self) -> bool {
@@ -102,7 +120,11 @@ pub struct Mesh {
 impl Mesh {
     pub fn triangle_positions(&self, t: usize) -> [Vec3; 3] {
         let [a, b, c] = self.triangles[t].vertices;
-        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
+        [
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        ]
     }
 
     /// Unnormalised geometric normal of triangle `t` (counter-clockwise winding), length = 2·area.
@@ -116,9 +138,11 @@ impl Mesh {
     }
 
     pub fn bounds(&self) -> (Vec3, Vec3) {
-        self.positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(*p), hi.max(*p))
-        })
+        self.positions
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+                (lo.min(*p), hi.max(*p))
+            })
     }
 }
 

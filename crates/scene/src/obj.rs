@@ -2,6 +2,7 @@
 //! `Ks`, `Ns` and `illum`; texture maps and file normals are ignored (DESIGN.md §5 defines the
 //! canonical normal from the faces).
 
+use std::cell::Cell;
 use std::collections::HashMap;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
@@ -24,27 +25,49 @@ pub fn load_obj(path: &Path, settings: SceneSettings) -> Result<Scene, SceneErro
     let summary = check_obj(path, &text)?;
     let mut builder = SceneBuilder::new(settings);
     let libraries = read_material_libraries(path, &summary.material_libraries, &mut builder)?;
-    let options = tobj::LoadOptions { triangulate: true, ignore_points: true, ignore_lines: true, ..Default::default() };
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    };
     // The line check above rejects every input known to make tobj 4.0.5 panic; should another
     // slip through, it is still an error value, never a crash of the server loading it.
+    // tobj takes an `Fn` loader: an MTL error tobj finds goes out through a cell.
+    let mtl_error = Cell::new(None);
     let parsed = catch_unwind(AssertUnwindSafe(|| {
-        tobj::load_obj_buf(&mut text.as_bytes(), &options, |library| match libraries.get(library) {
-            Some(mtl) => tobj::load_mtl_buf(&mut mtl.as_bytes()),
-            None => Err(tobj::LoadError::OpenFileFailed),
+        tobj::load_obj_buf(&mut text.as_bytes(), &options, |library| {
+            match libraries.get(library) {
+                Some(mtl) => tobj::load_mtl_buf(&mut mtl.as_bytes())
+                    .inspect_err(|e| mtl_error.set(Some((library.to_path_buf(), *e)))),
+                None => Err(tobj::LoadError::OpenFileFailed),
+            }
         })
     }));
-    let obj_error = |message: String| SceneError::Obj { file: path.to_path_buf(), message };
+    let tobj_error = |file: PathBuf, message: String| SceneError::Obj { file, message };
     let (models, materials) = parsed
-        .map_err(|_| obj_error("the OBJ parser failed on this file".into()))?
-        .map_err(|e| obj_error(e.to_string()))?;
-    // A library that failed to open was already reported as missing.
+        .map_err(|_| {
+            tobj_error(
+                path.to_path_buf(),
+                "the OBJ parser failed on this file".into(),
+            )
+        })?
+        .map_err(|e| tobj_error(path.to_path_buf(), e.to_string()))?;
+    if let Some((library, e)) = mtl_error.take() {
+        let dir = path.parent().unwrap_or(Path::new(""));
+        return Err(tobj_error(dir.join(library), e.to_string()));
+    }
+    // Libraries that failed to open were reported as missing and their faces get the default.
     let materials = materials.unwrap_or_default();
     add_geometry(&mut builder, &models, &materials);
     builder.build()
 }
 
 fn read_text(path: &Path) -> Result<String, SceneError> {
-    let bytes = std::fs::read(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
+    let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
     // Comments in OBJ files are not always UTF-8; geometry always is ASCII.
     Ok(String::from_utf8_lossy(&bytes).into_owned())
 }
@@ -66,14 +89,20 @@ fn read_material_libraries(
                 check_mtl(&path, &text)?;
                 libraries.insert(PathBuf::from(name), text);
             }
-            Err(e) => builder.warn(format!("{}: {e}; its materials are replaced by a default one", path.display())),
+            Err(e) => builder.warn(format!(
+                "{}: {e}; its materials are replaced by a default one",
+                path.display()
+            )),
         }
     }
     Ok(libraries)
 }
 
 fn add_geometry(builder: &mut SceneBuilder, models: &[tobj::Model], materials: &[tobj::Material]) {
-    let ids: Vec<u32> = materials.iter().map(|m| builder.material(convert_material(m))).collect();
+    let ids: Vec<u32> = materials
+        .iter()
+        .map(|m| builder.material(convert_material(m)))
+        .collect();
     let mut fallback = None;
     let mut faces_without_material = 0;
     for model in models {
@@ -97,7 +126,9 @@ fn add_geometry(builder: &mut SceneBuilder, models: &[tobj::Model], materials: &
         }
     }
     if faces_without_material > 0 {
-        builder.warn(format!("{faces_without_material} faces have no known material; default material used"));
+        builder.warn(format!(
+            "{faces_without_material} faces have no known material; default material used"
+        ));
     }
 }
 

@@ -28,7 +28,10 @@ pub fn check_obj(file: &Path, text: &str) -> Result<ObjSummary, SceneError> {
     let mut summary = ObjSummary::default();
     let mut defined = Defined::default();
     for (i, line) in text.lines().enumerate() {
-        let at = Line { file, number: i + 1 };
+        let at = Line {
+            file,
+            number: i + 1,
+        };
         let mut words = line.split_whitespace();
         match words.next() {
             Some("v") => {
@@ -37,7 +40,9 @@ pub fn check_obj(file: &Path, text: &str) -> Result<ObjSummary, SceneError> {
                 match at.finite_numbers(&mut words, 0, 3)?.as_slice() {
                     [w] if *w == 0.0 => return Err(at.syntax("vertex weight w is zero")),
                     [_, _] => return Err(at.syntax("a vertex takes x y z, then w or r g b")),
-                    _ if words.next().is_some() => return Err(at.syntax("a vertex takes at most 6 numbers")),
+                    _ if words.next().is_some() => {
+                        return Err(at.syntax("a vertex takes at most 6 numbers"));
+                    }
                     _ => {}
                 }
                 defined.positions += 1;
@@ -65,7 +70,10 @@ pub fn check_obj(file: &Path, text: &str) -> Result<ObjSummary, SceneError> {
 
 pub fn check_mtl(file: &Path, text: &str) -> Result<(), SceneError> {
     for (i, line) in text.lines().enumerate() {
-        let at = Line { file, number: i + 1 };
+        let at = Line {
+            file,
+            number: i + 1,
+        };
         let mut words = line.split_whitespace();
         match words.next() {
             Some("newmtl") => {
@@ -81,7 +89,10 @@ pub fn check_mtl(file: &Path, text: &str) -> Result<(), SceneError> {
                 at.finite_numbers(&mut words, 1, 1)?;
             }
             Some("illum") => {
-                words.next().and_then(|w| w.parse::<u8>().ok()).ok_or_else(|| at.syntax("illum needs an integer 0-255"))?;
+                words
+                    .next()
+                    .and_then(|w| w.parse::<u8>().ok())
+                    .ok_or_else(|| at.syntax("illum needs an integer 0-255"))?;
             }
             _ => {}
         }
@@ -96,16 +107,30 @@ struct Line<'a> {
 
 impl Line<'_> {
     fn syntax(&self, message: &str) -> SceneError {
-        SceneError::Syntax { file: self.file.to_path_buf(), line: self.number, message: message.into() }
+        SceneError::Syntax {
+            file: self.file.to_path_buf(),
+            line: self.number,
+            message: message.into(),
+        }
     }
 
     /// Between `min` and `max` numbers (more are left in `words`), all finite.
-    fn finite_numbers(&self, words: &mut SplitWhitespace, min: usize, max: usize) -> Result<Vec<f32>, SceneError> {
+    fn finite_numbers(
+        &self,
+        words: &mut SplitWhitespace,
+        min: usize,
+        max: usize,
+    ) -> Result<Vec<f32>, SceneError> {
         let mut values = Vec::with_capacity(max);
         for w in words.by_ref().take(max) {
-            let v: f32 = w.parse().map_err(|_| self.syntax(&format!("'{w}' is not a number")))?;
+            let v: f32 = w
+                .parse()
+                .map_err(|_| self.syntax(&format!("'{w}' is not a number")))?;
             if !v.is_finite() {
-                return Err(SceneError::NonFinite { file: self.file.to_path_buf(), line: self.number });
+                return Err(SceneError::NonFinite {
+                    file: self.file.to_path_buf(),
+                    line: self.number,
+                });
             }
             values.push(v);
         }
@@ -117,7 +142,11 @@ impl Line<'_> {
 
     /// The statement's argument (a name that may contain spaces); it must not be empty.
     fn rest(&self, line: &str, keyword: &str) -> Result<String, SceneError> {
-        let rest = line.trim_start().strip_prefix(keyword).unwrap_or_default().trim();
+        let rest = line
+            .trim_start()
+            .strip_prefix(keyword)
+            .unwrap_or_default()
+            .trim();
         if rest.is_empty() {
             return Err(self.syntax(&format!("{keyword} needs a name")));
         }
@@ -125,11 +154,20 @@ impl Line<'_> {
     }
 
     /// `f v[/vt][/vn] ...` (or `l`): at least `min` corners, every index defined before this line.
-    fn corners(&self, words: SplitWhitespace, defined: &Defined, min: usize) -> Result<(), SceneError> {
+    fn corners(
+        &self,
+        words: SplitWhitespace,
+        defined: &Defined,
+        min: usize,
+    ) -> Result<(), SceneError> {
         let mut corners = 0;
         for corner in words {
             let mut parts = corner.split('/');
-            let kinds = [("vertex", defined.positions), ("texcoord", defined.texcoords), ("normal", defined.normals)];
+            let kinds = [
+                ("vertex", defined.positions),
+                ("texcoord", defined.texcoords),
+                ("normal", defined.normals),
+            ];
             for (k, (what, count)) in kinds.into_iter().enumerate() {
                 match parts.next() {
                     Some("") if k > 0 => {}
@@ -138,7 +176,9 @@ impl Line<'_> {
                 }
             }
             if parts.next().is_some() {
-                return Err(self.syntax(&format!("face corner '{corner}' has more than three indices")));
+                return Err(self.syntax(&format!(
+                    "face corner '{corner}' has more than three indices"
+                )));
             }
             corners += 1;
         }
@@ -149,10 +189,22 @@ impl Line<'_> {
     }
 
     fn index(&self, text: &str, what: &'static str, count: usize) -> Result<(), SceneError> {
-        let index: i64 = text.parse().map_err(|_| self.syntax(&format!("'{text}' is not a {what} index")))?;
-        let resolved = if index < 0 { count as i64 + index } else { index - 1 };
+        let index: i64 = text
+            .parse()
+            .map_err(|_| self.syntax(&format!("'{text}' is not a {what} index")))?;
+        let resolved = if index < 0 {
+            count as i64 + index
+        } else {
+            index - 1
+        };
         if index == 0 || resolved < 0 || resolved >= count as i64 {
-            return Err(SceneError::IndexOutOfRange { file: self.file.to_path_buf(), line: self.number, what, index, count });
+            return Err(SceneError::IndexOutOfRange {
+                file: self.file.to_path_buf(),
+                line: self.number,
+                what,
+                index,
+                count,
+            });
         }
         Ok(())
     }
@@ -163,26 +215,38 @@ mod tests {
     use super::*;
 
     fn obj_error(text: &str) -> String {
-        check_obj(Path::new("t.obj"), text).expect_err("must be rejected").to_string()
+        check_obj(Path::new("t.obj"), text)
+            .expect_err("must be rejected")
+            .to_string()
     }
 
     fn mtl_error(text: &str) -> String {
-        check_mtl(Path::new("t.mtl"), text).expect_err("must be rejected").to_string()
+        check_mtl(Path::new("t.mtl"), text)
+            .expect_err("must be rejected")
+            .to_string()
     }
 
     const TRIANGLE: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
 
     #[test]
     fn accepts_ordinary_obj_and_collects_libraries() {
-        let text = format!("# c\nmtllib a b.mtl\n{TRIANGLE}vt 0 0\nvn 0 0 1\nusemtl red\nf 1/1/1 2/1/1 3/1/1\nf -3//1 -2//1 -1//1\nl 1 2\n");
+        let text = format!(
+            "# c\nmtllib a b.mtl\n{TRIANGLE}vt 0 0\nvn 0 0 1\nusemtl red\nf 1/1/1 2/1/1 3/1/1\nf -3//1 -2//1 -1//1\nl 1 2\n"
+        );
         let s = check_obj(Path::new("t.obj"), &text).expect("valid");
         assert_eq!(s.material_libraries, vec!["a b.mtl".to_string()]);
     }
 
     #[test]
     fn rejects_bad_obj_lines_naming_the_line() {
-        assert_eq!(obj_error("v 0 0 0\nv 1 nan 0\n"), "t.obj:2: non-finite number (NaN or infinity)");
-        assert_eq!(obj_error("v 0 0 inf\n"), "t.obj:1: non-finite number (NaN or infinity)");
+        assert_eq!(
+            obj_error("v 0 0 0\nv 1 nan 0\n"),
+            "t.obj:2: non-finite number (NaN or infinity)"
+        );
+        assert_eq!(
+            obj_error("v 0 0 inf\n"),
+            "t.obj:1: non-finite number (NaN or infinity)"
+        );
         assert_eq!(obj_error("v 0 0\n"), "t.obj:1: expected 3 numbers, found 2");
         assert_eq!(obj_error("v 0 0 0 0\n"), "t.obj:1: vertex weight w is zero");
         assert_eq!(obj_error("v 0 x 0\n"), "t.obj:1: 'x' is not a number");
@@ -202,22 +266,55 @@ mod tests {
             obj_error(&format!("{TRIANGLE}f 1//1 2//1 3//1\n")),
             "t.obj:4: normal index 1 out of range (0 defined before this line)"
         );
-        assert_eq!(obj_error(&format!("{TRIANGLE}f 1 2\n")), "t.obj:4: needs at least 3 corners, found 2");
-        assert_eq!(obj_error(&format!("{TRIANGLE}f 1 2 3/1/1/1\n")), "t.obj:4: face corner '3/1/1/1' has more than three indices");
-        assert_eq!(obj_error(&format!("{TRIANGLE}f 1 2 q\n")), "t.obj:4: 'q' is not a vertex index");
+        assert_eq!(
+            obj_error(&format!("{TRIANGLE}f 1 2\n")),
+            "t.obj:4: needs at least 3 corners, found 2"
+        );
+        assert_eq!(
+            obj_error(&format!("{TRIANGLE}vt 0 0\nvn 0 0 1\nf 1 2 3/1/1/1\n")),
+            "t.obj:6: face corner '3/1/1/1' has more than three indices"
+        );
+        assert_eq!(
+            obj_error(&format!("{TRIANGLE}f 1 2 q\n")),
+            "t.obj:4: 'q' is not a vertex index"
+        );
         assert_eq!(obj_error("usemtl\n"), "t.obj:1: usemtl needs a name");
-        assert_eq!(obj_error("v 0 0 0 1 1 1 1\n"), "t.obj:1: a vertex takes at most 6 numbers");
+        assert_eq!(
+            obj_error("v 0 0 0 1 1 1 1\n"),
+            "t.obj:1: a vertex takes at most 6 numbers"
+        );
         assert_eq!(obj_error("vt 0\n"), "t.obj:1: expected 2 numbers, found 1");
-        assert_eq!(obj_error(&format!("{TRIANGLE}l 1 9\n")), "t.obj:4: vertex index 9 out of range (3 defined before this line)");
+        assert_eq!(
+            obj_error(&format!("{TRIANGLE}l 1 9\n")),
+            "t.obj:4: vertex index 9 out of range (3 defined before this line)"
+        );
     }
 
     #[test]
     fn rejects_bad_mtl_lines_naming_the_line() {
-        assert_eq!(mtl_error("newmtl a\nKd 0.5\n"), "t.mtl:2: expected 3 numbers, found 1");
-        assert_eq!(mtl_error("newmtl a\nKe 1 NaN 1\n"), "t.mtl:2: non-finite number (NaN or infinity)");
-        assert_eq!(mtl_error("newmtl a\nKd 1 -1 1\n"), "t.mtl:2: negative colour");
-        assert_eq!(mtl_error("newmtl a\nillum x\n"), "t.mtl:2: illum needs an integer 0-255");
+        assert_eq!(
+            mtl_error("newmtl a\nKd 0.5\n"),
+            "t.mtl:2: expected 3 numbers, found 1"
+        );
+        assert_eq!(
+            mtl_error("newmtl a\nKe 1 NaN 1\n"),
+            "t.mtl:2: non-finite number (NaN or infinity)"
+        );
+        assert_eq!(
+            mtl_error("newmtl a\nKd 1 -1 1\n"),
+            "t.mtl:2: negative colour"
+        );
+        assert_eq!(
+            mtl_error("newmtl a\nillum x\n"),
+            "t.mtl:2: illum needs an integer 0-255"
+        );
         assert_eq!(mtl_error("newmtl\n"), "t.mtl:1: newmtl needs a name");
-        assert!(check_mtl(Path::new("t.mtl"), "newmtl a\nKd 1 1 1\nNs 10\nillum 2\nmap_Kd x.png\n").is_ok());
+        assert!(
+            check_mtl(
+                Path::new("t.mtl"),
+                "newmtl a\nKd 1 1 1\nNs 10\nillum 2\nmap_Kd x.png\n"
+            )
+            .is_ok()
+        );
     }
 }

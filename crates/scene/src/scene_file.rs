@@ -24,13 +24,21 @@ pub fn load(spec: &str) -> Result<Scene, SceneError> {
 pub fn load_scene_file(path: &Path) -> Result<Scene, SceneError> {
     let settings = read_settings(path)?;
     if settings.obj.is_empty() {
-        return Err(SceneError::NoObj { file: path.to_path_buf() });
+        return Err(SceneError::NoObj {
+            file: path.to_path_buf(),
+        });
     }
     let obj = path.parent().unwrap_or(Path::new("")).join(&settings.obj);
     load_obj(&obj, settings)
 }
 
 pub fn read_settings(path: &Path) -> Result<SceneSettings, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
-    toml::from_str(&text).map_err(|e| SceneError::Toml { file: path.to_path_buf(), message: e.to_string() })
+    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    toml::from_str(&text).map_err(|e| SceneError::Toml {
+        file: path.to_path_buf(),
+        message: e.to_string(),
+    })
 }

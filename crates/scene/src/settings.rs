@@ -78,7 +78,10 @@ pub struct QualitySetting {
 
 impl Default for QualitySetting {
     fn default() -> Self {
-        QualitySetting { paths: 64, bounces: Some(2) }
+        QualitySetting {
+            paths: 64,
+            bounces: Some(2),
+        }
     }
 }
 
@@ -98,7 +101,10 @@ impl SceneSettings {
     /// Checks what serde cannot: finite numbers, a usable sun and usable viewpoints.
     pub fn validate(&self) -> Result<(), String> {
         if !(0.0..=180.0).contains(&self.crease_angle_deg) {
-            return Err(format!("crease_angle_deg {} is not within 0..=180", self.crease_angle_deg));
+            return Err(format!(
+                "crease_angle_deg {} is not within 0..=180",
+                self.crease_angle_deg
+            ));
         }
         if let Some(sun) = &self.sun {
             sun.validate()?;
@@ -109,7 +115,9 @@ impl SceneSettings {
         if self.quality.paths == 0 {
             return Err("quality.paths must be at least 1".into());
         }
-        self.viewpoints.iter().try_for_each(ViewpointSetting::validate)
+        self.viewpoints
+            .iter()
+            .try_for_each(ViewpointSetting::validate)
     }
 
     pub fn viewpoint(&self, name: &str) -> Option<&ViewpointSetting> {
@@ -121,10 +129,16 @@ impl Sun {
     fn validate(&self) -> Result<(), String> {
         let d = glam::Vec3::from(self.direction);
         if !d.is_finite() || d.length_squared() == 0.0 {
-            return Err(format!("sun direction {:?} is not a usable direction", self.direction));
+            return Err(format!(
+                "sun direction {:?} is not a usable direction",
+                self.direction
+            ));
         }
         if !(self.angular_diameter_deg > 0.0 && self.angular_diameter_deg < 180.0) {
-            return Err(format!("sun angular_diameter_deg {} is not within (0, 180)", self.angular_diameter_deg));
+            return Err(format!(
+                "sun angular_diameter_deg {} is not within (0, 180)",
+                self.angular_diameter_deg
+            ));
         }
         check_radiance("sun radiance", &self.radiance)
     }
@@ -135,13 +149,22 @@ impl ViewpointSetting {
         let [eye, target, up] = [self.eye, self.target, self.up].map(glam::Vec3::from);
         let forward = target - eye;
         if !(eye.is_finite() && forward.is_finite() && up.is_finite()) {
-            return Err(format!("viewpoint {}: non-finite eye, target or up", self.name));
+            return Err(format!(
+                "viewpoint {}: non-finite eye, target or up",
+                self.name
+            ));
         }
         if forward.length_squared() == 0.0 || forward.cross(up).length_squared() == 0.0 {
-            return Err(format!("viewpoint {}: eye equals target, or up is parallel to the view", self.name));
+            return Err(format!(
+                "viewpoint {}: eye equals target, or up is parallel to the view",
+                self.name
+            ));
         }
         if !(self.fov_y_deg > 0.0 && self.fov_y_deg < 180.0) {
-            return Err(format!("viewpoint {}: fov_y_deg {} is not within (0, 180)", self.name, self.fov_y_deg));
+            return Err(format!(
+                "viewpoint {}: fov_y_deg {} is not within (0, 180)",
+                self.name, self.fov_y_deg
+            ));
         }
         Ok(())
     }

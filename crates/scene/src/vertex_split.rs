@@ -24,8 +24,15 @@ pub struct SplitMesh {
 /// Splits the vertices of `triangles` (indices into `positions`, no degenerate triangles) and
 /// renumbers them in order of first use, so the result does not depend on how the input
 /// numbered its vertices.
-pub fn split_vertices(positions: &[Vec3], triangles: &[Triangle], crease_angle_deg: f32) -> SplitMesh {
-    let face_normals: Vec<Vec3> = triangles.iter().map(|t| face_normal(positions, t)).collect();
+pub fn split_vertices(
+    positions: &[Vec3],
+    triangles: &[Triangle],
+    crease_angle_deg: f32,
+) -> SplitMesh {
+    let face_normals: Vec<Vec3> = triangles
+        .iter()
+        .map(|t| face_normal(positions, t))
+        .collect();
     let incident = Incidence::new(positions.len(), triangles);
     let cos_crease = crease_angle_deg.clamp(0.0, 180.0).to_radians().cos();
     let mut groups = UnionFind::new(triangles.len() * 3);
@@ -36,14 +43,25 @@ pub fn split_vertices(positions: &[Vec3], triangles: &[Triangle], crease_angle_d
         if corners.is_empty() {
             continue;
         }
-        join_smooth_neighbours(v as u32, corners, triangles, &face_normals, cos_crease, &mut groups);
+        join_smooth_neighbours(
+            v as u32,
+            corners,
+            triangles,
+            &face_normals,
+            cos_crease,
+            &mut groups,
+        );
         let materials = count_distinct(corners.iter().map(|&c| triangles[c as usize / 3].material));
         let copies = count_distinct(corners.iter().map(|&c| groups.find(c)));
         material_splits += materials - 1;
         crease_splits += copies - materials;
     }
     let mesh = renumber(positions, triangles, &face_normals, &mut groups);
-    SplitMesh { mesh, material_splits, crease_splits }
+    SplitMesh {
+        mesh,
+        material_splits,
+        crease_splits,
+    }
 }
 
 /// Unnormalised normal (length = 2 × area), counter-clockwise.
@@ -132,10 +150,19 @@ fn count_distinct(items: impl Iterator<Item = u32>) -> usize {
 /// One output vertex per corner group, numbered in order of first use, with its canonical
 /// normal (DESIGN.md §5): the sum of its faces' area-weighted normals, each first flipped into
 /// the hemisphere of the group's largest face, so mixed winding cannot cancel them.
-fn renumber(positions: &[Vec3], triangles: &[Triangle], face_normals: &[Vec3], groups: &mut UnionFind) -> Mesh {
+fn renumber(
+    positions: &[Vec3],
+    triangles: &[Triangle],
+    face_normals: &[Vec3],
+    groups: &mut UnionFind,
+) -> Mesh {
     let corner_count = triangles.len() * 3;
     let mut vertex_of_group = vec![u32::MAX; corner_count];
-    let mut out = Mesh { positions: Vec::new(), normals: Vec::new(), triangles: Vec::with_capacity(triangles.len()) };
+    let mut out = Mesh {
+        positions: Vec::new(),
+        normals: Vec::new(),
+        triangles: Vec::with_capacity(triangles.len()),
+    };
     let mut reference: Vec<Vec3> = Vec::new();
     for (ti, t) in triangles.iter().enumerate() {
         let mut vertices = [0u32; 3];
@@ -153,7 +180,10 @@ fn renumber(positions: &[Vec3], triangles: &[Triangle], face_normals: &[Vec3], g
             }
             vertices[k] = id;
         }
-        out.triangles.push(Triangle { vertices, material: t.material });
+        out.triangles.push(Triangle {
+            vertices,
+            material: t.material,
+        });
     }
     let mut sums = vec![Vec3::ZERO; out.positions.len()];
     for (ti, t) in out.triangles.iter().enumerate() {
@@ -163,7 +193,11 @@ fn renumber(positions: &[Vec3], triangles: &[Triangle], face_normals: &[Vec3], g
             sums[v as usize] += if n.dot(r) < 0.0 { -n } else { n };
         }
     }
-    out.normals = sums.iter().zip(&reference).map(|(s, r)| s.try_normalize().unwrap_or(r.normalize())).collect();
+    out.normals = sums
+        .iter()
+        .zip(&reference)
+        .map(|(s, r)| s.try_normalize().unwrap_or(r.normalize()))
+        .collect();
     out
 }
 
@@ -173,7 +207,9 @@ struct UnionFind {
 
 impl UnionFind {
     fn new(n: usize) -> UnionFind {
-        UnionFind { parent: (0..n as u32).collect() }
+        UnionFind {
+            parent: (0..n as u32).collect(),
+        }
     }
 
     fn find(&mut self, mut x: u32) -> u32 {
@@ -206,10 +242,18 @@ mod tests {
     /// given dihedral bend between them.
     fn hinge(bend_deg: f32, materials: [u32; 2], flip_second: bool) -> SplitMesh {
         let b = bend_deg.to_radians();
-        let positions =
-            [Vec3::ZERO, Vec3::X, Vec3::new(0.5, 0.0, -1.0), Vec3::new(0.5, b.sin(), b.cos())];
+        let positions = [
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::new(0.5, 0.0, -1.0),
+            Vec3::new(0.5, b.sin(), b.cos()),
+        ];
         let second = if flip_second { [1, 0, 3] } else { [0, 1, 3] };
-        split_vertices(&positions, &[tri([0, 2, 1], materials[0]), tri(second, materials[1])], 45.0)
+        split_vertices(
+            &positions,
+            &[tri([0, 2, 1], materials[0]), tri(second, materials[1])],
+            45.0,
+        )
     }
 
     #[test]
@@ -224,7 +268,11 @@ mod tests {
         let s = hinge(10.0, [0, 0], true);
         assert_eq!(s.mesh.positions.len(), 4);
         let shared = s.mesh.triangles[0].vertices[0] as usize;
-        assert!(s.mesh.normals[shared].y.abs() > 0.99, "{}", s.mesh.normals[shared]);
+        assert!(
+            s.mesh.normals[shared].y.abs() > 0.99,
+            "{}",
+            s.mesh.normals[shared]
+        );
     }
 
     #[test]
@@ -247,7 +295,12 @@ mod tests {
     #[test]
     fn numbering_follows_first_use_not_input_order() {
         let a = hinge(20.0, [0, 0], false);
-        let positions = [Vec3::new(0.5, 20f32.to_radians().sin(), 20f32.to_radians().cos()), Vec3::new(0.5, 0.0, -1.0), Vec3::X, Vec3::ZERO];
+        let positions = [
+            Vec3::new(0.5, 20f32.to_radians().sin(), 20f32.to_radians().cos()),
+            Vec3::new(0.5, 0.0, -1.0),
+            Vec3::X,
+            Vec3::ZERO,
+        ];
         let b = split_vertices(&positions, &[tri([3, 1, 2], 0), tri([3, 2, 0], 0)], 45.0);
         assert_eq!(a.mesh.positions, b.mesh.positions);
         assert_eq!(a.mesh.triangles, b.mesh.triangles);

@@ -19,7 +19,12 @@ use crate::settings::ViewpointSetting;
 
 /// How many base triangles `view` sees at `width` × `height` (builds an estimator for one view;
 /// keep a [`VisibilityEstimator`] to ask about several).
-pub fn visible_base_triangles(scene: &Scene, view: &ViewpointSetting, width: u32, height: u32) -> usize {
+pub fn visible_base_triangles(
+    scene: &Scene,
+    view: &ViewpointSetting,
+    width: u32,
+    height: u32,
+) -> usize {
     VisibilityEstimator::new(scene).count_visible(view, width, height)
 }
 
@@ -36,7 +41,11 @@ impl VisibilityEstimator {
                 BvhTriangle { v0, v1, v2 }
             })
             .collect();
-        let bvh = build_cwbvh_from_tris(&triangles, BvhBuildParams::fast_build(), &mut Duration::default());
+        let bvh = build_cwbvh_from_tris(
+            &triangles,
+            BvhBuildParams::fast_build(),
+            &mut Duration::default(),
+        );
         VisibilityEstimator { triangles, bvh }
     }
 

@@ -12,8 +12,8 @@ use protocol::renderer_link::{Quality, SampleKey};
 use rand::{RngExt, SeedableRng};
 
 use crate::cache::{CachedSample, ShadingCache};
-use crate::criteria::{CriterionInput, CriterionSettings, NldOs, NldPx, make_criterion};
 use crate::criteria::Criterion;
+use crate::criteria::{CriterionInput, CriterionSettings, NldOs, NldPx, make_criterion};
 use crate::mesh::{MeshParams, NodeId, SubdivisionMesh, grid_mesh};
 use crate::visible::{VisibleLeaf, VisibleSet};
 use synthetic::{Shading, Synthetic};
@@ -34,7 +34,13 @@ fn median(mut xs: Vec<f64>) -> f64 {
 }
 
 fn sample(rgb: [f32; 3]) -> CachedSample {
-    CachedSample { rgb, quality: Quality::INTERACTIVE, view_dependent: false, eye: None, last_seen: 0 }
+    CachedSample {
+        rgb,
+        quality: Quality::INTERACTIVE,
+        view_dependent: false,
+        eye: None,
+        last_seen: 0,
+    }
 }
 
 /// A mesh of about `leaves` leaves, every vertex cached, every leaf visible at 10 pixels.
@@ -45,10 +51,23 @@ fn visible_grid(leaves: usize) -> (SubdivisionMesh, ShadingCache, VisibleSet) {
     for vertex in 0..mesh.vertex_count() as u32 {
         let p = mesh.vertex(vertex).position;
         let l = Shading::Smooth.luminance(p.truncate() * 0.05, n);
-        cache.insert(SampleKey { vertex, side: Side::Front }, sample([l; 3]));
+        cache.insert(
+            SampleKey {
+                vertex,
+                side: Side::Front,
+            },
+            sample([l; 3]),
+        );
     }
     let visible = VisibleSet {
-        leaves: mesh.leaves().map(|leaf| VisibleLeaf { leaf, side: Side::Front, pixels: 10 }).collect(),
+        leaves: mesh
+            .leaves()
+            .map(|leaf| VisibleLeaf {
+                leaf,
+                side: Side::Front,
+                pixels: 10,
+            })
+            .collect(),
         width: 1024,
         height: 1024,
     };
@@ -57,63 +76,145 @@ fn visible_grid(leaves: usize) -> (SubdivisionMesh, ShadingCache, VisibleSet) {
 
 fn write_criterion_speed(md: &mut String, runs: usize) -> anyhow::Result<()> {
     let (mesh, cache, visible) = visible_grid(100_000);
-    let input = CriterionInput { mesh: &mesh, cache: &cache, visible: &visible, l_white: cache.l_white(&mesh, &visible), image: None };
+    let input = CriterionInput {
+        mesh: &mesh,
+        cache: &cache,
+        visible: &visible,
+        l_white: cache.l_white(&mesh, &visible),
+        image: None,
+    };
     let n = visible.leaves.len() as f64;
     // S_ref above every leaf's S: the call scans the whole set once and returns nothing.
-    let full_scan = CriterionSettings { s_ref_start: 1.0, s_min: 1.0, large_triangle_fraction: 1.0, ..Default::default() };
+    let full_scan = CriterionSettings {
+        s_ref_start: 1.0,
+        s_min: 1.0,
+        large_triangle_fraction: 1.0,
+        ..Default::default()
+    };
     let time = |make: &dyn Fn() -> Box<dyn Criterion>| {
-        median((0..runs).map(|_| {
-            let mut c = make();
-            let t = Instant::now();
-            let picked = c.select(&input, 64);
-            std::hint::black_box(picked);
-            t.elapsed().as_secs_f64()
-        }).collect())
+        median(
+            (0..runs)
+                .map(|_| {
+                    let mut c = make();
+                    let t = Instant::now();
+                    let picked = c.select(&input, 64);
+                    std::hint::black_box(picked);
+                    t.elapsed().as_secs_f64()
+                })
+                .collect(),
+        )
     };
     let scan = time(&|| Box::new(NldOs::new(&full_scan)));
     let px = time(&|| Box::new(NldPx::new(&CriterionSettings::default())));
-    writeln!(md, "### Criterion cost ({} visible leaves, all samples cached, median of {runs})\n", visible.leaves.len())?;
+    writeln!(
+        md,
+        "### Criterion cost ({} visible leaves, all samples cached, median of {runs})\n",
+        visible.leaves.len()
+    )?;
     writeln!(md, "| call | ms per call | leaves/s |\n|---|---:|---:|")?;
-    writeln!(md, "| `nld-os`, full pass, no leaf above S_ref | {:.2} | {:.1} M |", scan * 1e3, n / scan / 1e6)?;
-    writeln!(md, "| `nld-px`, ranks all, R = 64 out | {:.2} | {:.1} M |\n", px * 1e3, n / px / 1e6)?;
+    writeln!(
+        md,
+        "| `nld-os`, full pass, no leaf above S_ref | {:.2} | {:.1} M |",
+        scan * 1e3,
+        n / scan / 1e6
+    )?;
+    writeln!(
+        md,
+        "| `nld-px`, ranks all, R = 64 out | {:.2} | {:.1} M |\n",
+        px * 1e3,
+        n / px / 1e6
+    )?;
     Ok(())
 }
 
-fn write_split_speed_and_memory(md: &mut String, runs: usize, target_leaves: usize) -> anyhow::Result<()> {
+fn write_split_speed_and_memory(
+    md: &mut String,
+    runs: usize,
+    target_leaves: usize,
+) -> anyhow::Result<()> {
     let mut rates = Vec::new();
     let mut per_leaf = Vec::new();
     let mut per_sample = Vec::new();
+    let mut mesh_per_leaf = Vec::new();
+    let mut node_rates = Vec::new();
     let mut last = (0, 0);
     for run in 0..runs {
-        let mut mesh = SubdivisionMesh::new(&grid_mesh(32), MeshParams { min_edge_length: 0.0, ..Default::default() });
+        let mut mesh = SubdivisionMesh::new(
+            &grid_mesh(32),
+            MeshParams {
+                min_edge_length: 0.0,
+                ..Default::default()
+            },
+        );
         let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(run as u64);
-        let (mut steps, mut elapsed) = (0usize, 0.0);
+        let (mut steps, mut elapsed, nodes_before) = (0usize, 0.0, mesh.node_count());
         while mesh.leaf_count() < target_leaves {
             let leaves: Vec<NodeId> = mesh.leaves().collect();
-            let picks: Vec<NodeId> = (0..1000).map(|_| leaves[rng.random_range(0..leaves.len())]).collect();
+            let picks: Vec<NodeId> = (0..1000)
+                .map(|_| leaves[rng.random_range(0..leaves.len())])
+                .collect();
             let t = Instant::now();
             steps += mesh.refine(&picks, &|_| false).len();
             elapsed += t.elapsed().as_secs_f64();
         }
         rates.push(steps as f64 / elapsed);
+        node_rates.push((mesh.node_count() - nodes_before) as f64 / elapsed);
         let mut cache = ShadingCache::new(usize::MAX);
         for vertex in 0..mesh.vertex_count() as u32 {
-            cache.insert(SampleKey { vertex, side: Side::Front }, sample([1.0; 3]));
+            cache.insert(
+                SampleKey {
+                    vertex,
+                    side: Side::Front,
+                },
+                sample([1.0; 3]),
+            );
         }
         per_leaf.push((mesh.heap_bytes() + cache.bytes()) as f64 / mesh.leaf_count() as f64);
+        mesh_per_leaf.push(mesh.heap_bytes() as f64 / mesh.leaf_count() as f64);
         per_sample.push(cache.bytes() as f64 / cache.len() as f64);
         last = (mesh.leaf_count(), mesh.vertex_count());
     }
-    writeln!(md, "### Subdivision and memory (random selections of 1,000 leaves from a 32×32 grid to {} leaves, {} vertices; median of {runs})\n", last.0, last.1)?;
+    writeln!(
+        md,
+        "### Subdivision and memory (random selections of 1,000 leaves from a 32×32 grid to {} leaves, {} vertices; median of {runs})\n",
+        last.0, last.1
+    )?;
     writeln!(md, "| figure | value |\n|---|---:|")?;
-    writeln!(md, "| red splits with closure per second | {:.2} M |", median(rates) / 1e6)?;
-    writeln!(md, "| bytes per leaf, mesh + cache (one side per vertex) | {:.0} |", median(per_leaf))?;
-    writeln!(md, "| bytes per cached vertex sample (slot table included) | {:.0} |\n", median(per_sample))?;
+    writeln!(
+        md,
+        "| refinement steps (a red split and its whole closure) per second | {:.2} M |",
+        median(rates) / 1e6
+    )?;
+    writeln!(
+        md,
+        "| triangles (nodes) created per second, closure included | {:.2} M |",
+        median(node_rates) / 1e6
+    )?;
+    writeln!(
+        md,
+        "| bytes per leaf, mesh + cache (one side per vertex) | {:.0} |",
+        median(per_leaf)
+    )?;
+    writeln!(
+        md,
+        "| of which mesh (nodes incl. dead ones, vertices, edge tables; Vec and table capacity) | {:.0} |",
+        median(mesh_per_leaf)
+    )?;
+    writeln!(
+        md,
+        "| bytes per cached vertex sample (slot table included) | {:.0} |\n",
+        median(per_sample)
+    )?;
     Ok(())
 }
 
 /// Mean absolute luminance error after `budget` samples, refining `r` leaves per call.
-pub fn error_at(shading: Shading, criterion: &str, settings: &CriterionSettings, budget: usize) -> f64 {
+pub fn error_at(
+    shading: Shading,
+    criterion: &str,
+    settings: &CriterionSettings,
+    budget: usize,
+) -> f64 {
     let mut scene = Synthetic::new(8, 128, shading);
     let mut c = make_criterion(criterion, settings, 1).expect("known criterion");
     let mut idle = 0;
@@ -128,7 +229,11 @@ pub fn error_at(shading: Shading, criterion: &str, settings: &CriterionSettings,
 const SHADINGS: [Shading; 3] = [Shading::ShadowEdge, Shading::Blob, Shading::Smooth];
 
 fn mean_error(criterion: &str, settings: &CriterionSettings, budget: usize) -> f64 {
-    SHADINGS.iter().map(|&s| error_at(s, criterion, settings, budget)).sum::<f64>() / SHADINGS.len() as f64
+    SHADINGS
+        .iter()
+        .map(|&s| error_at(s, criterion, settings, budget))
+        .sum::<f64>()
+        / SHADINGS.len() as f64
 }
 
 /// The synthetic runs behind the defaults of `CriterionSettings`.
@@ -138,24 +243,100 @@ pub fn criteria_experiment(quick: bool) -> anyhow::Result<String> {
     let mut md = format!(
         "### Criterion defaults: synthetic convergence\n\nAn 8×8 grid (128 triangles) seen from above at 128×128, shaded by a hard shadow line, a small shadow disc inside one square (fig. 4.10) and a smooth ripple; R = 16 per call; mean absolute luminance error of the Gouraud image against the exact shading after {budget} samples (81 to start with), averaged over the three. Lower is better.\n\n"
     );
-    writeln!(md, "| criterion (defaults) | shadow line | disc | smooth | mean |\n|---|---:|---:|---:|---:|")?;
+    writeln!(
+        md,
+        "| criterion (defaults) | shadow line | disc | smooth | mean |\n|---|---:|---:|---:|---:|"
+    )?;
     for name in crate::criteria::CRITERIA {
-        let e: Vec<f64> = SHADINGS.iter().map(|&s| error_at(s, name, &d, budget)).collect();
-        writeln!(md, "| `{name}` | {:.4} | {:.4} | {:.4} | {:.4} |", e[0], e[1], e[2], e.iter().sum::<f64>() / 3.0)?;
+        let e: Vec<f64> = SHADINGS
+            .iter()
+            .map(|&s| error_at(s, name, &d, budget))
+            .collect();
+        writeln!(
+            md,
+            "| `{name}` | {:.4} | {:.4} | {:.4} | {:.4} |",
+            e[0],
+            e[1],
+            e[2],
+            e.iter().sum::<f64>() / 3.0
+        )?;
     }
-    type Sweep = (&'static str, &'static str, fn(f32) -> CriterionSettings, &'static [f32]);
+    type Sweep = (
+        &'static str,
+        &'static str,
+        fn(f32) -> CriterionSettings,
+        &'static [f32],
+    );
     let sweeps: [Sweep; 6] = [
-        ("nld-os", "s_ref_start", |x| CriterionSettings { s_ref_start: x, ..Default::default() }, &[0.3, 0.5, 0.8]),
-        ("nld-os", "s_ref_step", |x| CriterionSettings { s_ref_step: x, ..Default::default() }, &[0.05, 0.1, 0.2]),
-        ("nld-os", "s_min", |x| CriterionSettings { s_min: x, ..Default::default() }, &[0.005, 0.02, 0.05]),
-        ("nld-os", "large_triangle_fraction", |x| CriterionSettings { large_triangle_fraction: x, ..Default::default() }, &[0.005, 0.02, 0.1]),
-        ("nld-px", "nld_px_epsilon", |x| CriterionSettings { nld_px_epsilon: x, ..Default::default() }, &[0.0, 0.05, 0.3]),
-        ("nld-is", "nld_is_fraction", |x| CriterionSettings { nld_is_fraction: x, ..Default::default() }, &[0.02, 0.1, 0.3]),
+        (
+            "nld-os",
+            "s_ref_start",
+            |x| CriterionSettings {
+                s_ref_start: x,
+                ..Default::default()
+            },
+            &[0.3, 0.5, 0.8],
+        ),
+        (
+            "nld-os",
+            "s_ref_step",
+            |x| CriterionSettings {
+                s_ref_step: x,
+                ..Default::default()
+            },
+            &[0.05, 0.1, 0.2],
+        ),
+        (
+            "nld-os",
+            "s_min",
+            |x| CriterionSettings {
+                s_min: x,
+                ..Default::default()
+            },
+            &[0.005, 0.02, 0.05, 0.1],
+        ),
+        (
+            "nld-os",
+            "large_triangle_fraction",
+            |x| CriterionSettings {
+                large_triangle_fraction: x,
+                ..Default::default()
+            },
+            &[0.002, 0.005, 0.02],
+        ),
+        (
+            "nld-px",
+            "nld_px_epsilon",
+            |x| CriterionSettings {
+                nld_px_epsilon: x,
+                ..Default::default()
+            },
+            &[0.0, 0.05, 0.3],
+        ),
+        (
+            "nld-is",
+            "nld_is_fraction",
+            |x| CriterionSettings {
+                nld_is_fraction: x,
+                ..Default::default()
+            },
+            &[0.02, 0.1, 0.3],
+        ),
     ];
-    writeln!(md, "\n| sweep (others at default) | values | mean error |\n|---|---|---|")?;
+    writeln!(
+        md,
+        "\n| sweep (others at default) | values | mean error |\n|---|---|---|"
+    )?;
     for (criterion, setting, make, values) in sweeps {
-        let errors: Vec<String> = values.iter().map(|&x| format!("{x}: {:.4}", mean_error(criterion, &make(x), budget))).collect();
-        writeln!(md, "| `{criterion}` {setting} | {values:?} | {} |", errors.join(", "))?;
+        let errors: Vec<String> = values
+            .iter()
+            .map(|&x| format!("{x}: {:.4}", mean_error(criterion, &make(x), budget)))
+            .collect();
+        writeln!(
+            md,
+            "| `{criterion}` {setting} | {values:?} | {} |",
+            errors.join(", ")
+        )?;
     }
     Ok(md)
 }
@@ -167,7 +348,12 @@ mod tests {
     #[test]
     fn refining_lowers_the_synthetic_error() {
         let untouched = Synthetic::new(8, 128, Shading::ShadowEdge).error();
-        let refined = error_at(Shading::ShadowEdge, "nld-os", &CriterionSettings::default(), 400);
+        let refined = error_at(
+            Shading::ShadowEdge,
+            "nld-os",
+            &CriterionSettings::default(),
+            400,
+        );
         assert!(refined < 0.8 * untouched, "{refined} vs {untouched}");
     }
 }

@@ -8,15 +8,10 @@ use anyhow::Context;
 use clap::Parser;
 use protocol::frame::DEFAULT_MAX_FRAME;
 use protocol::viewer_link::SceneInfo;
-use tokio::net::TcpListener;
-use tokio::sync::{mpsc, watch};
 
 use crate::criteria::{CRITERIA, CriterionSettings};
-use crate::mesh::{MeshParams, SubdivisionMesh};
-use crate::pool::{self, PoolConfig};
-use crate::schedule::{Schedule, ScheduleConfig};
-use crate::viewer_link::ViewerLinkConfig;
-use crate::visibility::Gpu;
+use crate::mesh::MeshParams;
+use crate::schedule::ScheduleConfig;
 
 fn criterion_defaults() -> CriterionSettings {
     CriterionSettings::default()
@@ -27,7 +22,10 @@ fn mesh_defaults() -> MeshParams {
 }
 
 #[derive(Parser, Debug, Clone)]
-#[command(name = "sma", about = "Shading Management Agent: visibility, shading cache, refinement")]
+#[command(
+    name = "sma",
+    about = "Shading Management Agent: visibility, shading cache, refinement"
+)]
 pub struct Cli {
     /// Scene: a TOML scene file or a built-in name (bracara, cornell).
     #[arg(long, default_value = "bracara")]
@@ -116,6 +114,20 @@ pub struct Cli {
 }
 
 impl Cli {
+    /// A command line with every default, for tests and benchmarks.
+    pub fn with_renderers(renderers: Vec<String>) -> Cli {
+        let mut cli = Cli::parse_from(["sma", "--renderer", "unused"]);
+        cli.renderers = renderers;
+        cli
+    }
+
+    pub fn mesh_params(&self) -> MeshParams {
+        MeshParams {
+            min_edge_length: self.min_edge_length,
+            weld_tolerance_rel: self.weld_tolerance,
+        }
+    }
+
     fn criterion_settings(&self) -> CriterionSettings {
         CriterionSettings {
             s_ref_start: self.s_ref_start,
@@ -163,81 +175,36 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 }
 
 async fn serve(cli: Cli) -> anyhow::Result<()> {
-    let scene = scene::load(&cli.scene).with_context(|| format!("loading scene {:?}", cli.scene))?;
-    let params = MeshParams { min_edge_length: cli.min_edge_length, weld_tolerance_rel: cli.weld_tolerance };
-    let mesh = SubdivisionMesh::new(&scene.mesh, params);
-    let gpu = Gpu::new().context("visibility needs a graphics adapter")?;
-    let (shutdown_tx, shutdown) = watch::channel(false);
-    let (pool_tx, pool_rx) = mpsc::unbounded_channel();
-    let pool = pool::spawn(
-        PoolConfig {
-            renderers: cli.renderers.clone(),
-            fingerprint: scene.fingerprint,
-            depth: cli.batches_per_renderer.max(1),
-            max_frame: cli.max_frame,
-            backoff_min: Duration::from_millis(100),
-            backoff_max: Duration::from_secs(5),
-        },
-        pool_tx,
-        shutdown.clone(),
-    );
-    let link = ViewerLinkConfig {
-        scene_info: scene_info(&scene, &cli.criterion),
-        fingerprint: scene.fingerprint,
-        max_frame: cli.max_frame,
-    };
-    let schedule = Schedule::new(cli.schedule_config(), &scene, mesh, gpu, pool)?;
-    tracing::info!(adapter = %schedule.adapter(), "visibility device");
-    let listener =
-        TcpListener::bind(&cli.listen).await.with_context(|| format!("listening on {}", cli.listen))?;
+    let scene =
+        scene::load(&cli.scene).with_context(|| format!("loading scene {:?}", cli.scene))?;
+    let running = crate::server::start(&cli, scene).await?;
     // Tests and the launcher read this line to learn the port when `--listen` asks for port 0.
-    println!("sma listening on {}", listener.local_addr()?);
-    let (viewer_tx, viewer_rx) = mpsc::unbounded_channel();
-    tokio::spawn(crate::server::accept_viewers(listener, link, viewer_tx, shutdown.clone()));
-    let schedule_thread = spawn_schedule(schedule, viewer_rx, pool_rx, shutdown.clone())?;
+    println!("sma listening on {}", running.addr);
     let outcome = tokio::select! {
         r = tokio::signal::ctrl_c() => r.context("waiting for Ctrl-C"),
-        r = wait_thread(&schedule_thread) => r,
+        _ = running.finished() => Ok(()),
     };
     tracing::info!("shutting down");
-    let _ = shutdown_tx.send(true);
-    let joined = tokio::task::spawn_blocking(move || schedule_thread.join()).await?;
-    joined.map_err(|_| anyhow::anyhow!("the schedule thread panicked"))??;
+    running.stop().await?;
     outcome
-}
-
-/// The schedule on its own thread with its own single-threaded runtime (see `schedule`).
-fn spawn_schedule(
-    schedule: Schedule,
-    viewers: mpsc::UnboundedReceiver<crate::viewer_link::ViewerEvent>,
-    pool: mpsc::UnboundedReceiver<crate::pool::PoolEvent>,
-    shutdown: watch::Receiver<bool>,
-) -> anyhow::Result<std::thread::JoinHandle<anyhow::Result<()>>> {
-    std::thread::Builder::new()
-        .name("sma-schedule".into())
-        .spawn(move || {
-            let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
-            runtime.block_on(schedule.run(viewers, pool, shutdown))
-        })
-        .context("starting the schedule thread")
-}
-
-/// Resolves when the schedule thread has ended (an error in it ends the process).
-async fn wait_thread(thread: &std::thread::JoinHandle<anyhow::Result<()>>) -> anyhow::Result<()> {
-    while !thread.is_finished() {
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
-    Ok(())
 }
 
 pub fn scene_info(scene: &scene::Scene, active_criterion: &str) -> SceneInfo {
     let (lo, hi) = scene.mesh.bounds();
     let mut criteria = vec![active_criterion.to_string()];
-    criteria.extend(CRITERIA.iter().filter(|c| **c != active_criterion).map(|c| c.to_string()));
+    criteria.extend(
+        CRITERIA
+            .iter()
+            .filter(|c| **c != active_criterion)
+            .map(|c| c.to_string()),
+    );
     SceneInfo {
         name: scene.name.clone(),
         fingerprint: scene.fingerprint,
-        bounds: protocol::types::Bounds { min: lo.to_array(), max: hi.to_array() },
+        bounds: protocol::types::Bounds {
+            min: lo.to_array(),
+            max: hi.to_array(),
+        },
         viewpoints: scene
             .settings
             .viewpoints

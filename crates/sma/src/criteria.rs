@@ -85,13 +85,27 @@ pub struct CriterionSettings {
     pub nld_px_epsilon: f32,
 }
 
+/// Defaults from the synthetic convergence runs of `bench::criteria_experiment` (8×8 grid at
+/// 128×128, a hard shadow line, a shadow disc between vertices, a smooth ripple; mean absolute
+/// luminance error after 1,200 samples, R = 16; figures in BENCHMARKS.md):
+/// - `s_ref_start` 0.5, `s_ref_step` 0.1: the error did not move (0.0031) over
+///   start 0.3–0.8 and step 0.05–0.2; the middle values are kept.
+/// - `s_min` 0.05: 0.005, 0.02 and 0.05 gave the same error (0.0031), 0.1 a worse one (0.0032;
+///   0.0043 with the large-triangle fraction at 0.02); the largest that costs nothing stops
+///   refinement soonest.
+/// - `large_triangle_fraction` 0.002: 0.0031 against 0.0034 at 0.005 and 0.0042 at 0.02 (the
+///   disc inside a square is found only when big leaves are split regardless of S).
+/// - `nld_is_fraction` 0.1: 0.0044, same as 0.3, against 0.0051 at 0.02.
+/// - `nld_px_epsilon` 0.05: no measurable effect over 0–0.3 (0.0031).
+/// - `rnd_fraction` 0.1: as `nld_is_fraction`, so RND and NLD_IS passes select alike.
+/// - `min_leaf_pixels` 6: the thesis's value (§4.3.3).
 impl Default for CriterionSettings {
     fn default() -> Self {
         CriterionSettings {
             s_ref_start: 0.5,
             s_ref_step: 0.1,
-            s_min: 0.02,
-            large_triangle_fraction: 0.02,
+            s_min: 0.05,
+            large_triangle_fraction: 0.002,
             rnd_fraction: 0.1,
             nld_is_fraction: 0.1,
             min_leaf_pixels: 6,
@@ -101,7 +115,11 @@ impl Default for CriterionSettings {
 }
 
 /// The criterion called `name` (one of [`CRITERIA`]).
-pub fn make_criterion(name: &str, settings: &CriterionSettings, seed: u64) -> Option<Box<dyn Criterion>> {
+pub fn make_criterion(
+    name: &str,
+    settings: &CriterionSettings,
+    seed: u64,
+) -> Option<Box<dyn Criterion>> {
     Some(match name {
         "rnd" => Box::new(Rnd::new(settings, seed)),
         "nld-is" => Box::new(NldIs::new(settings)),
@@ -119,7 +137,10 @@ fn is_large(pixels: u32, visible: &VisibleSet, fraction: f32) -> bool {
 /// S of eq. 4.6 over a leaf's three cached vertex samples, `None` while one is missing.
 fn leaf_nld(input: &CriterionInput, leaf: NodeId, side: protocol::Side) -> Option<f32> {
     let rgb = input.cache.leaf_radiance(input.mesh, leaf, side)?;
-    Some(crate::nld::nld3(rgb.map(crate::nld::luminance), input.l_white))
+    Some(crate::nld::nld3(
+        rgb.map(crate::nld::luminance),
+        input.l_white,
+    ))
 }
 
 #[cfg(test)]

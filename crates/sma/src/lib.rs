@@ -23,6 +23,7 @@ pub mod visible;
 
 pub mod cli;
 pub mod pool;
+pub mod probe;
 pub mod schedule;
 pub mod server;
 pub mod service_bench;

@@ -37,7 +37,11 @@ pub fn nld_mm(lum: &[f32], l_white: f32) -> f32 {
     if lum.len() < 2 || !(l_white > 0.0 && l_white.is_finite()) {
         return 0.0;
     }
-    let (lo, hi) = lum.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &l| (lo.min(l), hi.max(l)));
+    let (lo, hi) = lum
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &l| {
+            (lo.min(l), hi.max(l))
+        });
     clamp_unit((hi - lo) / l_white)
 }
 
@@ -54,7 +58,10 @@ mod tests {
     #[test]
     fn extreme_split_gives_one_and_equal_values_zero() {
         assert_eq!(nld_metric(&[0.0, 0.0, 2.0, 2.0], 2.0), 1.0);
-        assert!((nld_metric(&[0.0, 2.0, 2.0], 2.0) - 1.0).abs() < 1e-6, "N=3: N*N div 4 = 2");
+        assert!(
+            (nld_metric(&[0.0, 2.0, 2.0], 2.0) - 1.0).abs() < 1e-6,
+            "N=3: N*N div 4 = 2"
+        );
         assert_eq!(nld_metric(&[1.0; 5], 3.0), 0.0);
         assert_eq!(nld_metric(&[0.0, 1.0], 0.0), 0.0);
         assert_eq!(nld_metric(&[f32::NAN, 1.0], 1.0), 0.0);
@@ -64,7 +71,10 @@ mod tests {
     #[test]
     fn eq_4_3_by_pairs_matches_the_variance_form() {
         let l = [0.1f32, 0.7, 0.3, 0.9, 0.2];
-        let pairs: f32 = (0..5).flat_map(|i| (i + 1..5).map(move |j| (i, j))).map(|(i, j)| (l[i] - l[j]).powi(2)).sum();
+        let pairs: f32 = (0..5)
+            .flat_map(|i| (i + 1..5).map(move |j| (i, j)))
+            .map(|(i, j)| (l[i] - l[j]).powi(2))
+            .sum();
         let expected = (pairs / (6.0 * 1.0f32)).sqrt();
         assert!((nld_metric(&l, 1.0) - expected).abs() < 1e-6);
     }

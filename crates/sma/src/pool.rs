@@ -36,7 +36,10 @@ pub struct PoolConfig {
 #[derive(Debug)]
 pub enum PoolEvent {
     /// A batch answered, checked to hold one value per point.
-    Shaded { batch: ShadeBatch, radiance: Radiance },
+    Shaded {
+        batch: ShadeBatch,
+        radiance: Radiance,
+    },
     /// A batch no renderer would take; its points are not shaded.
     Failed { batch: ShadeBatch, reason: String },
     /// The number of connected renderers changed.
@@ -66,7 +69,12 @@ pub fn spawn(
     let (submit, submitted) = mpsc::unbounded_channel();
     let (link_tx, link_rx) = mpsc::unbounded_channel();
     for (index, addr) in config.renderers.iter().enumerate() {
-        let link = Link { index, addr: addr.clone(), config: config.clone(), events: link_tx.clone() };
+        let link = Link {
+            index,
+            addr: addr.clone(),
+            config: config.clone(),
+            events: link_tx.clone(),
+        };
         tokio::spawn(link.run(shutdown.clone()));
     }
     let dispatcher = Dispatcher {
@@ -83,9 +91,21 @@ pub fn spawn(
 /// What a link task tells the dispatcher. `generation` tells one connection of a link from the
 /// next, so news from a dead connection cannot touch batches re-issued since.
 enum LinkEvent {
-    Up { index: usize, generation: u64, batches: mpsc::UnboundedSender<ShadeBatch> },
-    Reply { index: usize, generation: u64, reply: FromRenderer },
-    Down { index: usize, generation: u64, reason: String },
+    Up {
+        index: usize,
+        generation: u64,
+        batches: mpsc::UnboundedSender<ShadeBatch>,
+    },
+    Reply {
+        index: usize,
+        generation: u64,
+        reply: FromRenderer,
+    },
+    Down {
+        index: usize,
+        generation: u64,
+        reason: String,
+    },
 }
 
 #[derive(Clone, Default)]
@@ -129,11 +149,23 @@ impl Dispatcher {
 
     fn on_link_event(&mut self, event: LinkEvent) {
         match event {
-            LinkEvent::Up { index, generation, batches } => {
-                self.links[index] = LinkSlot { generation, batches: Some(batches), outstanding: 0 };
+            LinkEvent::Up {
+                index,
+                generation,
+                batches,
+            } => {
+                self.links[index] = LinkSlot {
+                    generation,
+                    batches: Some(batches),
+                    outstanding: 0,
+                };
                 self.report_connected();
             }
-            LinkEvent::Down { index, generation, reason } => {
+            LinkEvent::Down {
+                index,
+                generation,
+                reason,
+            } => {
                 if self.links[index].generation != generation {
                     return;
                 }
@@ -143,7 +175,11 @@ impl Dispatcher {
                 self.requeue_link(index, generation);
                 self.report_connected();
             }
-            LinkEvent::Reply { index, generation, reply } => {
+            LinkEvent::Reply {
+                index,
+                generation,
+                reply,
+            } => {
                 self.on_reply(index, generation, reply);
             }
         }
@@ -164,14 +200,21 @@ impl Dispatcher {
             .get(&batch_id)
             .is_some_and(|(f, _)| f.index == index && f.generation == generation);
         if !owned {
-            tracing::debug!(renderer = index, batch_id, "reply for a batch this link does not hold");
+            tracing::debug!(
+                renderer = index,
+                batch_id,
+                "reply for a batch this link does not hold"
+            );
             return;
         }
         let (flight, attempts) = self.in_flight.remove(&batch_id).expect("checked above");
         self.links[index].outstanding = self.links[index].outstanding.saturating_sub(1);
         match outcome.and_then(|r| checked(&flight.batch, r)) {
             Ok(radiance) => {
-                let _ = self.events.send(PoolEvent::Shaded { batch: flight.batch, radiance });
+                let _ = self.events.send(PoolEvent::Shaded {
+                    batch: flight.batch,
+                    radiance,
+                });
             }
             Err(reason) => self.retry(flight.batch, attempts + 1, reason),
         }
@@ -207,18 +250,28 @@ impl Dispatcher {
     fn dispatch(&mut self) {
         while !self.queue.is_empty() {
             let Some(index) = (0..self.links.len())
-                .filter(|&i| self.links[i].batches.is_some() && self.links[i].outstanding < self.depth)
+                .filter(|&i| {
+                    self.links[i].batches.is_some() && self.links[i].outstanding < self.depth
+                })
                 .min_by_key(|&i| self.links[i].outstanding)
             else {
                 return;
             };
             let (batch, attempts) = self.queue.pop_front().expect("not empty");
             let slot = &mut self.links[index];
-            let sent = slot.batches.as_ref().is_some_and(|tx| tx.send(batch.clone()).is_ok());
+            let sent = slot
+                .batches
+                .as_ref()
+                .is_some_and(|tx| tx.send(batch.clone()).is_ok());
             if sent {
                 slot.outstanding += 1;
-                let flight = InFlight { index, generation: slot.generation, batch };
-                self.in_flight.insert(flight.batch.batch_id, (flight, attempts));
+                let flight = InFlight {
+                    index,
+                    generation: slot.generation,
+                    batch,
+                };
+                self.in_flight
+                    .insert(flight.batch.batch_id, (flight, attempts));
             } else {
                 // The link task ended; its Down event is on its way.
                 slot.batches = None;
@@ -271,7 +324,11 @@ impl Link {
                 Ok(()) => return,
                 Err((served, e)) => (served, e.to_string()),
             };
-            let _ = self.events.send(LinkEvent::Down { index: self.index, generation, reason: reason.clone() });
+            let _ = self.events.send(LinkEvent::Down {
+                index: self.index,
+                generation,
+                reason: reason.clone(),
+            });
             if served {
                 backoff = self.config.backoff_min;
             }
@@ -289,7 +346,11 @@ impl Link {
         let (mut reader, mut writer) = self.connect().await.map_err(|e| (false, e))?;
         tracing::info!(renderer = %self.addr, "renderer connected");
         let (tx, mut batches) = mpsc::unbounded_channel();
-        let up = LinkEvent::Up { index: self.index, generation, batches: tx };
+        let up = LinkEvent::Up {
+            index: self.index,
+            generation,
+            batches: tx,
+        };
         if self.events.send(up).is_err() {
             return Ok(());
         }

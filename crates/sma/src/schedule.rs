@@ -132,11 +132,17 @@ impl Schedule {
             config.criterion,
             CRITERIA.join(", ")
         );
-        let view_dependent =
-            (0..scene.mesh.triangles.len()).map(|t| scene.material_of(t).is_view_dependent()).collect();
+        let view_dependent = (0..scene.mesh.triangles.len())
+            .map(|t| scene.material_of(t).is_view_dependent())
+            .collect();
         let quality = scene.settings.quality;
-        let qualities = Qualities::new(Quality { paths: quality.paths, bounces: quality.bounces });
-        let aging = Aging { max_angle_rad: config.view_angle_deg.to_radians() };
+        let qualities = Qualities::new(Quality {
+            paths: quality.paths,
+            bounces: quality.bounces,
+        });
+        let aging = Aging {
+            max_angle_rad: config.view_angle_deg.to_radians(),
+        };
         let luminance = LuminancePass::new(&gpu);
         let visibility = Visibility::new(gpu, &mesh, scene.mesh.bounds());
         Ok(Schedule {
@@ -177,7 +183,7 @@ impl Schedule {
     ) -> anyhow::Result<()> {
         let mut stats = tokio::time::interval(self.config.stats_every);
         loop {
-            let refine_now = self.refinement_candidate().is_some();
+            let work_now = self.has_work_now();
             let rest_at = self.next_rest();
             tokio::select! {
                 biased;
@@ -189,7 +195,7 @@ impl Schedule {
                 Some(event) = pool.recv() => self.on_pool_event(event),
                 _ = stats.tick() => self.report_stats(),
                 _ = sleep_until(rest_at), if rest_at.is_some() => {}
-                _ = std::future::ready(()), if refine_now => {}
+                _ = std::future::ready(()), if work_now => {}
             }
             while let Ok(event) = viewers.try_recv() {
                 self.on_viewer_event(event);
@@ -234,7 +240,9 @@ impl Schedule {
     fn on_viewer_message(&mut self, id: ViewerId, message: ViewerToSma) {
         let seed = self.config.seed;
         let settings = self.config.criterion_settings;
-        let Some(viewer) = self.viewers.get_mut(&id) else { return };
+        let Some(viewer) = self.viewers.get_mut(&id) else {
+            return;
+        };
         match message {
             ViewerToSma::Camera(camera) => {
                 viewer.answer_pending = Some(camera.seq);
@@ -251,7 +259,10 @@ impl Schedule {
                         viewer.exhausted = false;
                     }
                     None => viewer.send(SmaToViewer::Error {
-                        message: format!("unknown criterion {name:?}; known: {}", CRITERIA.join(", ")),
+                        message: format!(
+                            "unknown criterion {name:?}; known: {}",
+                            CRITERIA.join(", ")
+                        ),
                     }),
                 }
             }
@@ -272,15 +283,21 @@ impl Schedule {
     }
 
     fn make_criterion(&self, name: &str, id: ViewerId) -> Box<dyn Criterion> {
-        crate::criteria::make_criterion(name, &self.config.criterion_settings, self.config.seed ^ id)
-            .expect("criterion name checked at start")
+        crate::criteria::make_criterion(
+            name,
+            &self.config.criterion_settings,
+            self.config.seed ^ id,
+        )
+        .expect("criterion name checked at start")
     }
 
     fn on_pool_event(&mut self, event: PoolEvent) {
         match event {
             PoolEvent::Shaded { batch, radiance } => {
                 self.requests.finished(&batch);
-                for ((point, rgb), flags) in batch.points.iter().zip(&radiance.rgb).zip(&radiance.flags) {
+                for ((point, rgb), flags) in
+                    batch.points.iter().zip(&radiance.rgb).zip(&radiance.flags)
+                {
                     let base = point.base_triangle as usize;
                     let view_dependent = self.view_dependent.get(base).copied().unwrap_or(false)
                         || flags & point_flags::VIEW_DEPENDENT != 0;
@@ -310,7 +327,9 @@ impl Schedule {
     /// One turn after the events (see the module documentation).
     fn turn(&mut self) -> anyhow::Result<()> {
         if self.samples_since_pass >= self.config.revisit_samples {
-            self.viewers.values_mut().for_each(|v| v.needs_pass |= v.camera.is_some());
+            self.viewers
+                .values_mut()
+                .for_each(|v| v.needs_pass |= v.camera.is_some());
         }
         self.run_passes()?;
         self.commit_ready_groups();
@@ -328,7 +347,12 @@ impl Schedule {
     }
 
     fn run_passes(&mut self) -> anyhow::Result<()> {
-        let due: Vec<ViewerId> = self.viewers.iter().filter(|(_, v)| v.needs_pass).map(|(&id, _)| id).collect();
+        let due: Vec<ViewerId> = self
+            .viewers
+            .iter()
+            .filter(|(_, v)| v.needs_pass)
+            .map(|(&id, _)| id)
+            .collect();
         if due.is_empty() {
             return Ok(());
         }
@@ -336,9 +360,15 @@ impl Schedule {
         for id in due {
             let viewer = self.viewers.get_mut(&id).expect("listed above");
             viewer.needs_pass = false;
-            let Some(camera) = viewer.camera.clone() else { continue };
-            let view = self.visibility.leaf_view(&self.mesh, &camera).context("visibility pass")?;
-            self.cache.touch_visible(&self.mesh, &view.visible, self.frame);
+            let Some(camera) = viewer.camera.clone() else {
+                continue;
+            };
+            let view = self
+                .visibility
+                .leaf_view(&self.mesh, &camera)
+                .context("visibility pass")?;
+            self.cache
+                .touch_visible(&self.mesh, &view.visible, self.frame);
             viewer.view = Some(view);
         }
         self.samples_since_pass = 0;
@@ -357,13 +387,22 @@ impl Schedule {
         for view in self.viewers.values().filter_map(|v| v.view.as_ref()) {
             for v in &view.visible.leaves {
                 if let Some(g) = self.pending.group_of(v.leaf)
-                    && self.cache.missing_keys(&self.mesh, v.leaf, v.side).next().is_some()
+                    && self
+                        .cache
+                        .missing_keys(&self.mesh, v.leaf, v.side)
+                        .next()
+                        .is_some()
                 {
                     waiting.insert(g);
                 }
             }
         }
-        let ready: Vec<usize> = self.pending.ids().into_iter().filter(|g| !waiting.contains(g)).collect();
+        let ready: Vec<usize> = self
+            .pending
+            .ids()
+            .into_iter()
+            .filter(|g| !waiting.contains(g))
+            .collect();
         if ready.is_empty() {
             return;
         }
@@ -380,7 +419,9 @@ impl Schedule {
     fn replan_requests(&mut self) {
         let mut needs = Vec::new();
         for viewer in self.viewers.values() {
-            let (Some(view), Some(camera)) = (&viewer.view, &viewer.camera) else { continue };
+            let (Some(view), Some(camera)) = (&viewer.view, &viewer.camera) else {
+                continue;
+            };
             needs.extend(plan::needs(&NeedsInput {
                 view,
                 eye: camera.eye_vec(),
@@ -399,9 +440,13 @@ impl Schedule {
     fn sync_viewers(&mut self) {
         let outstanding_requests = self.requests.outstanding() as u64;
         for viewer in self.viewers.values_mut() {
-            let (Some(view), Some(camera)) = (&viewer.view, &viewer.camera) else { continue };
+            let (Some(view), Some(camera)) = (&viewer.view, &viewer.camera) else {
+                continue;
+            };
             viewer.targets = plan::targets(view, &self.pending, &self.mesh, camera.eye_vec());
-            let mut messages = viewer.display.sync(&viewer.targets, &self.mesh, &self.cache);
+            let mut messages = viewer
+                .display
+                .sync(&viewer.targets, &self.mesh, &self.cache);
             let l_white = self.cache.l_white(&self.mesh, &view.visible);
             if viewer.last_l_white != Some(l_white) && l_white > 0.0 {
                 viewer.last_l_white = Some(l_white);
@@ -410,7 +455,8 @@ impl Schedule {
             // Truthful: zero only when nothing is asked for and every wanted triangle is shown.
             let outstanding = outstanding_requests + viewer.display.unshown as u64;
             let answered = viewer.answer_pending.take();
-            let completion_changed = viewer.last_outstanding.map(|o| o == 0) != Some(outstanding == 0);
+            let completion_changed =
+                viewer.last_outstanding.map(|o| o == 0) != Some(outstanding == 0);
             if messages.is_empty() && answered.is_none() && !completion_changed {
                 continue;
             }
@@ -435,11 +481,22 @@ impl Schedule {
     fn submit_batches(&mut self) {
         let room = self.config.batches_per_renderer.max(1) * self.renderers.max(1);
         while self.requests.batches_in_flight() < room {
-            let Some(batch) = self.requests.next_batch(self.config.batch_points, &self.cache) else {
+            let Some(batch) = self
+                .requests
+                .next_batch(self.config.batch_points, &self.cache)
+            else {
                 break;
             };
             self.pool.submit(batch);
         }
+    }
+
+    /// Whether a turn has something to do without any new event.
+    fn has_work_now(&self) -> bool {
+        self.replan
+            || self.resync
+            || self.viewers.values().any(|v| v.needs_pass)
+            || self.refinement_candidate().is_some()
     }
 
     /// The viewer whose turn it is to refine, if refinement may run now.
@@ -455,7 +512,10 @@ impl Schedule {
             .viewers
             .iter()
             .filter(|(_, v)| {
-                v.view.is_some() && !v.paused && !v.exhausted && v.camera_at.elapsed() >= self.config.rest
+                v.view.is_some()
+                    && !v.paused
+                    && !v.exhausted
+                    && v.camera_at.elapsed() >= self.config.rest
             })
             .map(|(&id, _)| id)
             .collect();
@@ -485,20 +545,36 @@ impl Schedule {
             mesh: &self.mesh,
             cache: &self.cache,
             visible: &view.visible,
-            l_white: viewer.last_l_white.unwrap_or_else(|| self.cache.l_white(&self.mesh, &view.visible)),
+            l_white: viewer
+                .last_l_white
+                .unwrap_or_else(|| self.cache.l_white(&self.mesh, &view.visible)),
             image: image.as_ref(),
         };
         let selected = viewer.criterion.select(&input, self.config.max_selections);
-        let pixels: HashMap<NodeId, u32> = view.visible.leaves.iter().map(|v| (v.leaf, v.pixels)).collect();
+        let pixels: HashMap<NodeId, u32> = view
+            .visible
+            .leaves
+            .iter()
+            .map(|v| (v.leaf, v.pixels))
+            .collect();
         let min_pixels = self.config.min_split_pixels;
         let too_small = |leaf: NodeId| pixels.get(&leaf).is_none_or(|&p| p < min_pixels);
         let steps = self.mesh.refine(&selected, &too_small);
         if steps.is_empty() {
             viewer.exhausted = true;
-            tracing::debug!(viewer = id, selected = selected.len(), "criterion found nothing more to refine");
+            tracing::debug!(
+                viewer = id,
+                selected = selected.len(),
+                "criterion found nothing more to refine"
+            );
             return Ok(());
         }
-        tracing::debug!(viewer = id, selected = selected.len(), steps = steps.len(), "refinement round");
+        tracing::debug!(
+            viewer = id,
+            selected = selected.len(),
+            steps = steps.len(),
+            "refinement round"
+        );
         self.pending.add(steps);
         for viewer in self.viewers.values_mut() {
             viewer.needs_pass |= viewer.camera.is_some();
@@ -509,7 +585,9 @@ impl Schedule {
     /// The Gouraud luminance image of what `id` shows, when its criterion needs one.
     fn luminance_image(&mut self, id: ViewerId) -> anyhow::Result<Option<LuminanceImage>> {
         let viewer = &self.viewers[&id];
-        let (Some(view), Some(camera)) = (&viewer.view, &viewer.camera) else { return Ok(None) };
+        let (Some(view), Some(camera)) = (&viewer.view, &viewer.camera) else {
+            return Ok(None);
+        };
         if !viewer.criterion.needs_image() {
             return Ok(None);
         }
@@ -521,10 +599,25 @@ impl Schedule {
         let view_proj = self.visibility.view_projection(camera);
         let lum = self
             .luminance
-            .render(self.visibility.gpu(), &triangles, view_proj, camera.width, camera.height)
+            .render(
+                self.visibility.gpu(),
+                &triangles,
+                view_proj,
+                camera.width,
+                camera.height,
+            )
             .context("luminance pass")?;
-        let ids = view.pixel_leaves.iter().map(|l| l.unwrap_or(LuminanceImage::NONE)).collect();
-        Ok(Some(LuminanceImage { width: camera.width, height: camera.height, luminance: lum, ids }))
+        let ids = view
+            .pixel_leaves
+            .iter()
+            .map(|l| l.unwrap_or(LuminanceImage::NONE))
+            .collect();
+        Ok(Some(LuminanceImage {
+            width: camera.width,
+            height: camera.height,
+            luminance: lum,
+            ids,
+        }))
     }
 
     fn report_stats(&mut self) {

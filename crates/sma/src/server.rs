@@ -1,10 +1,111 @@
-//! The viewer listener: one task per accepted connection (tokio mini-redis style), ended
-//! gracefully when the shutdown signal flips.
+//! The running SMA: the viewer listener with one task per accepted connection (tokio mini-redis
+//! style), the renderer pool, and the schedule on its own thread; all ended gracefully when the
+//! shutdown signal flips.
 
+use std::net::SocketAddr;
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use anyhow::Context;
 use tokio::net::TcpListener;
 use tokio::sync::{mpsc, watch};
 
+use crate::cli::{Cli, scene_info};
+use crate::mesh::SubdivisionMesh;
+use crate::pool::{self, PoolConfig, PoolEvent};
+use crate::schedule::Schedule;
 use crate::viewer_link::{self, ViewerEvent, ViewerId, ViewerLinkConfig};
+use crate::visibility::Gpu;
+
+/// A started SMA.
+pub struct Running {
+    /// Where viewers connect (the actual port when `--listen` asked for port 0).
+    pub addr: SocketAddr,
+    shutdown: watch::Sender<bool>,
+    schedule: JoinHandle<anyhow::Result<()>>,
+}
+
+impl Running {
+    /// Resolves when the schedule has ended by itself (an error in it ends the SMA).
+    pub async fn finished(&self) {
+        while !self.schedule.is_finished() {
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+    }
+
+    /// Signals every task and the schedule to stop, and waits for the schedule's outcome.
+    pub async fn stop(self) -> anyhow::Result<()> {
+        let _ = self.shutdown.send(true);
+        let schedule = self.schedule;
+        let joined = tokio::task::spawn_blocking(move || schedule.join()).await?;
+        joined.map_err(|_| anyhow::anyhow!("the schedule thread panicked"))?
+    }
+}
+
+/// Starts the SMA for `scene` as `cli` says: binds the listener, connects the pool, opens the
+/// graphics device. Must be called within a multi-threaded tokio runtime.
+pub async fn start(cli: &Cli, scene: scene::Scene) -> anyhow::Result<Running> {
+    let mesh = SubdivisionMesh::new(&scene.mesh, cli.mesh_params());
+    let gpu = Gpu::new().context("visibility needs a graphics adapter")?;
+    let (shutdown, shutdown_rx) = watch::channel(false);
+    let (pool_tx, pool_rx) = mpsc::unbounded_channel();
+    let pool_config = PoolConfig {
+        renderers: cli.renderers.clone(),
+        fingerprint: scene.fingerprint,
+        depth: cli.batches_per_renderer.max(1),
+        max_frame: cli.max_frame,
+        backoff_min: Duration::from_millis(100),
+        backoff_max: Duration::from_secs(5),
+    };
+    let pool = pool::spawn(pool_config, pool_tx, shutdown_rx.clone());
+    let link = ViewerLinkConfig {
+        scene_info: scene_info(&scene, &cli.criterion),
+        fingerprint: scene.fingerprint,
+        max_frame: cli.max_frame,
+    };
+    let schedule = Schedule::new(cli.schedule_config(), &scene, mesh, gpu, pool)?;
+    tracing::info!(adapter = %schedule.adapter(), scene = %scene.name, "visibility device");
+    let listener = TcpListener::bind(&cli.listen)
+        .await
+        .with_context(|| format!("listening on {}", cli.listen))?;
+    let addr = listener.local_addr()?;
+    let (viewer_tx, viewer_rx) = mpsc::unbounded_channel();
+    tokio::spawn(accept_viewers(
+        listener,
+        link,
+        viewer_tx,
+        shutdown_rx.clone(),
+    ));
+    let schedule = spawn_schedule(schedule, viewer_rx, pool_rx, shutdown_rx)?;
+    Ok(Running {
+        addr,
+        shutdown,
+        schedule,
+    })
+}
+
+/// The schedule on its own thread with its own single-threaded runtime: its visibility passes
+/// block for milliseconds and must not stall the tasks serving viewers and renderers.
+fn spawn_schedule(
+    schedule: Schedule,
+    viewers: mpsc::UnboundedReceiver<ViewerEvent>,
+    pool: mpsc::UnboundedReceiver<PoolEvent>,
+    shutdown: watch::Receiver<bool>,
+) -> anyhow::Result<JoinHandle<anyhow::Result<()>>> {
+    std::thread::Builder::new()
+        .name("sma-schedule".into())
+        .spawn(move || {
+            let runtime = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()?;
+            let outcome = runtime.block_on(schedule.run(viewers, pool, shutdown));
+            if let Err(e) = &outcome {
+                tracing::error!(error = format!("{e:#}"), "schedule ended");
+            }
+            outcome
+        })
+        .context("starting the schedule thread")
+}
 
 /// Accepts viewers until shutdown. Accept errors (e.g. out of file descriptors) are logged and
 /// retried after a pause rather than ending the server.
@@ -22,14 +123,19 @@ pub async fn accept_viewers(
         };
         match accepted {
             Ok((stream, _)) => {
-                let task =
-                    viewer_link::serve(stream, next_id, config.clone(), events.clone(), shutdown.clone());
+                let task = viewer_link::serve(
+                    stream,
+                    next_id,
+                    config.clone(),
+                    events.clone(),
+                    shutdown.clone(),
+                );
                 tokio::spawn(task);
                 next_id += 1;
             }
             Err(e) => {
                 tracing::warn!(error = %e, "accepting a viewer failed");
-                tokio::time::sleep(std::time::Duration::from_millis(100)).await;
+                tokio::time::sleep(Duration::from_millis(100)).await;
             }
         }
     }

@@ -6,8 +6,8 @@ use std::fmt::Write;
 use std::time::Instant;
 
 use glam::Vec3;
-use protocol::viewer_link::Camera;
 use protocol::types::Viewpoint;
+use protocol::viewer_link::Camera;
 use rand::{RngExt, SeedableRng};
 
 use crate::mesh::{MeshParams, SubdivisionMesh};
@@ -41,7 +41,11 @@ fn random_triangles(n: usize, seed: u64) -> Vec<[Vec3; 3]> {
     (0..n)
         .map(|_| {
             let c = Vec3::new(r(10.0), r(10.0), r(10.0) - 30.0);
-            [c, c + Vec3::new(r(edge), r(edge), r(edge)), c + Vec3::new(r(edge), r(edge), r(edge))]
+            [
+                c,
+                c + Vec3::new(r(edge), r(edge), r(edge)),
+                c + Vec3::new(r(edge), r(edge), r(edge)),
+            ]
         })
         .collect()
 }
@@ -59,12 +63,22 @@ fn bench_camera() -> Camera {
 
 /// Median ms of render + readback + per-triangle coverage, per size; then a least-squares line.
 fn write_pass_cost(md: &mut String, gpu: &Gpu, runs: usize, quick: bool) -> anyhow::Result<()> {
-    let sizes: &[usize] = if quick { &[10_000, 100_000, 300_000] } else { &[10_000, 100_000, 1_000_000] };
+    let sizes: &[usize] = if quick {
+        &[10_000, 100_000, 300_000]
+    } else {
+        &[10_000, 100_000, 1_000_000]
+    };
     let camera = bench_camera();
     let view_proj = camera.view_projection(0.1, 100.0);
     let mut pass = IdPass::new(gpu);
-    writeln!(md, "### Visibility pass at {WIDTH}×{HEIGHT} (render + readback + per-triangle pixel counts)\n")?;
-    writeln!(md, "| submitted triangles | median ms ({runs} runs) | visible triangles |\n|---:|---:|---:|")?;
+    writeln!(
+        md,
+        "### Visibility pass at {WIDTH}×{HEIGHT} (render + readback + per-triangle pixel counts)\n"
+    )?;
+    writeln!(
+        md,
+        "| submitted triangles | median ms ({runs} runs) | visible triangles |\n|---:|---:|---:|"
+    )?;
     let mut points = Vec::new();
     for &n in sizes {
         let tris = random_triangles(n, n as u64);
@@ -97,7 +111,9 @@ fn write_pass_cost(md: &mut String, gpu: &Gpu, runs: usize, quick: bool) -> anyh
 /// (intercept, slope) of the least-squares line through `points`.
 fn fit_line(points: &[(f64, f64)]) -> (f64, f64) {
     let n = points.len() as f64;
-    let (sx, sy) = points.iter().fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
+    let (sx, sy) = points
+        .iter()
+        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
     let (mx, my) = (sx / n, sy / n);
     let sxx: f64 = points.iter().map(|(x, _)| (x - mx).powi(2)).sum();
     let sxy: f64 = points.iter().map(|(x, y)| (x - mx) * (y - my)).sum();
@@ -115,10 +131,19 @@ fn write_scene_views(md: &mut String, runs: usize) -> anyhow::Result<()> {
         "### Two-level visibility on `bracara` ({} base triangles), {WIDTH}×{HEIGHT}\n",
         mesh.base_count()
     )?;
-    writeln!(md, "| view | visible base | visible leaves | median ms ({runs} runs) |\n|---|---:|---:|---:|")?;
+    writeln!(
+        md,
+        "| view | visible base | visible leaves | median ms ({runs} runs) |\n|---|---:|---:|---:|"
+    )?;
     for vp in &scene.settings.viewpoints {
         let camera = Camera::from_viewpoint(
-            &Viewpoint { name: vp.name.clone(), eye: vp.eye, target: vp.target, up: vp.up, fov_y_deg: vp.fov_y_deg },
+            &Viewpoint {
+                name: vp.name.clone(),
+                eye: vp.eye,
+                target: vp.target,
+                up: vp.up,
+                fov_y_deg: vp.fov_y_deg,
+            },
             0,
             WIDTH,
             HEIGHT,

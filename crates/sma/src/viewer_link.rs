@@ -18,9 +18,17 @@ pub const MAX_IMAGE_SIDE: u32 = 8192;
 /// What a viewer connection tells the schedule.
 #[derive(Debug)]
 pub enum ViewerEvent {
-    Joined { id: ViewerId, outbox: mpsc::UnboundedSender<SmaToViewer> },
-    Message { id: ViewerId, message: ViewerToSma },
-    Left { id: ViewerId },
+    Joined {
+        id: ViewerId,
+        outbox: mpsc::UnboundedSender<SmaToViewer>,
+    },
+    Message {
+        id: ViewerId,
+        message: ViewerToSma,
+    },
+    Left {
+        id: ViewerId,
+    },
 }
 
 /// What every viewer connection needs to know.
@@ -39,7 +47,10 @@ pub async fn serve(
     events: mpsc::UnboundedSender<ViewerEvent>,
     mut shutdown: watch::Receiver<bool>,
 ) {
-    let peer = stream.peer_addr().map(|a| a.to_string()).unwrap_or_default();
+    let peer = stream
+        .peer_addr()
+        .map(|a| a.to_string())
+        .unwrap_or_default();
     let (mut reader, mut writer) = split_tcp::<ViewerToSma, SmaToViewer>(stream, config.max_frame);
     let handshake = accept_handshake(
         &mut reader,
@@ -53,7 +64,11 @@ pub async fn serve(
         tracing::info!(viewer = id, %peer, error = %e, "viewer handshake failed");
         return;
     }
-    if writer.send(&SmaToViewer::SceneInfo(config.scene_info)).await.is_err() {
+    if writer
+        .send(&SmaToViewer::SceneInfo(config.scene_info))
+        .await
+        .is_err()
+    {
         return;
     }
     tracing::info!(viewer = id, %peer, "viewer connected");
@@ -86,7 +101,11 @@ pub async fn serve(
     };
     if let Some(e) = ended {
         tracing::warn!(viewer = id, %peer, error = %e, "closing viewer after a protocol error");
-        let _ = writer.send(&SmaToViewer::Error { message: e.to_string() }).await;
+        let _ = writer
+            .send(&SmaToViewer::Error {
+                message: e.to_string(),
+            })
+            .await;
     }
     let _ = events.send(ViewerEvent::Left { id });
     tracing::info!(viewer = id, %peer, "viewer left");
@@ -102,12 +121,19 @@ fn checked(message: ViewerToSma) -> Result<ViewerToSma, ProtocolError> {
 
 /// Why a camera cannot be rendered, if it cannot.
 pub fn camera_problem(camera: &Camera) -> Option<String> {
-    let finite = camera.eye.iter().chain(&camera.orientation).all(|v| v.is_finite());
+    let finite = camera
+        .eye
+        .iter()
+        .chain(&camera.orientation)
+        .all(|v| v.is_finite());
     let norm: f32 = camera.orientation.iter().map(|v| v * v).sum();
     if !finite || norm < 1e-6 {
         Some("camera eye or orientation is not finite or not a rotation".into())
     } else if !(camera.fov_y_deg > 0.1 && camera.fov_y_deg < 179.0) {
-        Some(format!("camera field of view {} is outside (0.1, 179) degrees", camera.fov_y_deg))
+        Some(format!(
+            "camera field of view {} is outside (0.1, 179) degrees",
+            camera.fov_y_deg
+        ))
     } else if camera.width == 0
         || camera.height == 0
         || camera.width > MAX_IMAGE_SIDE

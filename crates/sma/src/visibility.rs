@@ -12,5 +12,5 @@ pub mod luminance_pass;
 
 pub use gpu::{Gpu, GpuError};
 pub use id_pass::{Coverage, IdImage, IdPass, TriangleBuffer};
-pub use levels::{LeafView, Visibility, side_facing};
+pub use levels::{LeafView, Visibility, scene_view_projection, side_facing};
 pub use luminance_pass::LuminancePass;

@@ -18,7 +18,9 @@ fn gpu(primitive_index: bool) -> Option<Gpu> {
             panic!("WALKTHROUGH_REQUIRE_GPU is set but no adapter: {e}")
         }
         Err(e) => {
-            eprintln!("SKIPPED: no wgpu adapter ({e}); set WALKTHROUGH_REQUIRE_GPU to make this fail");
+            eprintln!(
+                "SKIPPED: no wgpu adapter ({e}); set WALKTHROUGH_REQUIRE_GPU to make this fail"
+            );
             None
         }
     }
@@ -93,33 +95,55 @@ fn cpu_ids(tris: &[[Vec3; 3]], cam: &Camera) -> Vec<u32> {
 }
 
 fn check_path(primitive_index: bool) {
-    let Some(gpu) = gpu(primitive_index) else { return };
+    let Some(gpu) = gpu(primitive_index) else {
+        return;
+    };
     eprintln!("adapter: {}", gpu.describe());
     let tris = scene();
     let cam = camera();
     let mut pass = IdPass::new(&gpu);
     let mut buffer = TriangleBuffer::default();
     pass.upload(&gpu, &tris, &mut buffer);
-    let image = pass.render(&gpu, &buffer, cam.view_projection(0.01, 100.0), W, H).unwrap();
+    let image = pass
+        .render(&gpu, &buffer, cam.view_projection(0.01, 100.0), W, H)
+        .unwrap();
     let cpu = cpu_ids(&tris, &cam);
 
     let gpu_cov = image.coverage(tris.len());
-    let cpu_cov = sma::visibility::IdImage { width: W, height: H, ids: cpu.clone() }.coverage(tris.len());
+    let cpu_cov = sma::visibility::IdImage {
+        width: W,
+        height: H,
+        ids: cpu.clone(),
+    }
+    .coverage(tris.len());
     let seen = |c: &[sma::visibility::Coverage]| -> Vec<usize> {
         (0..tris.len()).filter(|&i| c[i].pixels > 0).collect()
     };
-    assert_eq!(seen(&gpu_cov), seen(&cpu_cov), "visible triangles differ from the CPU ray cast");
+    assert_eq!(
+        seen(&gpu_cov),
+        seen(&cpu_cov),
+        "visible triangles differ from the CPU ray cast"
+    );
     // The scene is built so each visible triangle shows, hidden ones do not.
     let visible = seen(&gpu_cov);
     for t in [0, 1, 2, 3, 4, 5, 12, 13] {
-        assert!(visible.contains(&t), "triangle {t} should be visible: {visible:?}");
+        assert!(
+            visible.contains(&t),
+            "triangle {t} should be visible: {visible:?}"
+        );
     }
     for t in [6, 7, 8, 9, 10, 11] {
-        assert!(!visible.contains(&t), "triangle {t} should be hidden: {visible:?}");
+        assert!(
+            !visible.contains(&t),
+            "triangle {t} should be hidden: {visible:?}"
+        );
     }
     // Pixels differ only on shared edges, where rasterisation and ray casting may round apart.
     let differing = image.ids.iter().zip(&cpu).filter(|(a, b)| a != b).count();
-    assert!(differing < (W * H) as usize / 100, "{differing} pixels differ");
+    assert!(
+        differing < (W * H) as usize / 100,
+        "{differing} pixels differ"
+    );
 }
 
 #[test]
@@ -139,18 +163,26 @@ fn luminance_pass_interpolates_vertex_luminance() {
     let wall = quad(Vec3::new(-1.0, -1.0, -4.0), 2.0 * Vec3::X, 1.5 * Vec3::Y);
     let tris: Vec<_> = wall.iter().map(|t| (*t, t.map(|p| p.x + 2.0))).collect();
     let mut pass = LuminancePass::new(&gpu);
-    let lum = pass.render(&gpu, &tris, cam.view_projection(0.01, 100.0), W, H).unwrap();
+    let lum = pass
+        .render(&gpu, &tris, cam.view_projection(0.01, 100.0), W, H)
+        .unwrap();
     // Along the centre row, luminance is x + 2 of the wall point seen there.
     let row = H / 2 + 10;
     let vp = reversed_z(cam.view_projection(0.01, 100.0));
     let mut checked = 0;
     for px in 0..W {
         let d = cam.ray_direction(px as f32 + 0.5, row as f32 + 0.5);
-        let Some(t) = wall.iter().find_map(|tri| hit(cam.eye_vec(), d, *tri)) else { continue };
+        let Some(t) = wall.iter().find_map(|tri| hit(cam.eye_vec(), d, *tri)) else {
+            continue;
+        };
         let p = cam.eye_vec() + d * t;
         let l = lum[(row * W + px) as usize];
         if (vp * p.extend(1.0)).w > 0.0 && l > 0.0 {
-            assert!((l - (p.x + 2.0)).abs() < 0.05, "pixel {px}: {l} vs {}", p.x + 2.0);
+            assert!(
+                (l - (p.x + 2.0)).abs() < 0.05,
+                "pixel {px}: {l} vs {}",
+                p.x + 2.0
+            );
             checked += 1;
         }
     }

@@ -55,35 +55,66 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
     let mut out = String::from("## Viewer: applying updates and drawing\n\n");
     let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
     let adapter = gpu.as_ref().map_or("none".to_string(), Gpu::describe);
-    writeln!(out, "Adapter: {adapter}; {cores} CPU cores; medians of {} runs.\n", plan.runs)?;
+    writeln!(
+        out,
+        "Adapter: {adapter}; {cores} CPU cores; medians of {} runs.\n",
+        plan.runs
+    )?;
     writeln!(out, "| measure | median | min | max |\n|---|---|---|---|")?;
 
     let cpu = apply_rates(&plan, None)?;
-    row(&mut out, &format!("updates applied, table only ({})", batch_words(&plan)), &cpu, "M tri/s")?;
+    row(
+        &mut out,
+        &format!("updates applied, table only ({})", batch_words(&plan)),
+        &cpu,
+        "M tri/s",
+    )?;
     if let Some(gpu) = &gpu {
         let with_upload = apply_rates(&plan, Some(gpu))?;
         let label = format!("updates applied + uploaded ({})", batch_words(&plan));
         row(&mut out, &label, &with_upload, "M tri/s")?;
         for &n in plan.frame_sizes {
             let times = frame_times(gpu, n, plan.frames)?;
-            row(&mut out, &format!("frame time, {n} triangles, {WIDTH}×{HEIGHT}"), &times, "ms")?;
+            row(
+                &mut out,
+                &format!("frame time, {n} triangles, {WIDTH}×{HEIGHT}"),
+                &times,
+                "ms",
+            )?;
         }
-        let verdict = if median(&with_upload) >= 2.0 { "met" } else { "NOT met" };
-        writeln!(out, "\nTarget of 2 M triangles/s applied (with upload): {verdict}.")?;
+        let verdict = if median(&with_upload) >= 2.0 {
+            "met"
+        } else {
+            "NOT met"
+        };
+        writeln!(
+            out,
+            "\nTarget of 2 M triangles/s applied (with upload): {verdict}."
+        )?;
     } else {
-        writeln!(out, "\nNo graphics adapter: upload and frame times not measured.")?;
+        writeln!(
+            out,
+            "\nNo graphics adapter: upload and frame times not measured."
+        )?;
     }
     Ok(out)
 }
 
 fn batch_words(plan: &Plan) -> String {
-    format!("{} table, batches of {}+{} ins+rem", plan.table_size, plan.batch, plan.batch)
+    format!(
+        "{} table, batches of {}+{} ins+rem",
+        plan.table_size, plan.batch, plan.batch
+    )
 }
 
 fn row(out: &mut String, label: &str, values: &[f64], unit: &str) -> std::fmt::Result {
     let min = values.iter().copied().fold(f64::INFINITY, f64::min);
     let max = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    writeln!(out, "| {label} | {:.2} {unit} | {min:.2} | {max:.2} |", median(values))
+    writeln!(
+        out,
+        "| {label} | {:.2} {unit} | {min:.2} | {max:.2} |",
+        median(values)
+    )
 }
 
 fn median(values: &[f64]) -> f64 {
@@ -98,10 +129,14 @@ fn apply_rates(plan: &Plan, gpu: Option<&Gpu>) -> anyhow::Result<Vec<f64>> {
     let mut table = TriangleTable::new();
     let mut held: Vec<u64> = (0..plan.table_size as u64).collect();
     let mut next_id = plan.table_size as u64;
-    table.apply(&[TableOp::Insert(held.iter().map(|&id| random_triangle(id, &mut rng)).collect())]);
-    let mut uploaded = gpu.map(|g| GpuTriangles::new(&g.device));
+    table.apply(&[TableOp::Insert(
+        held.iter()
+            .map(|&id| random_triangle(id, &mut rng))
+            .collect(),
+    )]);
+    let mut uploaded = gpu.map(|g| GpuTriangles::new(g));
     if let (Some(g), Some(u)) = (gpu, uploaded.as_mut()) {
-        u.sync(&g.device, &g.queue, &mut table);
+        u.sync(g, &mut table);
         g.wait_idle()?;
     }
     let mut rates = Vec::new();
@@ -125,7 +160,7 @@ fn apply_rates(plan: &Plan, gpu: Option<&Gpu>) -> anyhow::Result<Vec<f64>> {
         for ops in &batches {
             table.apply(ops);
             if let (Some(g), Some(u)) = (gpu, uploaded.as_mut()) {
-                u.sync(&g.device, &g.queue, &mut table);
+                u.sync(g, &mut table);
                 g.queue.submit([]);
                 g.wait_idle()?;
             }
@@ -140,12 +175,15 @@ fn apply_rates(plan: &Plan, gpu: Option<&Gpu>) -> anyhow::Result<Vec<f64>> {
 fn frame_times(gpu: &Gpu, n: usize, frames: usize) -> anyhow::Result<Vec<f64>> {
     let mut table = TriangleTable::new();
     table.apply(&[TableOp::Insert(wall(n))]);
-    let mut triangles = GpuTriangles::new(&gpu.device);
-    triangles.sync(&gpu.device, &gpu.queue, &mut table);
+    let mut triangles = GpuTriangles::new(gpu);
+    triangles.sync(gpu, &mut table);
     let camera = wall_camera();
     let offscreen = Offscreen::new(gpu, WIDTH, HEIGHT);
     let depth = depth_range(&camera, table.extent());
-    let settings = DrawSettings { l_white: 2.0, ..DrawSettings::default() };
+    let settings = DrawSettings {
+        l_white: 2.0,
+        ..DrawSettings::default()
+    };
     offscreen.draw_frame(gpu, &triangles, &camera, depth, &settings)?; // warm-up
     (0..frames)
         .map(|_| {
@@ -160,15 +198,30 @@ fn frame_times(gpu: &Gpu, n: usize, frames: usize) -> anyhow::Result<Vec<f64>> {
 fn wall(n: usize) -> Vec<ShownTriangle> {
     let cols = ((n as f64 / 2.0 * 4.0 / 3.0).sqrt().ceil() as usize).max(1);
     let rows = (n / 2).div_ceil(cols).max(1);
-    let point = |i: usize, j: usize| [4.0 * i as f32 / cols as f32 - 2.0, 3.0 * j as f32 / rows as f32 - 1.5, 0.0];
+    let point = |i: usize, j: usize| {
+        [
+            4.0 * i as f32 / cols as f32 - 2.0,
+            3.0 * j as f32 / rows as f32 - 1.5,
+            0.0,
+        ]
+    };
     let radiance = |p: [f32; 3]| [0.5 + 0.25 * p[0], 0.6, 0.4 + 0.2 * p[1]];
     let mut out = Vec::with_capacity(2 * cols * rows);
     for j in 0..rows {
         for i in 0..cols {
-            let [a, b, c, d] = [point(i, j), point(i + 1, j), point(i + 1, j + 1), point(i, j + 1)];
+            let [a, b, c, d] = [
+                point(i, j),
+                point(i + 1, j),
+                point(i + 1, j + 1),
+                point(i, j + 1),
+            ];
             for (k, positions) in [[a, b, c], [a, c, d]].into_iter().enumerate() {
                 let id = (2 * (j * cols + i) + k) as u64;
-                out.push(ShownTriangle { id, positions, radiance: positions.map(radiance) });
+                out.push(ShownTriangle {
+                    id,
+                    positions,
+                    radiance: positions.map(radiance),
+                });
             }
         }
     }
@@ -189,7 +242,11 @@ fn wall_camera() -> Camera {
 
 fn random_triangle(id: u64, rng: &mut XorShift) -> ShownTriangle {
     let mut p = || [rng.unit(), rng.unit(), rng.unit()];
-    ShownTriangle { id, positions: [p(), p(), p()], radiance: [p(), p(), p()] }
+    ShownTriangle {
+        id,
+        positions: [p(), p(), p()],
+        radiance: [p(), p(), p()],
+    }
 }
 
 /// A tiny deterministic generator: the benchmark needs repeatable ids, not statistical quality.

@@ -49,7 +49,11 @@ impl CameraPath {
             let key = match fields[..] {
                 [t, ex, ey, ez, tx, ty, tz] => keyframe(t, [ex, ey, ez], [tx, ty, tz], fov),
                 [t, ex, ey, ez, tx, ty, tz, f] => keyframe(t, [ex, ey, ez], [tx, ty, tz], f),
-                _ => bail!("line {}: expected 7 or 8 numbers, found {}", n + 1, fields.len()),
+                _ => bail!(
+                    "line {}: expected 7 or 8 numbers, found {}",
+                    n + 1,
+                    fields.len()
+                ),
             };
             if keys.last().is_some_and(|k| k.time_s >= key.time_s) {
                 bail!("line {}: times must increase", n + 1);
@@ -73,7 +77,11 @@ impl CameraPath {
             i if i == self.keys.len() => (&self.keys[i - 1], &self.keys[i - 1]),
             i => (&self.keys[i - 1], &self.keys[i]),
         };
-        let s = if b.time_s > a.time_s { (t - a.time_s) / (b.time_s - a.time_s) } else { 0.0 };
+        let s = if b.time_s > a.time_s {
+            (t - a.time_s) / (b.time_s - a.time_s)
+        } else {
+            0.0
+        };
         Viewpoint {
             name: "path".into(),
             eye: a.eye.lerp(b.eye, s).to_array(),
@@ -90,7 +98,12 @@ impl CameraPath {
 }
 
 fn keyframe(t: f32, eye: [f32; 3], target: [f32; 3], fov: f32) -> Keyframe {
-    Keyframe { time_s: t, eye: Vec3::from(eye), target: Vec3::from(target), fov_y_deg: fov }
+    Keyframe {
+        time_s: t,
+        eye: Vec3::from(eye),
+        target: Vec3::from(target),
+        fov_y_deg: fov,
+    }
 }
 
 #[cfg(test)]
@@ -103,15 +116,23 @@ mod tests {
             .unwrap();
         assert_eq!(path.at(-1.0).eye, [0.0, 0.0, 0.0]);
         let mid = path.at(1.0);
-        assert_eq!((mid.eye, mid.target, mid.fov_y_deg), ([2.0, 0.0, 0.0], [2.0, 0.0, -1.0], 45.0));
+        assert_eq!(
+            (mid.eye, mid.target, mid.fov_y_deg),
+            ([2.0, 0.0, 0.0], [2.0, 0.0, -1.0], 45.0)
+        );
         assert_eq!(path.at(9.0).eye, [4.0, 0.0, 0.0]);
         assert_eq!(path.duration_s(), 2.0);
     }
 
     #[test]
     fn rejects_malformed_files() {
-        for bad in ["", "0 1 2", "0 0 0 0 0 0 -1\n0 1 0 0 0 0 -1", "0 a 0 0 0 0 -1", "0 0 0 0 0 0 -1 190"]
-        {
+        for bad in [
+            "",
+            "0 1 2",
+            "0 0 0 0 0 0 -1\n0 1 0 0 0 0 -1",
+            "0 a 0 0 0 0 -1",
+            "0 0 0 0 0 0 -1 190",
+        ] {
             assert!(CameraPath::parse(bad, 60.0).is_err(), "{bad:?} accepted");
         }
     }

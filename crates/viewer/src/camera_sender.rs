@@ -18,7 +18,11 @@ pub struct CameraSender {
 
 impl CameraSender {
     pub fn new(interval: Duration) -> Self {
-        CameraSender { interval, seq: 0, last: None }
+        CameraSender {
+            interval,
+            seq: 0,
+            last: None,
+        }
     }
 
     /// The sequence number of the last camera sent (0 before any).
@@ -43,7 +47,10 @@ impl CameraSender {
 
     fn stamp(&mut self, camera: &Camera, now: Instant) -> Camera {
         self.seq += 1;
-        let sent = Camera { seq: self.seq, ..camera.clone() };
+        let sent = Camera {
+            seq: self.seq,
+            ..camera.clone()
+        };
         self.last = Some((sent.clone(), now));
         sent
     }
@@ -78,7 +85,9 @@ mod tests {
         assert_eq!(s.offer(&camera(0.0), t0).map(|c| c.seq), Some(1));
         assert_eq!(s.offer(&camera(0.0), t0 + Duration::from_secs(1)), None);
         assert_eq!(s.offer(&camera(1.0), t0 + Duration::from_millis(10)), None);
-        let sent = s.offer(&camera(1.0), t0 + Duration::from_millis(60)).unwrap();
+        let sent = s
+            .offer(&camera(1.0), t0 + Duration::from_millis(60))
+            .unwrap();
         assert_eq!((sent.seq, sent.eye[0]), (2, 1.0));
         assert_eq!(s.force(&camera(1.0), t0 + Duration::from_millis(61)).seq, 3);
         assert_eq!(s.seq(), 3);

@@ -64,7 +64,10 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         )
         .with_writer(std::io::stderr)
         .try_init();
-    anyhow::ensure!(cli.width > 0 && cli.height > 0, "--width and --height must be positive");
+    anyhow::ensure!(
+        cli.width > 0 && cli.height > 0,
+        "--width and --height must be positive"
+    );
     if cli.headless {
         crate::headless::run(&cli)
     } else {

@@ -49,7 +49,11 @@ pub struct DrawSettings {
 
 impl Default for DrawSettings {
     fn default() -> Self {
-        DrawSettings { tone_map: ToneMap::Drago, l_white: 1.0, wireframe: false }
+        DrawSettings {
+            tone_map: ToneMap::Drago,
+            l_white: 1.0,
+            wireframe: false,
+        }
     }
 }
 
@@ -97,7 +101,10 @@ impl Drawer {
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("draw uniforms"),
             layout: &layout,
-            entries: &[wgpu::BindGroupEntry { binding: 0, resource: uniforms.as_entire_binding() }],
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: uniforms.as_entire_binding(),
+            }],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("draw"),
@@ -118,7 +125,10 @@ impl Drawer {
                 })],
             },
             // Surfaces are two-sided (DESIGN.md §5): no culling.
-            primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+            primitive: wgpu::PrimitiveState {
+                cull_mode: None,
+                ..Default::default()
+            },
             depth_stencil: Some(wgpu::DepthStencilState {
                 format: DEPTH_FORMAT,
                 depth_write_enabled: Some(true),
@@ -141,7 +151,13 @@ impl Drawer {
             cache: None,
         });
         let encode_srgb = output == Output::Display && !format.is_srgb();
-        Drawer { pipeline, uniforms, bind_group, output, encode_srgb }
+        Drawer {
+            pipeline,
+            uniforms,
+            bind_group,
+            output,
+            encode_srgb,
+        }
     }
 
     /// Records one frame: clear to black (pixels that see nothing), draw every live triangle.
@@ -209,7 +225,11 @@ pub fn depth_texture(device: &wgpu::Device, width: u32, height: u32) -> wgpu::Te
     device
         .create_texture(&wgpu::TextureDescriptor {
             label: Some("depth"),
-            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,

@@ -48,7 +48,12 @@ impl Gpu {
             })
             .await
             .context("opening the graphics device")?;
-        Ok(Gpu { instance, adapter, device, queue })
+        Ok(Gpu {
+            instance,
+            adapter,
+            device,
+            queue,
+        })
     }
 
     /// "Vulkan, llvmpipe (LLVM 15.0.6, 256 bits)" and the like, for logs and BENCHMARKS.md.
@@ -76,7 +81,9 @@ pub fn headless_or_skip(what: &str) -> anyhow::Result<Option<Gpu>> {
         Ok(gpu) => Ok(Some(gpu)),
         Err(e) if gpu_required() => Err(e.context(format!("{what}: {REQUIRE_GPU_VAR} is set"))),
         Err(e) => {
-            eprintln!("{what}: skipped, no graphics adapter ({e:#}); set {REQUIRE_GPU_VAR} to fail");
+            eprintln!(
+                "{what}: skipped, no graphics adapter ({e:#}); set {REQUIRE_GPU_VAR} to fail"
+            );
             Ok(None)
         }
     }

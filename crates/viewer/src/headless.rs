@@ -49,7 +49,14 @@ impl SnapshotPlan {
         thresholds.sort_unstable();
         thresholds.dedup();
         let at_end_only = every_s.is_none() && thresholds.is_empty() && !when_idle;
-        SnapshotPlan { every_s, next_periodic_s: 0.0, thresholds, when_idle, seconds, at_end_only }
+        SnapshotPlan {
+            every_s,
+            next_periodic_s: 0.0,
+            thresholds,
+            when_idle,
+            seconds,
+            at_end_only,
+        }
     }
 
     /// Whether to take a snapshot now, at `t` seconds, given the latest epoch and the sequence
@@ -102,7 +109,7 @@ pub fn run(cli: &Cli) -> anyhow::Result<()> {
     let gpu = Gpu::headless()?;
     tracing::info!(adapter = %gpu.describe(), "headless viewer");
     let offscreen = Offscreen::new(&gpu, cli.width, cli.height);
-    let mut triangles = GpuTriangles::new(&gpu.device);
+    let mut triangles = GpuTriangles::new(&gpu);
     let mut writer = SnapshotWriter::create(&cli.out)?;
     let mut plan = SnapshotPlan::new(
         cli.snapshot_every,
@@ -151,8 +158,15 @@ pub fn run(cli: &Cli) -> anyhow::Result<()> {
             }
         }
         let Some(t0) = started else {
-            if cli.seconds.is_some_and(|s| launched.elapsed().as_secs_f64() >= s) {
-                anyhow::bail!("no SMA answered at {} within {:?} s", cli.connect, cli.seconds);
+            if cli
+                .seconds
+                .is_some_and(|s| launched.elapsed().as_secs_f64() >= s)
+            {
+                anyhow::bail!(
+                    "no SMA answered at {} within {:?} s",
+                    cli.connect,
+                    cli.seconds
+                );
             }
             continue;
         };
@@ -166,9 +180,10 @@ pub fn run(cli: &Cli) -> anyhow::Result<()> {
             }
         }
         if plan.due(t, state.epoch.as_ref(), sender.seq()) {
-            triangles.sync(&gpu.device, &gpu.queue, &mut state.table);
+            triangles.sync(&gpu, &mut state.table);
             let depth = depth_range(camera, state.table.extent());
-            let snapshot = offscreen.snapshot(&gpu, &triangles, camera, depth, &settings(&state))?;
+            let snapshot =
+                offscreen.snapshot(&gpu, &triangles, camera, depth, &settings(&state))?;
             let (inserted, removed) = state.take_interval();
             let epoch = state.epoch.unwrap_or_default();
             let record = SnapshotRecord {
@@ -182,7 +197,13 @@ pub fn run(cli: &Cli) -> anyhow::Result<()> {
                 outstanding: epoch.outstanding,
             };
             writer.write(&record, &snapshot)?;
-            tracing::info!(index, t, shown = record.shown, samples = record.samples, "snapshot");
+            tracing::info!(
+                index,
+                t,
+                shown = record.shown,
+                samples = record.samples,
+                "snapshot"
+            );
             index += 1;
         }
         if plan.finished(t) {
@@ -201,7 +222,9 @@ fn start_camera(
 ) -> anyhow::Result<(Camera, Option<CameraPath>)> {
     let start = pick_viewpoint(scene, cli.view.as_deref())?;
     let fov = start.as_ref().map_or(FALLBACK_FOV_DEG, |vp| vp.fov_y_deg);
-    let path = path_text.map(|text| CameraPath::parse(text, fov)).transpose()?;
+    let path = path_text
+        .map(|text| CameraPath::parse(text, fov))
+        .transpose()?;
     let camera = match (&path, &start) {
         (Some(path), _) => Camera::from_viewpoint(&path.at(0.0), 0, cli.width, cli.height),
         (None, Some(vp)) => Camera::from_viewpoint(vp, 0, cli.width, cli.height),
@@ -222,14 +245,21 @@ mod tests {
     use super::*;
 
     fn epoch(samples: u64, outstanding: u64, camera_seq: u64) -> Epoch {
-        Epoch { samples, outstanding, camera_seq, ..Epoch::default() }
+        Epoch {
+            samples,
+            outstanding,
+            camera_seq,
+            ..Epoch::default()
+        }
     }
 
     #[test]
     fn periodic_snapshots_start_at_zero_and_stop_at_the_end() {
         let mut plan = SnapshotPlan::new(Some(1.0), vec![], false, Some(2.0));
-        let taken: Vec<f64> =
-            [0.0, 0.5, 1.02, 1.5, 2.3, 3.5].into_iter().filter(|&t| plan.due(t, None, 1)).collect();
+        let taken: Vec<f64> = [0.0, 0.5, 1.02, 1.5, 2.3, 3.5]
+            .into_iter()
+            .filter(|&t| plan.due(t, None, 1))
+            .collect();
         assert_eq!(taken, vec![0.0, 1.02, 2.3]);
         assert!(!plan.finished(1.9) && plan.finished(2.0));
     }
@@ -248,7 +278,10 @@ mod tests {
     #[test]
     fn idle_means_nothing_outstanding_for_the_current_camera() {
         let mut plan = SnapshotPlan::new(None, vec![], true, Some(60.0));
-        assert!(!plan.due(0.1, Some(&epoch(10, 0, 1)), 2), "an epoch of an older camera");
+        assert!(
+            !plan.due(0.1, Some(&epoch(10, 0, 1)), 2),
+            "an epoch of an older camera"
+        );
         assert!(!plan.due(0.2, Some(&epoch(10, 3, 2)), 2));
         assert!(plan.due(0.3, Some(&epoch(13, 0, 2)), 2));
         assert!(plan.finished(0.3));

@@ -25,7 +25,10 @@ pub enum LinkEvent {
     Scene(SceneInfo),
     /// Changes closed by an epoch: apply them all before the next frame.
     Update(EpochUpdate),
-    Refinement { criterion: String, paused: bool },
+    Refinement {
+        criterion: String,
+        paused: bool,
+    },
     Stats(Stats),
     /// The SMA reported an error; the session goes on.
     RemoteError(String),
@@ -50,11 +53,16 @@ impl Link {
         notify: impl Fn(LinkEvent) + Send + 'static,
     ) -> anyhow::Result<Link> {
         let (outbox, inbox) = mpsc::unbounded_channel();
-        let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()?;
         let thread = std::thread::Builder::new()
             .name("sma-link".into())
             .spawn(move || runtime.block_on(run(addr, notify, inbox)))?;
-        Ok(Link { outbox, thread: Some(thread) })
+        Ok(Link {
+            outbox,
+            thread: Some(thread),
+        })
     }
 
     /// Queues a message; dropped while disconnected (the front end resends its state on
@@ -141,7 +149,13 @@ async fn connect(
 ) -> Result<(TcpReader<SmaToViewer>, TcpWriter<ViewerToSma>, SceneInfo), ProtocolError> {
     let stream = tokio::net::TcpStream::connect(addr).await?;
     let (mut reader, mut writer) = split_tcp(stream, DEFAULT_MAX_FRAME);
-    connect_handshake(&mut reader, &mut writer, Hello::new(Role::Viewer, None), Role::Sma).await?;
+    connect_handshake(
+        &mut reader,
+        &mut writer,
+        Hello::new(Role::Viewer, None),
+        Role::Sma,
+    )
+    .await?;
     match reader.recv().await? {
         SmaToViewer::SceneInfo(info) => Ok((reader, writer, info)),
         SmaToViewer::Error { message } => Err(ProtocolError::Remote(message)),
@@ -190,7 +204,9 @@ async fn session(
 fn other_event(msg: SmaToViewer) -> LinkEvent {
     match msg {
         SmaToViewer::SceneInfo(info) => LinkEvent::Scene(info),
-        SmaToViewer::Refinement { criterion, paused } => LinkEvent::Refinement { criterion, paused },
+        SmaToViewer::Refinement { criterion, paused } => {
+            LinkEvent::Refinement { criterion, paused }
+        }
         SmaToViewer::Stats(stats) => LinkEvent::Stats(stats),
         SmaToViewer::Error { message } => LinkEvent::RemoteError(message),
         other => LinkEvent::RemoteError(format!("unexpected {} outside an update", kind(&other))),

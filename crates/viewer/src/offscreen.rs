@@ -11,7 +11,12 @@ use crate::update::TableOp;
 use crate::vertex_buffer::GpuTriangles;
 
 const DISPLAY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
-const LINEAR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+/// Linear radiance in full float where the adapter can draw into it; GL (downlevel) cannot, and
+/// gets half floats (11-bit mantissa: 0.05 % relative error, below any sample's noise).
+const LINEAR_FORMATS: [wgpu::TextureFormat; 2] = [
+    wgpu::TextureFormat::Rgba32Float,
+    wgpu::TextureFormat::Rgba16Float,
+];
 
 /// One snapshot of the viewer's image.
 pub struct Snapshot {
@@ -40,10 +45,14 @@ pub struct Offscreen {
 
 impl Offscreen {
     pub fn new(gpu: &Gpu, width: u32, height: u32) -> Offscreen {
-        let target = |format, output, bytes_per_pixel| {
+        let target = |format: wgpu::TextureFormat, output| {
             let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
                 label: Some("offscreen colour"),
-                size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
                 mip_level_count: 1,
                 sample_count: 1,
                 dimension: wgpu::TextureDimension::D2,
@@ -55,14 +64,14 @@ impl Offscreen {
                 view: texture.create_view(&Default::default()),
                 texture,
                 drawer: Drawer::new(&gpu.device, format, output),
-                bytes_per_pixel,
+                bytes_per_pixel: format.block_copy_size(None).unwrap_or(4),
             }
         };
         Offscreen {
             width,
             height,
-            display: target(DISPLAY_FORMAT, Output::Display, 4),
-            linear: target(LINEAR_FORMAT, Output::Linear, 16),
+            display: target(DISPLAY_FORMAT, Output::Display),
+            linear: target(linear_format(&gpu.adapter), Output::Linear),
             depth: depth_texture(&gpu.device, width, height),
         }
     }
@@ -77,7 +86,15 @@ impl Offscreen {
         settings: &DrawSettings,
     ) -> anyhow::Result<()> {
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        self.record(gpu, &mut encoder, &self.display, triangles, camera, depth, settings);
+        self.record(
+            gpu,
+            &mut encoder,
+            &self.display,
+            triangles,
+            camera,
+            depth,
+            settings,
+        );
         gpu.queue.submit([encoder.finish()]);
         gpu.wait_idle()
     }
@@ -93,18 +110,36 @@ impl Offscreen {
         settings: &DrawSettings,
     ) -> anyhow::Result<Snapshot> {
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        self.record(gpu, &mut encoder, &self.display, triangles, camera, depth, settings);
-        self.record(gpu, &mut encoder, &self.linear, triangles, camera, depth, settings);
+        self.record(
+            gpu,
+            &mut encoder,
+            &self.display,
+            triangles,
+            camera,
+            depth,
+            settings,
+        );
+        self.record(
+            gpu,
+            &mut encoder,
+            &self.linear,
+            triangles,
+            camera,
+            depth,
+            settings,
+        );
         gpu.queue.submit([encoder.finish()]);
         let display = self.read(gpu, &self.display)?;
         let linear = self.read(gpu, &self.linear)?;
         let display = image::RgbaImage::from_raw(self.width, self.height, display)
             .ok_or_else(|| anyhow!("display readback has the wrong size"))?;
-        let linear = bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(&linear)
-            .into_iter()
-            .map(|[r, g, b, _]| [r, g, b])
-            .collect();
-        Ok(Snapshot { display, linear, width: self.width, height: self.height })
+        let linear = linear_rgb(&linear, self.linear.bytes_per_pixel);
+        Ok(Snapshot {
+            display,
+            linear,
+            width: self.width,
+            height: self.height,
+        })
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -118,7 +153,11 @@ impl Offscreen {
         depth: (f32, f32),
         settings: &DrawSettings,
     ) {
-        let camera = Camera { width: self.width, height: self.height, ..camera.clone() };
+        let camera = Camera {
+            width: self.width,
+            height: self.height,
+            ..camera.clone()
+        };
         target.drawer.draw(
             &gpu.queue,
             encoder,
@@ -134,8 +173,8 @@ impl Offscreen {
     /// Copies a target into a mappable buffer and returns its rows without padding.
     fn read(&self, gpu: &Gpu, target: &Target) -> anyhow::Result<Vec<u8>> {
         let row = self.width * target.bytes_per_pixel;
-        let padded_row = row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
-            * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let padded_row =
+            row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
         let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
             size: padded_row as u64 * self.height as u64,
@@ -153,7 +192,11 @@ impl Offscreen {
                     rows_per_image: Some(self.height),
                 },
             },
-            wgpu::Extent3d { width: self.width, height: self.height, depth_or_array_layers: 1 },
+            wgpu::Extent3d {
+                width: self.width,
+                height: self.height,
+                depth_or_array_layers: 1,
+            },
         );
         gpu.queue.submit([encoder.finish()]);
         let (tx, rx) = std::sync::mpsc::channel();
@@ -161,14 +204,44 @@ impl Offscreen {
             let _ = tx.send(r);
         });
         gpu.wait_idle()?;
-        rx.recv().context("readback callback dropped")?.context("mapping the readback")?;
-        let mapped = buffer.get_mapped_range(..).map_err(|e| anyhow!("readback: {e:?}"))?;
+        rx.recv()
+            .context("readback callback dropped")?
+            .context("mapping the readback")?;
+        let mapped = buffer
+            .get_mapped_range(..)
+            .map_err(|e| anyhow!("readback: {e:?}"))?;
         let mut pixels = Vec::with_capacity((row * self.height) as usize);
         for y in 0..self.height as usize {
             let start = y * padded_row as usize;
             pixels.extend_from_slice(&mapped[start..start + row as usize]);
         }
         Ok(pixels)
+    }
+}
+
+fn linear_format(adapter: &wgpu::Adapter) -> wgpu::TextureFormat {
+    let renderable = |f: &wgpu::TextureFormat| {
+        let usages = adapter.get_texture_format_features(*f).allowed_usages;
+        usages.contains(wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC)
+    };
+    LINEAR_FORMATS
+        .into_iter()
+        .find(renderable)
+        .unwrap_or(LINEAR_FORMATS[1])
+}
+
+/// RGB from RGBA pixels of 32-bit or 16-bit floats.
+fn linear_rgb(bytes: &[u8], bytes_per_pixel: u32) -> Vec<[f32; 3]> {
+    if bytes_per_pixel == 16 {
+        bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(bytes)
+            .into_iter()
+            .map(|[r, g, b, _]| [r, g, b])
+            .collect()
+    } else {
+        bytemuck::pod_collect_to_vec::<u8, [u16; 4]>(bytes)
+            .into_iter()
+            .map(|[r, g, b, _]| [r, g, b].map(|h| exr::prelude::f16::from_bits(h).to_f32()))
+            .collect()
     }
 }
 
@@ -192,8 +265,8 @@ pub fn render_offscreen_with(
 ) -> anyhow::Result<Snapshot> {
     let mut table = TriangleTable::new();
     table.apply(&[TableOp::Insert(triangles.to_vec())]);
-    let mut gpu_triangles = GpuTriangles::new(&gpu.device);
-    gpu_triangles.sync(&gpu.device, &gpu.queue, &mut table);
+    let mut gpu_triangles = GpuTriangles::new(gpu);
+    gpu_triangles.sync(gpu, &mut table);
     let offscreen = Offscreen::new(gpu, camera.width.max(1), camera.height.max(1));
     let depth = depth_range(camera, table.extent());
     offscreen.snapshot(gpu, &gpu_triangles, camera, depth, settings)

@@ -17,7 +17,10 @@ pub fn pick_viewpoint(scene: &SceneInfo, name: Option<&str>) -> anyhow::Result<O
             .map(Some)
             .ok_or_else(|| {
                 let known: Vec<&str> = scene.viewpoints.iter().map(|vp| vp.name.as_str()).collect();
-                anyhow::anyhow!("scene {:?} has no view {name:?} (it has {known:?})", scene.name)
+                anyhow::anyhow!(
+                    "scene {:?} has no view {name:?} (it has {known:?})",
+                    scene.name
+                )
             }),
         None => Ok(scene.viewpoints.first().cloned()),
     }
@@ -25,8 +28,12 @@ pub fn pick_viewpoint(scene: &SceneInfo, name: Option<&str>) -> anyhow::Result<O
 
 /// The refinement preferences to restate after the camera.
 pub fn preferences(criterion: Option<&str>, paused: bool) -> Vec<ViewerToSma> {
-    let mut msgs: Vec<ViewerToSma> =
-        criterion.map(|name| ViewerToSma::SetCriterion { name: name.to_string() }).into_iter().collect();
+    let mut msgs: Vec<ViewerToSma> = criterion
+        .map(|name| ViewerToSma::SetCriterion {
+            name: name.to_string(),
+        })
+        .into_iter()
+        .collect();
     if paused {
         msgs.push(ViewerToSma::Pause);
     }

@@ -12,7 +12,8 @@ use crate::offscreen::Snapshot;
 pub const CSV_NAME: &str = "snapshots.csv";
 /// `inserted`/`removed` are summed over the epochs since the previous snapshot (Δins, Δrem);
 /// `camera_seq`, `shown`, `samples` and `outstanding` are the latest epoch's.
-pub const CSV_HEADER: &str = "index,time_s,camera_seq,shown,inserted,removed,samples,outstanding,png,exr";
+pub const CSV_HEADER: &str =
+    "index,time_s,camera_seq,shown,inserted,removed,samples,outstanding,png,exr";
 
 /// One CSV row.
 #[derive(Clone, Debug, PartialEq)]
@@ -40,7 +41,10 @@ impl SnapshotWriter {
         let mut csv =
             std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
         writeln!(csv, "{CSV_HEADER}")?;
-        Ok(SnapshotWriter { dir: dir.to_path_buf(), csv })
+        Ok(SnapshotWriter {
+            dir: dir.to_path_buf(),
+            csv,
+        })
     }
 
     pub fn write(&mut self, record: &SnapshotRecord, snapshot: &Snapshot) -> anyhow::Result<()> {
@@ -52,7 +56,14 @@ impl SnapshotWriter {
         writeln!(
             self.csv,
             "{},{:.3},{},{},{},{},{},{},{png},{exr}",
-            r.index, r.time_s, r.camera_seq, r.shown, r.inserted, r.removed, r.samples, r.outstanding
+            r.index,
+            r.time_s,
+            r.camera_seq,
+            r.shown,
+            r.inserted,
+            r.removed,
+            r.samples,
+            r.outstanding
         )?;
         self.csv.flush()?;
         Ok(())
@@ -61,7 +72,8 @@ impl SnapshotWriter {
 
 pub fn write_png(path: &Path, snapshot: &Snapshot) -> anyhow::Result<()> {
     let rgb = image::DynamicImage::ImageRgba8(snapshot.display.clone()).into_rgb8();
-    rgb.save(path).with_context(|| format!("writing {}", path.display()))
+    rgb.save(path)
+        .with_context(|| format!("writing {}", path.display()))
 }
 
 pub fn write_exr(path: &Path, snapshot: &Snapshot) -> anyhow::Result<()> {

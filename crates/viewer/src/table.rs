@@ -157,8 +157,10 @@ impl TriangleTable {
         };
         let base = 3 * slot as usize;
         for k in 0..3 {
-            self.vertices[base + k] =
-                Vertex { position: t.positions[k], radiance: sanitize(t.radiance[k]) };
+            self.vertices[base + k] = Vertex {
+                position: t.positions[k],
+                radiance: sanitize(t.radiance[k]),
+            };
         }
         self.grow_extent(&t.positions);
         self.dirty.push(slot);
@@ -271,10 +273,20 @@ mod tests {
         let mut t = TriangleTable::new();
         t.apply(&[TableOp::Insert((0..20).map(|i| tri(i, 0.0)).collect())]);
         t.clear_dirty();
-        let recolour = |id| Recolour { id, radiance: [[1.0; 3]; 3] };
-        t.apply(&[TableOp::Recolour(vec![recolour(2), recolour(4), recolour(15)])]);
+        let recolour = |id| Recolour {
+            id,
+            radiance: [[1.0; 3]; 3],
+        };
+        t.apply(&[TableOp::Recolour(vec![
+            recolour(2),
+            recolour(4),
+            recolour(15),
+        ])]);
         assert_eq!(t.take_dirty_ranges(2), vec![2..5, 15..16]);
-        t.apply(&[TableOp::Recolour(vec![recolour(19)]), TableOp::Remove(vec![19])]);
+        t.apply(&[
+            TableOp::Recolour(vec![recolour(19)]),
+            TableOp::Remove(vec![19]),
+        ]);
         assert!(t.take_dirty_ranges(0).is_empty());
     }
 

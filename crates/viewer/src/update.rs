@@ -75,18 +75,39 @@ mod tests {
     #[test]
     fn changes_are_released_only_by_their_epoch_in_order() {
         let mut s = Staging::default();
-        let t = ShownTriangle { id: 5, positions: [[0.0; 3]; 3], radiance: [[1.0; 3]; 3] };
-        assert_eq!(s.stage(SmaToViewer::Insert { triangles: vec![t.clone()] }), Staged::Held);
+        let t = ShownTriangle {
+            id: 5,
+            positions: [[0.0; 3]; 3],
+            radiance: [[1.0; 3]; 3],
+        };
+        assert_eq!(
+            s.stage(SmaToViewer::Insert {
+                triangles: vec![t.clone()]
+            }),
+            Staged::Held
+        );
         assert_eq!(s.stage(SmaToViewer::Remove { ids: vec![4] }), Staged::Held);
-        assert_eq!(s.stage(SmaToViewer::ToneMap { l_white: -1.0 }), Staged::Held);
+        assert_eq!(
+            s.stage(SmaToViewer::ToneMap { l_white: -1.0 }),
+            Staged::Held
+        );
         assert_eq!(s.stage(SmaToViewer::ToneMap { l_white: 3.0 }), Staged::Held);
-        let epoch = Epoch { camera_seq: 2, shown: 1, ..Epoch::default() };
+        let epoch = Epoch {
+            camera_seq: 2,
+            shown: 1,
+            ..Epoch::default()
+        };
         let Staged::Closed(update) = s.stage(SmaToViewer::Epoch(epoch)) else {
             panic!("an epoch must close the update")
         };
-        assert_eq!(update.ops, vec![TableOp::Insert(vec![t]), TableOp::Remove(vec![4])]);
+        assert_eq!(
+            update.ops,
+            vec![TableOp::Insert(vec![t]), TableOp::Remove(vec![4])]
+        );
         assert_eq!((update.l_white, update.epoch), (Some(3.0), epoch));
-        let Staged::Closed(empty) = s.stage(SmaToViewer::Epoch(epoch)) else { panic!() };
+        let Staged::Closed(empty) = s.stage(SmaToViewer::Epoch(epoch)) else {
+            panic!()
+        };
         assert!(empty.ops.is_empty() && empty.l_white.is_none());
     }
 }

@@ -79,7 +79,11 @@ impl WalkCamera {
 /// A walking speed that crosses the scene's box in about ten seconds.
 pub fn default_speed(bounds: &Bounds) -> f32 {
     let diagonal = (Vec3::from(bounds.max) - Vec3::from(bounds.min)).length();
-    if diagonal.is_finite() && diagonal > 0.0 { diagonal / 10.0 } else { 1.0 }
+    if diagonal.is_finite() && diagonal > 0.0 {
+        diagonal / 10.0
+    } else {
+        1.0
+    }
 }
 
 #[cfg(test)]
@@ -99,20 +103,30 @@ mod tests {
     #[test]
     fn starts_exactly_at_the_viewpoint_camera() {
         let w = WalkCamera::at_viewpoint(&viewpoint(), 1.0);
-        assert_eq!(w.camera(64, 48), Camera::from_viewpoint(&viewpoint(), 0, 64, 48));
+        assert_eq!(
+            w.camera(64, 48),
+            Camera::from_viewpoint(&viewpoint(), 0, 64, 48)
+        );
     }
 
     #[test]
     fn walks_along_the_view_and_turns_about_up() {
         let mut w = WalkCamera::at_viewpoint(&viewpoint(), 2.0);
         w.walk(1.0, 0.0, 0.0, 0.5);
-        assert!(w.eye.abs_diff_eq(Vec3::new(0.0, 1.0, 4.0), 1e-5), "{}", w.eye);
+        assert!(
+            w.eye.abs_diff_eq(Vec3::new(0.0, 1.0, 4.0), 1e-5),
+            "{}",
+            w.eye
+        );
         w.turn(std::f32::consts::FRAC_PI_2, 0.0);
         let forward = w.rotation * Vec3::NEG_Z;
         assert!(forward.abs_diff_eq(Vec3::NEG_X, 1e-5), "{forward}");
         w.turn(0.0, 2.0);
         let elevation = (w.rotation * Vec3::NEG_Z).y.asin().to_degrees();
         assert!((elevation - 85.0).abs() < 1e-3, "pitched to {elevation}°");
-        assert!((w.rotation * Vec3::X).abs_diff_eq(Vec3::NEG_Z, 1e-5), "pitch must keep the heading");
+        assert!(
+            (w.rotation * Vec3::X).abs_diff_eq(Vec3::NEG_Z, 1e-5),
+            "pitch must keep the heading"
+        );
     }
 }

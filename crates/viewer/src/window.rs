@@ -89,7 +89,7 @@ impl Display {
         config.present_mode = wgpu::PresentMode::AutoVsync;
         surface.configure(&gpu.device, &config);
         Ok(Display {
-            triangles: GpuTriangles::new(&gpu.device),
+            triangles: GpuTriangles::new(&gpu),
             drawer: Drawer::new(&gpu.device, config.format, Output::Display),
             depth: depth_texture(&gpu.device, config.width, config.height),
             config,
@@ -120,7 +120,9 @@ struct Keys {
 
 impl Keys {
     fn down(&self, codes: &[KeyCode]) -> bool {
-        codes.iter().any(|c| self.held.contains(c) || self.tapped.contains(c))
+        codes
+            .iter()
+            .any(|c| self.held.contains(c) || self.tapped.contains(c))
     }
 
     fn axis(&self, plus: &[KeyCode], minus: &[KeyCode]) -> f32 {
@@ -201,7 +203,9 @@ impl App {
 
     /// A new session: the SMA knows nothing of us, so say everything again.
     fn restate(&mut self) {
-        let Some(scene) = &self.state.scene else { return };
+        let Some(scene) = &self.state.scene else {
+            return;
+        };
         if self.walk.is_none() {
             let speed = default_speed(&scene.bounds);
             let start = pick_viewpoint(scene, self.cli.view.as_deref()).unwrap_or_else(|e| {
@@ -252,13 +256,18 @@ impl App {
                 let scene = self.state.scene.as_ref();
                 let current = self.state.refinement.as_ref().map(|(c, _)| c.as_str());
                 if let Some(name) = scene.and_then(|s| next_criterion(s, current)) {
-                    self.link.send(ViewerToSma::SetCriterion { name: name.clone() });
+                    self.link
+                        .send(ViewerToSma::SetCriterion { name: name.clone() });
                     self.criterion = Some(name);
                 }
             }
             KeyCode::KeyP => {
                 self.paused = !self.paused;
-                self.link.send(if self.paused { ViewerToSma::Pause } else { ViewerToSma::Resume });
+                self.link.send(if self.paused {
+                    ViewerToSma::Pause
+                } else {
+                    ViewerToSma::Resume
+                });
             }
             KeyCode::KeyF => self.settings.wireframe = !self.settings.wireframe,
             KeyCode::KeyT => self.settings.tone_map = self.settings.tone_map.next(),
@@ -283,17 +292,23 @@ impl App {
 
     fn frame(&mut self) {
         let now = Instant::now();
-        let dt = now.duration_since(self.last_frame).as_secs_f32().min(MAX_FRAME_S);
+        let dt = now
+            .duration_since(self.last_frame)
+            .as_secs_f32()
+            .min(MAX_FRAME_S);
         self.last_frame = now;
         if let Some(walk) = &mut self.walk {
             self.keys.steer(walk, dt);
         }
         self.keys.tapped.clear();
         self.offer_camera();
-        let (Some(d), Some(walk)) = (&mut self.display, &self.walk) else { return };
-        d.triangles.sync(&d.gpu.device, &d.gpu.queue, &mut self.state.table);
+        let (Some(d), Some(walk)) = (&mut self.display, &self.walk) else {
+            return;
+        };
+        d.triangles.sync(&d.gpu, &mut self.state.table);
         let texture = match d.surface.get_current_texture() {
-            wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+            wgpu::CurrentSurfaceTexture::Success(t)
+            | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
             wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
                 d.surface.configure(&d.gpu.device, &d.config);
                 d.window.request_redraw();
@@ -389,7 +404,9 @@ impl ApplicationHandler<LinkEvent> for App {
                 self.redraw();
             }
             WindowEvent::KeyboardInput { event, .. } => {
-                let PhysicalKey::Code(code) = event.physical_key else { return };
+                let PhysicalKey::Code(code) = event.physical_key else {
+                    return;
+                };
                 match event.state {
                     ElementState::Pressed if !event.repeat => {
                         self.keys.held.insert(code);
@@ -403,14 +420,21 @@ impl ApplicationHandler<LinkEvent> for App {
                 }
                 self.redraw();
             }
-            WindowEvent::MouseInput { state, button: MouseButton::Left, .. } => {
+            WindowEvent::MouseInput {
+                state,
+                button: MouseButton::Left,
+                ..
+            } => {
                 self.dragging = state == ElementState::Pressed;
             }
             WindowEvent::CursorMoved { position, .. } => {
                 let last = self.cursor.replace(position);
                 if let (true, Some(last), Some(walk)) = (self.dragging, last, &mut self.walk) {
                     let (dx, dy) = (position.x - last.x, position.y - last.y);
-                    walk.turn(-dx as f32 * LOOK_RAD_PER_PIXEL, -dy as f32 * LOOK_RAD_PER_PIXEL);
+                    walk.turn(
+                        -dx as f32 * LOOK_RAD_PER_PIXEL,
+                        -dy as f32 * LOOK_RAD_PER_PIXEL,
+                    );
                     self.redraw();
                 }
             }

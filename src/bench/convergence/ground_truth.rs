@@ -29,15 +29,23 @@ pub struct GroundTruth {
 impl GroundTruth {
     /// The cached EXR, rendering it first when missing. Prints how long a render took.
     pub fn ensure(&self, cache: &Path) -> anyhow::Result<PathBuf> {
-        let scene = scene::load(&self.scene).with_context(|| format!("loading scene {}", self.scene))?;
+        let scene =
+            scene::load(&self.scene).with_context(|| format!("loading scene {}", self.scene))?;
         let key = &scene::fingerprint_hex(&scene.fingerprint)[..12];
-        let name = format!("{}-{}-{key}-{}x{}-{}spp-{}b.exr", scene.name, self.view, self.width, self.height, self.spp, self.bounces);
+        let name = format!(
+            "{}-{}-{key}-{}x{}-{}spp-{}b.exr",
+            scene.name, self.view, self.width, self.height, self.spp, self.bounces
+        );
         let path = cache.join(name);
         if path.is_file() {
             return Ok(path);
         }
         std::fs::create_dir_all(cache)?;
-        eprintln!("ground truth {}: rendering {} paths per pixel (minutes at full size)…", path.display(), self.spp);
+        eprintln!(
+            "ground truth {}: rendering {} paths per pixel (minutes at full size)…",
+            path.display(),
+            self.spp
+        );
         let started = Instant::now();
         let world = World::new(scene);
         let camera = camera_for(&world, &self.view, self.width, self.height)?;
@@ -59,7 +67,10 @@ impl GroundTruth {
         })
         .with_context(|| format!("writing {}", partial.display()))?;
         std::fs::rename(&partial, &path)?;
-        eprintln!("ground truth rendered in {:.0} s", started.elapsed().as_secs_f64());
+        eprintln!(
+            "ground truth rendered in {:.0} s",
+            started.elapsed().as_secs_f64()
+        );
         Ok(path)
     }
 }

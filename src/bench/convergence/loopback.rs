@@ -13,9 +13,6 @@ use anyhow::Context;
 /// How long a child may take to bind its port (scene load, BVH build, wgpu start on Mesa).
 const START_TIMEOUT: Duration = Duration::from_secs(120);
 
-/// Time the viewer may take past its `--seconds` (connection, wgpu start, the last snapshot).
-const VIEWER_GRACE: Duration = Duration::from_secs(120);
-
 /// What the SMA and its renderers run.
 #[derive(Clone, Debug)]
 pub struct SystemConfig {
@@ -35,7 +32,10 @@ pub struct ViewerConfig {
     pub view: String,
     pub width: u32,
     pub height: u32,
-    pub seconds: f64,
+    /// `--seconds`: the run's length; without it the viewer stops once every snapshot is taken.
+    pub seconds: Option<f64>,
+    /// The viewer is killed, and the run fails, past this (its start on Mesa included).
+    pub time_limit: Duration,
     /// `--snapshot-every`: a snapshot at 0, s, 2s, … seconds.
     pub every_seconds: Option<f64>,
     /// `--snapshot-at-samples`.
@@ -51,7 +51,12 @@ struct Process {
 }
 
 impl Process {
-    fn spawn(exe: &Path, name: &'static str, args: &[String], logs: &Path) -> anyhow::Result<Process> {
+    fn spawn(
+        exe: &Path,
+        name: &'static str,
+        args: &[String],
+        logs: &Path,
+    ) -> anyhow::Result<Process> {
         let log = logs.join(format!("{name}.log"));
         let out = File::create(&log).with_context(|| format!("creating {}", log.display()))?;
         let child = Command::new(exe)
@@ -70,7 +75,12 @@ impl Process {
         let log = std::fs::read_to_string(&self.log).unwrap_or_default();
         let tail: Vec<&str> = log.lines().rev().take(15).collect();
         let tail: Vec<&str> = tail.into_iter().rev().collect();
-        anyhow::anyhow!("{} {what} (log {}):\n{}", self.name, self.log.display(), tail.join("\n"))
+        anyhow::anyhow!(
+            "{} {what} (log {}):\n{}",
+            self.name,
+            self.log.display(),
+            tail.join("\n")
+        )
     }
 
     fn exited(&mut self) -> Option<std::process::ExitStatus> {
@@ -78,7 +88,15 @@ impl Process {
     }
 }
 
-/// The running system: renderer(s) and SMA, until dropped.
+/// A child never outlives its handle, whatever way the run ends (a failure, a panic in a test).
+impl Drop for Process {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// The running system: renderer(s) and SMA, killed when dropped.
 pub struct System {
     exe: PathBuf,
     logs: PathBuf,
@@ -91,17 +109,44 @@ impl System {
     /// so the viewer's clock starts against a ready system (t = 0 at the first camera, §10).
     pub fn start(config: &SystemConfig, logs: &Path) -> anyhow::Result<System> {
         std::fs::create_dir_all(logs)?;
-        let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(2);
+        let cores = std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(2);
         let threads = (cores / config.renderers.max(1)).max(1).to_string();
-        let mut system = System { exe: config.exe.clone(), logs: logs.to_path_buf(), sma_addr: free_port()?, servers: vec![] };
-        let mut sma_args = strings(&["sma", "--scene", &config.scene, "--listen", &system.sma_addr.to_string()]);
-        sma_args.extend(strings(&["--criterion", &config.criterion, "--seed", &config.seed.to_string()]));
+        let mut system = System {
+            exe: config.exe.clone(),
+            logs: logs.to_path_buf(),
+            sma_addr: free_port()?,
+            servers: vec![],
+        };
+        let mut sma_args = strings(&[
+            "sma",
+            "--scene",
+            &config.scene,
+            "--listen",
+            &system.sma_addr.to_string(),
+        ]);
+        sma_args.extend(strings(&[
+            "--criterion",
+            &config.criterion,
+            "--seed",
+            &config.seed.to_string(),
+        ]));
         if !config.refine {
             sma_args.push("--no-refine".into());
         }
         for _ in 0..config.renderers.max(1) {
             let addr = free_port()?;
-            let args = strings(&["renderer", "serve", "--scene", &config.scene, "--listen", &addr.to_string(), "--threads", &threads]);
+            let args = strings(&[
+                "renderer",
+                "serve",
+                "--scene",
+                &config.scene,
+                "--listen",
+                &addr.to_string(),
+                "--threads",
+                &threads,
+            ]);
             system.start_server("renderer", &args, addr)?;
             sma_args.extend(["--renderer".to_string(), addr.to_string()]);
         }
@@ -109,8 +154,14 @@ impl System {
         Ok(system)
     }
 
-    fn start_server(&mut self, name: &'static str, args: &[String], addr: SocketAddr) -> anyhow::Result<()> {
-        self.servers.push(Process::spawn(&self.exe, name, args, &self.logs)?);
+    fn start_server(
+        &mut self,
+        name: &'static str,
+        args: &[String],
+        addr: SocketAddr,
+    ) -> anyhow::Result<()> {
+        self.servers
+            .push(Process::spawn(&self.exe, name, args, &self.logs)?);
         let started = Instant::now();
         while !is_bound(addr) {
             let process = self.servers.last_mut().expect("just pushed");
@@ -118,52 +169,75 @@ impl System {
                 return Err(process.failure("exited before listening"));
             }
             if started.elapsed() > START_TIMEOUT {
-                return Err(process.failure(&format!("did not listen on {addr} within {START_TIMEOUT:?}")));
+                return Err(process.failure(&format!(
+                    "did not listen on {addr} within {START_TIMEOUT:?}"
+                )));
             }
             std::thread::sleep(Duration::from_millis(50));
         }
         Ok(())
     }
 
+    /// The SMA's viewer address (a second, in-process viewer may connect to it).
+    pub fn sma_addr(&self) -> SocketAddr {
+        self.sma_addr
+    }
+
     /// Runs a headless viewer to its end, writing snapshots into `out`. Fails when the viewer
     /// fails, overruns, or a server dies meanwhile.
     pub fn run_viewer(&mut self, config: &ViewerConfig, out: &Path) -> anyhow::Result<()> {
-        let mut viewer = Process::spawn(&self.exe, "viewer", &viewer_args(config, self.sma_addr, out), &self.logs)?;
-        let deadline = Instant::now() + Duration::from_secs_f64(config.seconds) + VIEWER_GRACE;
-        let result = loop {
+        let mut viewer = Process::spawn(
+            &self.exe,
+            "viewer",
+            &viewer_args(config, self.sma_addr, out),
+            &self.logs,
+        )?;
+        let deadline = Instant::now() + config.time_limit;
+        loop {
             if let Some(status) = viewer.exited() {
-                break if status.success() { Ok(()) } else { Err(viewer.failure(&format!("failed ({status})"))) };
+                return if status.success() {
+                    Ok(())
+                } else {
+                    Err(viewer.failure(&format!("failed ({status})")))
+                };
             }
-            if let Some(dead) = self.servers.iter_mut().find_map(|p| p.exited().is_some().then_some(p)) {
-                break Err(dead.failure("died during the run"));
+            if let Some(dead) = self
+                .servers
+                .iter_mut()
+                .find_map(|p| p.exited().is_some().then_some(p))
+            {
+                return Err(dead.failure("died during the run"));
             }
             if Instant::now() > deadline {
-                break Err(viewer.failure("overran its time"));
+                return Err(viewer.failure(&format!(
+                    "overran its time limit of {:?}",
+                    config.time_limit
+                )));
             }
             std::thread::sleep(Duration::from_millis(50));
-        };
-        stop(&mut viewer);
-        result
-    }
-}
-
-impl Drop for System {
-    fn drop(&mut self) {
-        for process in &mut self.servers {
-            stop(process);
         }
     }
 }
 
-fn stop(process: &mut Process) {
-    let _ = process.child.kill();
-    let _ = process.child.wait();
-}
-
 fn viewer_args(c: &ViewerConfig, sma: SocketAddr, out: &Path) -> Vec<String> {
-    let mut args = strings(&["viewer", "--connect", &sma.to_string(), "--headless", "--view", &c.view]);
-    args.extend(strings(&["--width", &c.width.to_string(), "--height", &c.height.to_string()]));
-    args.extend(strings(&["--seconds", &c.seconds.to_string(), "--out", &out.to_string_lossy()]));
+    let mut args = strings(&[
+        "viewer",
+        "--connect",
+        &sma.to_string(),
+        "--headless",
+        "--view",
+        &c.view,
+    ]);
+    args.extend(strings(&[
+        "--width",
+        &c.width.to_string(),
+        "--height",
+        &c.height.to_string(),
+    ]));
+    args.extend(strings(&["--out", &out.to_string_lossy()]));
+    if let Some(seconds) = c.seconds {
+        args.extend(strings(&["--seconds", &seconds.to_string()]));
+    }
     if let Some(every) = c.every_seconds {
         args.extend(strings(&["--snapshot-every", &every.to_string()]));
     }
@@ -188,11 +262,15 @@ fn free_port() -> anyhow::Result<SocketAddr> {
 fn is_bound(addr: SocketAddr) -> bool {
     let port = format!(":{:04X}", addr.port());
     ["/proc/net/tcp", "/proc/net/tcp6"].iter().any(|table| {
-        std::fs::read_to_string(table).unwrap_or_default().lines().skip(1).any(|line| {
-            let fields: Vec<&str> = line.split_whitespace().collect();
-            // Columns: sl, local_address (hex ip:port), rem_address, st (0A = LISTEN), …
-            fields.len() > 3 && fields[1].ends_with(&port) && fields[3] == "0A"
-        })
+        std::fs::read_to_string(table)
+            .unwrap_or_default()
+            .lines()
+            .skip(1)
+            .any(|line| {
+                let fields: Vec<&str> = line.split_whitespace().collect();
+                // Columns: sl, local_address (hex ip:port), rem_address, st (0A = LISTEN), …
+                fields.len() > 3 && fields[1].ends_with(&port) && fields[3] == "0A"
+            })
     })
 }
 

@@ -37,7 +37,14 @@ impl ViewRecord {
         let r = self;
         let counts: Vec<String> = r.sample_counts.iter().map(u64::to_string).collect();
         let (width, height, spp, seconds) = (r.width, r.height, r.gt_spp, r.seconds);
-        format!("{},{},{},{width},{height},{spp},{seconds},{},{}", r.label, r.scene, r.view, counts.join(";"), r.ground_truth)
+        format!(
+            "{},{},{},{width},{height},{spp},{seconds},{},{}",
+            r.label,
+            r.scene,
+            r.view,
+            counts.join(";"),
+            r.ground_truth
+        )
     }
 
     fn parse(line: &str) -> anyhow::Result<ViewRecord> {
@@ -51,7 +58,11 @@ impl ViewRecord {
             height: f[4].parse()?,
             gt_spp: f[5].parse()?,
             seconds: f[6].parse()?,
-            sample_counts: f[7].split(';').filter(|s| !s.is_empty()).map(str::parse).collect::<Result<_, _>>()?,
+            sample_counts: f[7]
+                .split(';')
+                .filter(|s| !s.is_empty())
+                .map(str::parse)
+                .collect::<Result<_, _>>()?,
             ground_truth: f[8].into(),
         })
     }
@@ -59,7 +70,8 @@ impl ViewRecord {
 
 pub fn read(dir: &Path) -> anyhow::Result<Vec<ViewRecord>> {
     let path = dir.join(FILE);
-    let text = std::fs::read_to_string(&path).with_context(|| format!("reading {} (run `bench convergence` first)", path.display()))?;
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("reading {} (run `bench convergence` first)", path.display()))?;
     text.lines()
         .skip(1)
         .filter(|l| !l.is_empty())
@@ -74,7 +86,9 @@ pub fn upsert(dir: &Path, record: &ViewRecord) -> anyhow::Result<()> {
         Some(old) => *old = record.clone(),
         None => records.push(record.clone()),
     }
-    let lines: Vec<String> = std::iter::once(HEADER.to_string()).chain(records.iter().map(ViewRecord::line)).collect();
+    let lines: Vec<String> = std::iter::once(HEADER.to_string())
+        .chain(records.iter().map(ViewRecord::line))
+        .collect();
     std::fs::write(dir.join(FILE), lines.join("\n") + "\n")?;
     Ok(())
 }
@@ -103,6 +117,9 @@ mod tests {
         upsert(dir.path(), &record("MC", 5.0)).unwrap();
         upsert(dir.path(), &record("VT", 5.0)).unwrap();
         upsert(dir.path(), &record("MC", 20.0)).unwrap();
-        assert_eq!(read(dir.path()).unwrap(), vec![record("MC", 20.0), record("VT", 5.0)]);
+        assert_eq!(
+            read(dir.path()).unwrap(),
+            vec![record("MC", 20.0), record("VT", 5.0)]
+        );
     }
 }

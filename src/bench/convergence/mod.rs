@@ -14,6 +14,7 @@ pub mod tables;
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 use anyhow::Context;
 use clap::Args;
@@ -23,7 +24,7 @@ use crate::bench::{plots, strips};
 use ground_truth::GroundTruth;
 use loopback::{System, SystemConfig, ViewerConfig};
 use manifest::ViewRecord;
-use record::{Measurement, NO_REFINE};
+use record::{Measurement, NO_REFINE, Schedule};
 
 /// Bounce depth of the interactive preset (DESIGN.md §10: 64 paths × 2 bounces per sample); the
 /// ground truth uses the same estimator and depth, per pixel.
@@ -34,6 +35,9 @@ const SHARED_SCENES: &str = "../shared/scenes";
 const SPONZA: &str = "scenes/sponza.toml";
 
 pub const SECTION: &str = "docs/bench/convergence.md";
+
+/// Time a run may take beyond its `--seconds`: processes start, wgpu opens Mesa, scenes load.
+const START_ALLOWANCE: Duration = Duration::from_secs(90);
 
 #[derive(Args, Debug, Clone)]
 pub struct ConvergenceArgs {
@@ -52,7 +56,11 @@ pub struct ConvergenceArgs {
     #[arg(long, default_value_t = 20.0)]
     pub seconds: f64,
     /// Fixed sample counts at which snapshots are also taken.
-    #[arg(long, value_delimiter = ',', default_value = "1000,2000,4000,8000,16000,32000,64000,128000,256000")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "1000,2000,4000,8000,16000,32000,64000,128000,256000"
+    )]
     pub at_samples: Vec<u64>,
     #[arg(long, default_value_t = 1024)]
     pub width: u32,
@@ -90,7 +98,11 @@ struct ViewSpec {
 
 pub fn run(args: ConvergenceArgs) -> anyhow::Result<()> {
     let exe = std::env::current_exe().context("locating the walkthrough binary")?;
-    let criteria = if args.criteria.is_empty() { default_criteria() } else { args.criteria.clone() };
+    let criteria = if args.criteria.is_empty() {
+        default_criteria()
+    } else {
+        args.criteria.clone()
+    };
     std::fs::create_dir_all(&args.out)?;
     for spec in views(&args)? {
         eprintln!("convergence: {} {}", spec.label, spec.view);
@@ -107,7 +119,10 @@ pub fn run(args: ConvergenceArgs) -> anyhow::Result<()> {
 
 /// The criteria the SMA offers, the thesis's three first.
 pub fn default_criteria() -> Vec<String> {
-    sma::criteria::CRITERIA.iter().map(|c| c.to_string()).collect()
+    sma::criteria::CRITERIA
+        .iter()
+        .map(|c| c.to_string())
+        .collect()
 }
 
 fn views(args: &ConvergenceArgs) -> anyhow::Result<Vec<ViewSpec>> {
@@ -124,20 +139,40 @@ fn views(args: &ConvergenceArgs) -> anyhow::Result<Vec<ViewSpec>> {
     let mut specs = Vec::new();
     for (scene, defaults) in scenes {
         let loaded = scene::load(&scene).with_context(|| format!("loading {scene}"))?;
-        let known: Vec<String> = loaded.settings.viewpoints.iter().map(|v| v.name.clone()).collect();
+        let known: Vec<String> = loaded
+            .settings
+            .viewpoints
+            .iter()
+            .map(|v| v.name.clone())
+            .collect();
         let wanted = if !args.views.is_empty() {
-            args.views.iter().filter(|v| known.contains(v)).cloned().collect()
+            args.views
+                .iter()
+                .filter(|v| known.contains(v))
+                .cloned()
+                .collect()
         } else if defaults.is_empty() {
             known.clone()
         } else {
             defaults
         };
         for view in wanted {
-            anyhow::ensure!(known.contains(&view), "scene {scene} has no view {view} (it has {known:?})");
-            specs.push(ViewSpec { scene: scene.clone(), label: loaded.name.clone(), view });
+            anyhow::ensure!(
+                known.contains(&view),
+                "scene {scene} has no view {view} (it has {known:?})"
+            );
+            specs.push(ViewSpec {
+                scene: scene.clone(),
+                label: loaded.name.clone(),
+                view,
+            });
         }
     }
-    anyhow::ensure!(!specs.is_empty(), "no view to measure: {:?} matches none of the scenes' views", args.views);
+    anyhow::ensure!(
+        !specs.is_empty(),
+        "no view to measure: {:?} matches none of the scenes' views",
+        args.views
+    );
     Ok(specs)
 }
 
@@ -147,7 +182,12 @@ fn strings(v: &[&str]) -> Vec<String> {
 
 /// Ground truth, the run without refinement and one run per criterion; writes the view's CSV, plot
 /// and strip.
-fn measure_view(args: &ConvergenceArgs, exe: &Path, spec: &ViewSpec, criteria: &[String]) -> anyhow::Result<ViewRecord> {
+fn measure_view(
+    args: &ConvergenceArgs,
+    exe: &Path,
+    spec: &ViewSpec,
+    criteria: &[String],
+) -> anyhow::Result<ViewRecord> {
     let gt = GroundTruth {
         scene: spec.scene.clone(),
         view: spec.view.clone(),
@@ -172,42 +212,128 @@ fn measure_view(args: &ConvergenceArgs, exe: &Path, spec: &ViewSpec, criteria: &
     };
     let runs_dir = args.runs.join(record.stem());
     let mut rows = Vec::new();
-    let labelled = std::iter::once((NO_REFINE, &criteria[0], false)).chain(criteria.iter().map(|c| (c.as_str(), c, true)));
-    for (label, criterion, refine) in labelled {
-        eprintln!("  run {label}…");
-        let system = SystemConfig { exe: exe.to_path_buf(), scene: spec.scene.clone(), criterion: criterion.clone(), refine, seed: args.seed, renderers: args.renderers };
-        let viewer = ViewerConfig {
-            view: spec.view.clone(),
-            width: args.width,
-            height: args.height,
-            seconds: args.seconds,
-            every_seconds: Some(1.0),
-            at_samples: args.at_samples.clone(),
-            when_idle: !refine,
-        };
-        rows.extend(measure_run(&system, &viewer, label, &reference, &runs_dir.join(label))?);
+    for run in planned_runs(args, exe, spec, criteria) {
+        eprintln!("  {} ({} snapshots)…", run.label, run.schedule.as_str());
+        let dir = runs_dir.join(format!("{}-{}", run.label, run.schedule.as_str()));
+        rows.extend(measure_run(
+            &run.system,
+            &run.viewer,
+            &run.label,
+            run.schedule,
+            &reference,
+            &dir,
+        )?);
     }
     record::write_csv(&args.out.join(format!("{}.csv", record.stem())), &rows)?;
-    let title = format!("{} {}: error against the ground truth", spec.label, spec.view);
-    plots::error_panels(&args.out.join(format!("{}.svg", record.stem())), &title, &rows)?;
+    let title = format!(
+        "{} {}: error against the ground truth",
+        spec.label, spec.view
+    );
+    plots::error_panels(
+        &args.out.join(format!("{}.svg", record.stem())),
+        &title,
+        &rows,
+    )?;
     let base = base_mesh(&rows);
-    strips::write_strip(&args.out.join(format!("{}-strip.png", record.stem())), &reference, &rows, base, criteria)?;
+    strips::write_strip(
+        &args.out.join(format!("{}-strip.png", record.stem())),
+        &reference,
+        &rows,
+        base,
+        criteria,
+    )?;
     Ok(record)
 }
 
+/// One run of the system for a view.
+struct PlannedRun {
+    label: String,
+    schedule: Schedule,
+    system: SystemConfig,
+    viewer: ViewerConfig,
+}
+
+/// The run without refinement (periodic snapshots, and one when first idle: the base mesh at full
+/// quality), then for each criterion a run with periodic snapshots and one with snapshots at the
+/// fixed sample counts (the viewer takes one kind per run).
+fn planned_runs(
+    args: &ConvergenceArgs,
+    exe: &Path,
+    spec: &ViewSpec,
+    criteria: &[String],
+) -> Vec<PlannedRun> {
+    let system = |criterion: &str, refine: bool| SystemConfig {
+        exe: exe.to_path_buf(),
+        scene: spec.scene.clone(),
+        criterion: criterion.to_string(),
+        refine,
+        seed: args.seed,
+        renderers: args.renderers,
+    };
+    let viewer = |every_seconds: Option<f64>, at_samples: Vec<u64>, when_idle: bool| ViewerConfig {
+        view: spec.view.clone(),
+        width: args.width,
+        height: args.height,
+        seconds: Some(args.seconds),
+        time_limit: Duration::from_secs_f64(args.seconds) + START_ALLOWANCE,
+        every_seconds,
+        at_samples,
+        when_idle,
+    };
+    let mut runs = vec![PlannedRun {
+        label: NO_REFINE.to_string(),
+        schedule: Schedule::Time,
+        system: system(&criteria[0], false),
+        viewer: viewer(Some(1.0), vec![], true),
+    }];
+    for criterion in criteria {
+        for schedule in [Schedule::Time, Schedule::Samples] {
+            let v = match schedule {
+                Schedule::Time => viewer(Some(1.0), vec![], false),
+                Schedule::Samples => viewer(None, args.at_samples.clone(), false),
+            };
+            runs.push(PlannedRun {
+                label: criterion.clone(),
+                schedule,
+                system: system(criterion, true),
+                viewer: v,
+            });
+        }
+    }
+    runs
+}
+
 /// Starts a fresh system, runs the viewer, and measures every snapshot it wrote.
-pub fn measure_run(system: &SystemConfig, viewer: &ViewerConfig, label: &str, reference: &Reference, dir: &Path) -> anyhow::Result<Vec<Measurement>> {
+pub fn measure_run(
+    system: &SystemConfig,
+    viewer: &ViewerConfig,
+    label: &str,
+    schedule: Schedule,
+    reference: &Reference,
+    dir: &Path,
+) -> anyhow::Result<Vec<Measurement>> {
     if dir.exists() {
         std::fs::remove_dir_all(dir)?;
     }
     let snapshots_dir = dir.join("snapshots");
     System::start(system, dir)?.run_viewer(viewer, &snapshots_dir)?;
-    snapshots::read_run(&snapshots_dir)?
+    measure_snapshots(label, schedule, reference, &snapshots_dir)
+}
+
+/// The error of every snapshot a viewer wrote into `dir`.
+pub fn measure_snapshots(
+    label: &str,
+    schedule: Schedule,
+    reference: &Reference,
+    dir: &Path,
+) -> anyhow::Result<Vec<Measurement>> {
+    snapshots::read_run(dir)?
         .into_iter()
         .map(|s| {
             let error = reference.error_of(&LinearImage::read_exr(&s.exr)?)?;
             Ok(Measurement {
                 run: label.to_string(),
+                schedule,
                 time_s: s.time_s,
                 samples: s.samples,
                 shown: s.shown,
@@ -225,7 +351,11 @@ pub fn measure_run(system: &SystemConfig, viewer: &ViewerConfig, label: &str, re
 /// with no request outstanding (the last one when it never got there).
 pub fn base_mesh(rows: &[Measurement]) -> Option<&Measurement> {
     let run = record::run_rows(rows, NO_REFINE);
-    run.iter().rev().find(|m| m.outstanding == 0).or(run.last()).copied()
+    run.iter()
+        .rev()
+        .find(|m| m.outstanding == 0)
+        .or(run.last())
+        .copied()
 }
 
 /// The Markdown section over every view in the output folder's manifest.
@@ -268,7 +398,10 @@ pub fn section(out: &Path) -> anyhow::Result<String> {
         md.push_str(&tables::samples_table(record, &rows));
         let dir = out.to_string_lossy();
         let stem = record.stem();
-        let _ = writeln!(md, "\n![error plots]({dir}/{stem}.svg)\n\n![strip]({dir}/{stem}-strip.png)\n");
+        let _ = writeln!(
+            md,
+            "\n![error plots]({dir}/{stem}.svg)\n\n![strip]({dir}/{stem}-strip.png)\n"
+        );
     }
     Ok(md)
 }

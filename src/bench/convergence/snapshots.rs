@@ -27,31 +27,67 @@ pub struct Snapshot {
 /// All snapshots of a run directory, in the order taken.
 pub fn read_run(dir: &Path) -> anyhow::Result<Vec<Snapshot>> {
     let path = dir.join("snapshots.csv");
-    let text = std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    let text =
+        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
     parse(&text, dir).with_context(|| format!("parsing {}", path.display()))
 }
 
 fn parse(text: &str, dir: &Path) -> anyhow::Result<Vec<Snapshot>> {
     let mut lines = text.lines().filter(|l| !l.trim().is_empty());
-    let header: HashMap<&str, usize> =
-        lines.next().context("empty file")?.split(',').enumerate().map(|(i, h)| (h.trim(), i)).collect();
-    let column = |name: &str| header.get(name).copied().with_context(|| format!("no column {name:?}"));
-    let [time, shown, inserted, removed, samples, outstanding, exr] =
-        ["time_s", "shown", "inserted", "removed", "samples", "outstanding", "exr"].map(column);
-    let (time, shown, inserted, removed, samples, outstanding, exr) =
-        (time?, shown?, inserted?, removed?, samples?, outstanding?, exr?);
+    let header: HashMap<&str, usize> = lines
+        .next()
+        .context("empty file")?
+        .split(',')
+        .enumerate()
+        .map(|(i, h)| (h.trim(), i))
+        .collect();
+    let column = |name: &str| {
+        header
+            .get(name)
+            .copied()
+            .with_context(|| format!("no column {name:?}"))
+    };
+    let [time, shown, inserted, removed, samples, outstanding, exr] = [
+        "time_s",
+        "shown",
+        "inserted",
+        "removed",
+        "samples",
+        "outstanding",
+        "exr",
+    ]
+    .map(column);
+    let (time, shown, inserted, removed, samples, outstanding, exr) = (
+        time?,
+        shown?,
+        inserted?,
+        removed?,
+        samples?,
+        outstanding?,
+        exr?,
+    );
     let (mut total_inserted, mut total_removed) = (0, 0);
     lines
         .map(|line| {
             let fields: Vec<&str> = line.split(',').map(str::trim).collect();
             if fields.len() != header.len() {
-                bail!("line {line:?} has {} fields, the header {}", fields.len(), header.len());
+                bail!(
+                    "line {line:?} has {} fields, the header {}",
+                    fields.len(),
+                    header.len()
+                );
             }
-            let int = |i: usize| fields[i].parse::<u64>().with_context(|| format!("field {:?}", fields[i]));
+            let int = |i: usize| {
+                fields[i]
+                    .parse::<u64>()
+                    .with_context(|| format!("field {:?}", fields[i]))
+            };
             total_inserted += int(inserted)?;
             total_removed += int(removed)?;
             Ok(Snapshot {
-                time_s: fields[time].parse().with_context(|| format!("time {:?}", fields[time]))?,
+                time_s: fields[time]
+                    .parse()
+                    .with_context(|| format!("time {:?}", fields[time]))?,
                 shown: int(shown)?,
                 inserted: total_inserted,
                 removed: total_removed,
@@ -75,7 +111,10 @@ mod tests {
                    2,2.001,1,900,300,100,3000,4,snapshot_002.png,snapshot_002.exr\n";
         let run = parse(csv, Path::new("/r")).unwrap();
         assert_eq!(run.len(), 3);
-        assert_eq!((run[2].inserted, run[2].removed, run[2].shown), (1037, 137, 900));
+        assert_eq!(
+            (run[2].inserted, run[2].removed, run[2].shown),
+            (1037, 137, 900)
+        );
         assert_eq!(run[1].time_s, 1.002);
         assert_eq!(run[2].exr, Path::new("/r/snapshot_002.exr"));
     }

@@ -11,7 +11,10 @@ use super::record::{Measurement, at_samples, at_time, run_labels, run_rows};
 pub fn table_times(seconds: f64) -> Vec<f64> {
     let every_second = (0..=5).map(f64::from);
     let every_five = (2..).map(|k| f64::from(5 * k));
-    every_second.chain(every_five).take_while(|t| *t <= seconds + 1e-9).collect()
+    every_second
+        .chain(every_five)
+        .take_while(|t| *t <= seconds + 1e-9)
+        .collect()
 }
 
 type Cell = fn(&Measurement) -> String;
@@ -40,7 +43,11 @@ pub fn time_table(record: &ViewRecord, rows: &[Measurement]) -> String {
             let first = if i == 0 { label.as_str() } else { "" };
             let _ = write!(md, "| {first} | {name} |");
             for t in &times {
-                let _ = write!(md, " {} |", at_time(&run, *t).map(cell).unwrap_or_else(|| "—".into()));
+                let _ = write!(
+                    md,
+                    " {} |",
+                    at_time(&run, *t).map(cell).unwrap_or_else(|| "—".into())
+                );
             }
             md.push('\n');
         }
@@ -55,7 +62,11 @@ pub fn samples_table(record: &ViewRecord, rows: &[Measurement]) -> String {
         .sample_counts
         .iter()
         .copied()
-        .filter(|n| labels.iter().any(|l| at_samples(&run_rows(rows, l), *n).is_some()))
+        .filter(|n| {
+            labels
+                .iter()
+                .any(|l| at_samples(&run_rows(rows, l), *n).is_some())
+        })
         .collect();
     let mut md = String::from("| Samples |");
     for n in &counts {
@@ -68,7 +79,8 @@ pub fn samples_table(record: &ViewRecord, rows: &[Measurement]) -> String {
         let run = run_rows(rows, label);
         let _ = write!(md, "| {label} |");
         for n in &counts {
-            let cell = at_samples(&run, *n).map(|m| format!("{:.3} ({:.1} s)", m.error.flip, m.time_s));
+            let cell =
+                at_samples(&run, *n).map(|m| format!("{:.3} ({:.1} s)", m.error.flip, m.time_s));
             let _ = write!(md, " {} |", cell.unwrap_or_else(|| "—".into()));
         }
         md.push('\n');
@@ -92,11 +104,13 @@ pub fn thousands(n: u64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bench::convergence::record::Schedule;
     use crate::bench::metrics::ImageError;
 
     fn m(run: &str, time_s: f64, samples: u64, flip: f64) -> Measurement {
         Measurement {
             run: run.into(),
+            schedule: Schedule::Time,
             time_s,
             samples,
             shown: 2511,
@@ -125,7 +139,10 @@ mod tests {
     #[test]
     fn times_follow_the_thesis_then_every_five_seconds() {
         assert_eq!(table_times(2.0), vec![0.0, 1.0, 2.0]);
-        assert_eq!(table_times(20.0), vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 10.0, 15.0, 20.0]);
+        assert_eq!(
+            table_times(20.0),
+            vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 10.0, 15.0, 20.0]
+        );
     }
 
     #[test]
@@ -137,12 +154,32 @@ mod tests {
 
     #[test]
     fn tables_hold_every_run_and_mark_missing_snapshots() {
-        let rows = [m("nld-os", 0.0, 0, 0.9), m("nld-os", 1.0, 150, 0.3), m("rnd", 0.0, 0, 0.9), m("rnd", 2.0, 250, 0.2)];
+        let by_samples = Measurement {
+            schedule: Schedule::Samples,
+            ..m("rnd", 2.1, 250, 0.2)
+        };
+        let rows = [
+            m("nld-os", 0.0, 0, 0.9),
+            m("nld-os", 1.0, 150, 0.3),
+            m("rnd", 0.0, 0, 0.9),
+            m("rnd", 2.0, 250, 0.2),
+            by_samples,
+        ];
         let time = time_table(&record(), &rows);
-        assert!(time.contains("| nld-os | Δvis | 2\u{2009}511 | 2\u{2009}511 | — |"), "{time}");
+        assert!(
+            time.contains("| nld-os | Δvis | 2\u{2009}511 | 2\u{2009}511 | — |"),
+            "{time}"
+        );
         assert!(time.contains("|  | FLIP | 0.900 | — | 0.200 |"), "{time}");
         let samples = samples_table(&record(), &rows);
-        assert!(samples.starts_with("| Samples | 100 | 200 |\n"), "{samples}");
-        assert!(samples.contains("| rnd | 0.200 (2.0 s) | 0.200 (2.0 s) |"), "{samples}");
+        assert!(
+            samples.starts_with("| Samples | 100 | 200 |\n"),
+            "{samples}"
+        );
+        assert!(
+            samples.contains("| rnd | 0.200 (2.1 s) | 0.200 (2.1 s) |"),
+            "{samples}"
+        );
+        assert!(samples.contains("| nld-os | — | — |"), "{samples}");
     }
 }

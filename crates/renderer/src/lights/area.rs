@@ -49,12 +49,19 @@ impl AreaLights {
                 total
             })
             .collect();
-        (total > 0.0).then_some(AreaLights { emitters, cdf, total })
+        (total > 0.0).then_some(AreaLights {
+            emitters,
+            cdf,
+            total,
+        })
     }
 
     fn pick(&self, u: f32) -> (usize, f32) {
         let target = u * self.total;
-        let i = self.cdf.partition_point(|&c| c <= target).min(self.emitters.len() - 1);
+        let i = self
+            .cdf
+            .partition_point(|&c| c <= target)
+            .min(self.emitters.len() - 1);
         let below = if i == 0 { 0.0 } else { self.cdf[i - 1] };
         (i, (self.cdf[i] - below) / self.total)
     }
@@ -79,7 +86,11 @@ impl Light for AreaLights {
         }
         // Area density p_pick / area, turned into solid angle: * dist^2 / cos_light.
         let radiance_over_pdf = e.ke * (cos_light * e.area / (dist2 * p_pick));
-        Some(LightSample { dir, distance, radiance_over_pdf })
+        Some(LightSample {
+            dir,
+            distance,
+            radiance_over_pdf,
+        })
     }
 
     fn shadow_kind(&self) -> RayKind {

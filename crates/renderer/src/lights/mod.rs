@@ -28,13 +28,19 @@ pub trait Light: Send + Sync {
 
     /// The counter its shadow rays go to.
     fn shadow_kind(&self) -> RayKind;
+
+    /// Whether rays leaving the scene see this light ([`Lights::escaped_radiance`]), so a path's
+    /// continuation ray can stand in for its next-event sample (the sky).
+    fn seen_by_escaping_rays(&self) -> bool {
+        false
+    }
 }
 
 /// The lights a scene calls for (its effects analysis), and what an escaping ray sees.
 pub struct Lights {
     pub lights: Vec<Box<dyn Light>>,
-    /// What a mirror ray that leaves the scene sees. Other rays reach the sun and sky through
-    /// next-event estimation only, so nothing is counted twice.
+    /// What a ray leaving the scene sees: the sky always; the sun's disc only through a mirror
+    /// (other rays reach the sun by next-event estimation only, so nothing is counted twice).
     sun: Option<sun::SunLight>,
     sky: Option<sky::UniformSky>,
 }
@@ -42,11 +48,19 @@ pub struct Lights {
 impl Lights {
     pub fn from_scene(scene: &Scene) -> Lights {
         let mut lights: Vec<Box<dyn Light>> = Vec::new();
-        let sun = if scene.effects.sun { scene.settings.sun.as_ref().and_then(sun::SunLight::new) } else { None };
+        let sun = if scene.effects.sun {
+            scene.settings.sun.as_ref().and_then(sun::SunLight::new)
+        } else {
+            None
+        };
         if let Some(sun) = sun {
             lights.push(Box::new(sun));
         }
-        let sky = if scene.effects.sky { sky::UniformSky::from_settings(&scene.settings.sky) } else { None };
+        let sky = if scene.effects.sky {
+            sky::UniformSky::from_settings(&scene.settings.sky)
+        } else {
+            None
+        };
         if let Some(sky) = sky {
             lights.push(Box::new(sky));
         }
@@ -58,9 +72,14 @@ impl Lights {
         Lights { lights, sun, sky }
     }
 
-    /// Radiance arriving along `dir` from outside the scene (the sun's disc and the sky).
-    pub fn escaped_radiance(&self, dir: Vec3) -> Vec3 {
-        let sun = self.sun.map_or(Vec3::ZERO, |s| s.radiance_toward(dir));
+    /// Radiance arriving along `dir` from outside the scene: the sky, plus the sun's disc when
+    /// `with_sun` (a mirror ray, or a camera ray).
+    pub fn escaped_radiance(&self, dir: Vec3, with_sun: bool) -> Vec3 {
+        let sun = if with_sun {
+            self.sun.map_or(Vec3::ZERO, |s| s.radiance_toward(dir))
+        } else {
+            Vec3::ZERO
+        };
         let sky = self.sky.map_or(Vec3::ZERO, |s| s.radiance(dir));
         sun + sky
     }

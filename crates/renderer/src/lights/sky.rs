@@ -20,14 +20,19 @@ impl UniformSky {
             Sky::None => None,
             Sky::Uniform { radiance } => {
                 let radiance = Vec3::from(*radiance).max(Vec3::ZERO);
-                (radiance.is_finite() && radiance.max_element() > 0.0).then_some(UniformSky { radiance })
+                (radiance.is_finite() && radiance.max_element() > 0.0)
+                    .then_some(UniformSky { radiance })
             }
         }
     }
 
     /// Radiance arriving from direction `dir` (a ray that escaped the scene).
     pub fn radiance(&self, dir: Vec3) -> Vec3 {
-        if dir.y > 0.0 { self.radiance } else { Vec3::ZERO }
+        if dir.y > 0.0 {
+            self.radiance
+        } else {
+            Vec3::ZERO
+        }
     }
 }
 
@@ -44,5 +49,9 @@ impl Light for UniformSky {
 
     fn shadow_kind(&self) -> RayKind {
         RayKind::ShadowSky
+    }
+
+    fn seen_by_escaping_rays(&self) -> bool {
+        true
     }
 }

@@ -27,12 +27,20 @@ impl SunLight {
         // A zero-size sun would be a delta light; keep a tiny disc so the sampling stays uniform.
         let half = (0.5 * sun.angular_diameter_deg.to_radians()).clamp(1e-5, 0.5);
         let one_minus_cos = 2.0 * (0.5 * half).sin().powi(2);
-        Some(SunLight { dir, radiance, one_minus_cos })
+        Some(SunLight {
+            dir,
+            radiance,
+            one_minus_cos,
+        })
     }
 
     /// Radiance seen along unit `dir`: the disc's where `dir` falls inside it.
     pub fn radiance_toward(&self, dir: Vec3) -> Vec3 {
-        if 1.0 - dir.dot(self.dir) <= self.one_minus_cos { self.radiance } else { Vec3::ZERO }
+        if 1.0 - dir.dot(self.dir) <= self.one_minus_cos {
+            self.radiance
+        } else {
+            Vec3::ZERO
+        }
     }
 
     /// Solid angle of the disc.

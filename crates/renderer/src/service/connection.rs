@@ -15,10 +15,22 @@ use tokio::sync::{mpsc, watch};
 use super::{MAX_BOUNCES, MAX_PATHS, Service};
 use crate::shade::shade_batch;
 
-pub async fn handle(stream: TcpStream, service: Arc<Service>, mut stop: watch::Receiver<bool>) -> Result<(), ProtocolError> {
+pub async fn handle(
+    stream: TcpStream,
+    service: Arc<Service>,
+    mut stop: watch::Receiver<bool>,
+) -> Result<(), ProtocolError> {
     let (mut reader, mut writer) = split_tcp::<ToRenderer, FromRenderer>(stream, service.max_frame);
     let fingerprint = service.world.scene.fingerprint;
-    accept_handshake(&mut reader, &mut writer, Role::Renderer, Role::Sma, Some(fingerprint), true).await?;
+    accept_handshake(
+        &mut reader,
+        &mut writer,
+        Role::Renderer,
+        Role::Sma,
+        Some(fingerprint),
+        true,
+    )
+    .await?;
 
     let (replies, mut outbox) = mpsc::unbounded_channel::<FromRenderer>();
     // Set when the link ends, so queued batches of a gone peer are skipped.
@@ -75,7 +87,12 @@ fn check(batch: &ShadeBatch) -> Result<(), String> {
     Ok(())
 }
 
-fn start_batch(service: &Arc<Service>, batch: ShadeBatch, replies: mpsc::UnboundedSender<FromRenderer>, closed: Arc<AtomicBool>) {
+fn start_batch(
+    service: &Arc<Service>,
+    batch: ShadeBatch,
+    replies: mpsc::UnboundedSender<FromRenderer>,
+    closed: Arc<AtomicBool>,
+) {
     let world = Arc::clone(&service.world);
     service.pool.spawn(move || {
         if closed.load(Ordering::Relaxed) {

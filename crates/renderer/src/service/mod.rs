@@ -32,12 +32,20 @@ impl Service {
             .num_threads(threads)
             .thread_name(|i| format!("shade-{i}"))
             .build()?;
-        Ok(Service { world, pool: Arc::new(pool), max_frame })
+        Ok(Service {
+            world,
+            pool: Arc::new(pool),
+            max_frame,
+        })
     }
 
     /// Serves connections from `listener` until `shutdown` completes, then closes every connection
     /// and returns.
-    pub async fn serve(self, listener: TcpListener, shutdown: impl Future<Output = ()>) -> anyhow::Result<()> {
+    pub async fn serve(
+        self,
+        listener: TcpListener,
+        shutdown: impl Future<Output = ()>,
+    ) -> anyhow::Result<()> {
         let service = Arc::new(self);
         let (stop_tx, stop_rx) = watch::channel(false);
         let mut connections = JoinSet::new();

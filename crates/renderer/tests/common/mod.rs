@@ -17,14 +17,21 @@ pub fn settings(sun: Option<Sun>, sky: Sky) -> SceneSettings {
         crease_angle_deg: 45.0,
         sun,
         sky,
-        quality: QualitySetting { paths: 16, bounces: Some(2) },
+        quality: QualitySetting {
+            paths: 16,
+            bounces: Some(2),
+        },
         viewpoints: Vec::new(),
     }
 }
 
 /// A sun toward `dir` with the given radiance and the real sun's 0.53° diameter.
 pub fn sun(dir: Vec3, radiance: f32) -> Sun {
-    Sun { direction: dir.to_array(), radiance: [radiance; 3], angular_diameter_deg: 0.53 }
+    Sun {
+        direction: dir.to_array(),
+        radiance: [radiance; 3],
+        angular_diameter_deg: 0.53,
+    }
 }
 
 /// A quad whose counter-clockwise side is the side its corners turn around (p, q, r, s).
@@ -37,13 +44,26 @@ pub fn quad(b: &mut SceneBuilder, corners: [Vec3; 4], material: u32) {
 /// A horizontal square at height `y`, centred on (cx, cz), facing +Y.
 pub fn floor(b: &mut SceneBuilder, centre: Vec3, half: f32, material: u32) {
     let c = |dx: f32, dz: f32| centre + Vec3::new(dx, 0.0, dz);
-    quad(b, [c(-half, -half), c(-half, half), c(half, half), c(half, -half)], material);
+    quad(
+        b,
+        [
+            c(-half, -half),
+            c(-half, half),
+            c(half, half),
+            c(half, -half),
+        ],
+        material,
+    );
 }
 
 /// The six faces of an axis-aligned box, facing inward (`inward`) or outward.
 pub fn cube(b: &mut SceneBuilder, min: Vec3, max: Vec3, inward: bool, material: u32) {
     let k = |x: bool, y: bool, z: bool| {
-        Vec3::new(if x { max.x } else { min.x }, if y { max.y } else { min.y }, if z { max.z } else { min.z })
+        Vec3::new(
+            if x { max.x } else { min.x },
+            if y { max.y } else { min.y },
+            if z { max.z } else { min.z },
+        )
     };
     let (f, t) = (false, true);
     // Outward-facing, counter-clockwise seen from outside.
@@ -85,12 +105,18 @@ pub fn with_side_facing(world: &World, mut p: ShadePoint, facing: Vec3) -> Shade
 /// The shading point where the ray from `origin` along `dir` first hits, on the side facing the
 /// ray's origin.
 pub fn point_hit_by(world: &World, origin: Vec3, dir: Vec3) -> ShadePoint {
-    let hit = world.bvh.closest_hit(origin, dir, f32::INFINITY).expect("ray hits the scene");
+    let hit = world
+        .bvh
+        .closest_hit(origin, dir, f32::INFINITY)
+        .expect("ray hits the scene");
     let q = origin + dir * hit.t;
     let [a, b, c] = world.scene.mesh.triangle_positions(hit.triangle as usize);
     let bary = barycentrics(q, a, b, c);
     let p = ShadePoint {
-        key: SampleKey { vertex: 0, side: Side::Front },
+        key: SampleKey {
+            vertex: 0,
+            side: Side::Front,
+        },
         base_triangle: hit.triangle,
         bary,
         side: Side::Front,

@@ -37,7 +37,11 @@ impl Palette {
             tiles: b.material(Material::diffuse("roof_tiles", vec3(0.55, 0.25, 0.15))),
             stone: b.material(Material::diffuse("wall_stone", vec3(0.52, 0.48, 0.42))),
             // Still water: a dark bottom seen through a mirror-like surface.
-            water: b.material(Material::mirror("pool_water", vec3(0.03, 0.04, 0.05), vec3(0.6, 0.65, 0.7))),
+            water: b.material(Material::mirror(
+                "pool_water",
+                vec3(0.03, 0.04, 0.05),
+                vec3(0.6, 0.65, 0.7),
+            )),
         }
     }
 }
@@ -64,14 +68,32 @@ impl ColumnStyle {
         let half = Vec3::new(1.3 * self.radius, 0.0, 1.3 * self.radius);
         let up = Vec3::Y * self.block();
         cuboid(b, foot - half, foot + half + up, false, material);
-        cylinder(b, foot + up, self.radius, self.shaft, self.segments, self.rings, material);
+        cylinder(
+            b,
+            foot + up,
+            self.radius,
+            self.shaft,
+            self.segments,
+            self.rings,
+            material,
+        );
         let top = foot + up + Vec3::Y * self.shaft;
         cuboid(b, top - half, top + half + up, true, material);
     }
 }
 
-const TEMPLE_COLUMN: ColumnStyle = ColumnStyle { radius: 0.6, shaft: 7.8, segments: 20, rings: 8 };
-const STREET_COLUMN: ColumnStyle = ColumnStyle { radius: 0.3, shaft: 4.2, segments: 12, rings: 3 };
+const TEMPLE_COLUMN: ColumnStyle = ColumnStyle {
+    radius: 0.6,
+    shaft: 7.8,
+    segments: 20,
+    rings: 8,
+};
+const STREET_COLUMN: ColumnStyle = ColumnStyle {
+    radius: 0.3,
+    shaft: 4.2,
+    segments: 12,
+    rings: 3,
+};
 
 pub fn bracara() -> SceneBuilder {
     let mut b = SceneBuilder::new(settings());
@@ -91,7 +113,16 @@ fn ground(b: &mut SceneBuilder, p: &Palette) {
     for i in 0..tiles {
         for j in 0..tiles {
             let (x, z) = (-0.5 * size + i as f32 * step, -0.5 * size + j as f32 * step);
-            quad(b, [vec3(x, 0.0, z), vec3(x, 0.0, z + step), vec3(x + step, 0.0, z + step), vec3(x + step, 0.0, z)], p.ground);
+            quad(
+                b,
+                [
+                    vec3(x, 0.0, z),
+                    vec3(x, 0.0, z + step),
+                    vec3(x + step, 0.0, z + step),
+                    vec3(x + step, 0.0, z),
+                ],
+                p.ground,
+            );
         }
     }
 }
@@ -100,11 +131,23 @@ fn ground(b: &mut SceneBuilder, p: &Palette) {
 /// gabled roof.
 fn temple(b: &mut SceneBuilder, p: &Palette) {
     let (front, back, podium) = (-34.0, -66.0, 3.0);
-    cuboid(b, vec3(-9.0, 0.0, back), vec3(9.0, podium, front), false, p.marble);
+    cuboid(
+        b,
+        vec3(-9.0, 0.0, back),
+        vec3(9.0, podium, front),
+        false,
+        p.marble,
+    );
     for k in 0..5 {
         let depth = (5 - k) as f32 * 0.8;
         let height = (k + 1) as f32 * podium / 6.0;
-        cuboid(b, vec3(-6.0, 0.0, front), vec3(6.0, height, front + depth), false, p.marble);
+        cuboid(
+            b,
+            vec3(-6.0, 0.0, front),
+            vec3(6.0, height, front + depth),
+            false,
+            p.marble,
+        );
     }
     let inset = 1.5;
     let (z0, z1) = (front - inset, back + inset);
@@ -118,20 +161,60 @@ fn temple(b: &mut SceneBuilder, p: &Palette) {
         TEMPLE_COLUMN.add(b, vec3(x, podium, z), p.marble);
     }
     let top = podium + TEMPLE_COLUMN.height();
-    cuboid(b, vec3(-5.0, podium, -61.0), vec3(5.0, top, -41.0), false, p.marble);
-    cuboid(b, vec3(-8.5, top, back + 0.5), vec3(8.5, top + 1.5, front - 0.5), true, p.marble);
-    gable_roof(b, vec3(-8.8, top + 1.5, back + 0.2), vec3(8.8, top + 1.5, front - 0.2), top + 5.0, p.tiles, p.marble);
+    cuboid(
+        b,
+        vec3(-5.0, podium, -61.0),
+        vec3(5.0, top, -41.0),
+        false,
+        p.marble,
+    );
+    cuboid(
+        b,
+        vec3(-8.5, top, back + 0.5),
+        vec3(8.5, top + 1.5, front - 0.5),
+        true,
+        p.marble,
+    );
+    gable_roof(
+        b,
+        vec3(-8.8, top + 1.5, back + 0.2),
+        vec3(8.8, top + 1.5, front - 0.2),
+        top + 5.0,
+        p.tiles,
+        p.marble,
+    );
 }
 
 /// A reflecting pool in the forum before the temple steps: a stone rim around still water.
 fn pool(b: &mut SceneBuilder, p: &Palette) {
     let (x, z0, z1, rim, h) = (4.0, -28.0, -14.0, 0.5, 0.5);
-    cuboid(b, vec3(-x - rim, 0.0, z0 - rim), vec3(x + rim, h, z0), false, p.marble);
-    cuboid(b, vec3(-x - rim, 0.0, z1), vec3(x + rim, h, z1 + rim), false, p.marble);
+    cuboid(
+        b,
+        vec3(-x - rim, 0.0, z0 - rim),
+        vec3(x + rim, h, z0),
+        false,
+        p.marble,
+    );
+    cuboid(
+        b,
+        vec3(-x - rim, 0.0, z1),
+        vec3(x + rim, h, z1 + rim),
+        false,
+        p.marble,
+    );
     cuboid(b, vec3(-x - rim, 0.0, z0), vec3(-x, h, z1), false, p.marble);
     cuboid(b, vec3(x, 0.0, z0), vec3(x + rim, h, z1), false, p.marble);
     let w = h - 0.15;
-    quad(b, [vec3(-x, w, z0), vec3(-x, w, z1), vec3(x, w, z1), vec3(x, w, z0)], p.water);
+    quad(
+        b,
+        [
+            vec3(-x, w, z0),
+            vec3(-x, w, z1),
+            vec3(x, w, z1),
+            vec3(x, w, z0),
+        ],
+        p.water,
+    );
 }
 
 /// The street from the forum to the city gate: a colonnade each side under a lean-to portico
@@ -144,12 +227,34 @@ fn street(b: &mut SceneBuilder, p: &Palette) {
         }
         let top = STREET_COLUMN.height();
         let (inner, outer) = (5.5 * side, 6.5 * side);
-        cuboid(b, vec3(inner.min(outer), top, z0), vec3(inner.max(outer), top + 0.4, z1), true, p.marble);
+        cuboid(
+            b,
+            vec3(inner.min(outer), top, z0),
+            vec3(inner.max(outer), top + 0.4, z1),
+            true,
+            p.marble,
+        );
         // The portico roof rises from the colonnade to the houses.
-        let (lo, hi) = (vec3(inner, top + 0.4, 0.0), vec3(9.0 * side, top + 1.2, 0.0));
-        let corners = [lo + Vec3::Z * z1, lo + Vec3::Z * z0, hi + Vec3::Z * z0, hi + Vec3::Z * z1];
+        let (lo, hi) = (
+            vec3(inner, top + 0.4, 0.0),
+            vec3(9.0 * side, top + 1.2, 0.0),
+        );
+        let corners = [
+            lo + Vec3::Z * z1,
+            lo + Vec3::Z * z0,
+            hi + Vec3::Z * z0,
+            hi + Vec3::Z * z1,
+        ];
         // Wound to face up on either side.
-        quad(b, if side < 0.0 { corners } else { [corners[1], corners[0], corners[3], corners[2]] }, p.tiles);
+        quad(
+            b,
+            if side < 0.0 {
+                corners
+            } else {
+                [corners[1], corners[0], corners[3], corners[2]]
+            },
+            p.tiles,
+        );
         for i in 0..8 {
             let z = z0 + 10.0 * i as f32;
             let height = if i % 2 == 0 { 6.5 } else { 7.5 };
@@ -157,7 +262,14 @@ fn street(b: &mut SceneBuilder, p: &Palette) {
             let (min, max) = (vec3(xa.min(xb), 0.0, z), vec3(xa.max(xb), height, z + 10.0));
             cuboid(b, min, max, false, p.plaster);
             let overhang = vec3(0.5, 0.0, 0.0);
-            gable_roof(b, min.with_y(height) - overhang, max + overhang, height + 2.5, p.tiles, p.plaster);
+            gable_roof(
+                b,
+                min.with_y(height) - overhang,
+                max + overhang,
+                height + 2.5,
+                p.tiles,
+                p.plaster,
+            );
         }
     }
 }
@@ -168,7 +280,13 @@ fn city_wall(b: &mut SceneBuilder, p: &Palette) {
     let (inner, outer, height, gate) = (78.0, 81.0, 8.0, 5.0);
     for side in [-1.0f32, 1.0] {
         let (xa, xb) = (gate * side, 100.0 * side);
-        cuboid(b, vec3(xa.min(xb), 0.0, inner), vec3(xa.max(xb), height, outer), false, p.stone);
+        cuboid(
+            b,
+            vec3(xa.min(xb), 0.0, inner),
+            vec3(xa.max(xb), height, outer),
+            false,
+            p.stone,
+        );
         // (x, radius, height): two gate towers, then two more along the wall.
         let towers = [(9.0f32, 4.0f32, 13.0), (40.0, 4.5, 12.0), (75.0, 4.5, 12.0)];
         for (x, r, h) in towers {
@@ -176,11 +294,20 @@ fn city_wall(b: &mut SceneBuilder, p: &Palette) {
         }
         // Merlons every 2.5 m, except where a tower stands.
         let free = |x: f32| towers.iter().all(|(tx, r, _)| (x - tx).abs() > r + 0.5);
-        for x in (0..40).map(|i| gate + 1.0 + 2.5 * i as f32).filter(|x| free(*x)) {
+        for x in (0..40)
+            .map(|i| gate + 1.0 + 2.5 * i as f32)
+            .filter(|x| free(*x))
+        {
             merlon(b, vec3(x * side, height, outer - 0.3), p.stone);
         }
     }
-    cuboid(b, vec3(-gate, 6.0, inner), vec3(gate, height, outer), true, p.stone);
+    cuboid(
+        b,
+        vec3(-gate, 6.0, inner),
+        vec3(gate, height, outer),
+        true,
+        p.stone,
+    );
 }
 
 /// A round tower, finely tessellated like the columns, with a flat top and 16 merlons around
@@ -192,16 +319,29 @@ fn tower(b: &mut SceneBuilder, centre: Vec3, radius: f32, height: f32, material:
     let rim: Vec<Vec3> = (0..segments)
         .map(|i| {
             let a = TAU * i as f32 / segments as f32;
-            vec3(centre.x + radius * a.cos(), top, centre.z - radius * a.sin())
+            vec3(
+                centre.x + radius * a.cos(),
+                top,
+                centre.z - radius * a.sin(),
+            )
         })
         .collect();
     polygon(b, &rim, material);
     let merlons = 16;
     for i in 0..merlons {
-        let (a0, a1) = (TAU * i as f32 / merlons as f32, TAU * (i as f32 + 0.5) / merlons as f32);
+        let (a0, a1) = (
+            TAU * i as f32 / merlons as f32,
+            TAU * (i as f32 + 0.5) / merlons as f32,
+        );
         let at = |r: f32, a: f32| (centre.x + r * a.cos(), centre.z - r * a.sin());
         let inner = radius - 0.6;
-        prism(b, &[at(inner, a0), at(radius, a0), at(radius, a1), at(inner, a1)], top, top + 1.2, material);
+        prism(
+            b,
+            &[at(inner, a0), at(radius, a0), at(radius, a1), at(inner, a1)],
+            top,
+            top + 1.2,
+            material,
+        );
     }
 }
 
@@ -226,13 +366,19 @@ fn settings() -> SceneSettings {
         crease_angle_deg: 45.0,
         // Low (about 20°) from the south-west: column shadows cross the street, the temple front
         // is lit and its roof throws a long shadow.
-        sun: Some(Sun { direction: [-0.85, 0.35, 0.4], radiance: [5.0e4, 4.6e4, 3.8e4], angular_diameter_deg: 0.53 }),
-        sky: Sky::Uniform { radiance: [0.10, 0.13, 0.20] },
+        sun: Some(Sun {
+            direction: [-0.85, 0.35, 0.4],
+            radiance: [5.0e4, 4.6e4, 3.8e4],
+            angular_diameter_deg: 0.53,
+        }),
+        sky: Sky::Uniform {
+            radiance: [0.10, 0.13, 0.20],
+        },
         quality: QualitySetting::default(),
         viewpoints: vec![
             viewpoint("MC", [2.0, 1.7, 110.0], [0.0, 6.0, 80.0]),
             viewpoint("VR", [-1.5, 1.7, 60.0], [0.5, 3.0, -20.0]),
-            viewpoint("VT", [7.0, 1.7, -6.0], [0.0, 7.0, -40.0]),
+            viewpoint("VT", [-9.0, 1.7, -11.0], [0.0, 6.0, -40.0]),
         ],
     }
 }

@@ -21,27 +21,100 @@ pub fn cornell() -> SceneBuilder {
     let white = b.material(Material::diffuse("white", vec3(0.725, 0.71, 0.68)));
     let red = b.material(Material::diffuse("red", vec3(0.63, 0.065, 0.05)));
     let green = b.material(Material::diffuse("green", vec3(0.14, 0.45, 0.091)));
-    let light = b.material(Material::emitter("light", Vec3::splat(0.78), vec3(17.0, 12.0, 4.0)));
+    let light = b.material(Material::emitter(
+        "light",
+        Vec3::splat(0.78),
+        vec3(17.0, 12.0, 4.0),
+    ));
     let walls = [
-        ([mm(552.8, 0.0, 0.0), mm(0.0, 0.0, 0.0), mm(0.0, 0.0, 559.2), mm(549.6, 0.0, 559.2)], white),
-        ([mm(343.0, 548.0, 227.0), mm(343.0, 548.0, 332.0), mm(213.0, 548.0, 332.0), mm(213.0, 548.0, 227.0)], light),
-        ([mm(556.0, 548.8, 0.0), mm(556.0, 548.8, 559.2), mm(0.0, 548.8, 559.2), mm(0.0, 548.8, 0.0)], white),
-        ([mm(549.6, 0.0, 559.2), mm(0.0, 0.0, 559.2), mm(0.0, 548.8, 559.2), mm(556.0, 548.8, 559.2)], white),
-        ([mm(0.0, 0.0, 559.2), mm(0.0, 0.0, 0.0), mm(0.0, 548.8, 0.0), mm(0.0, 548.8, 559.2)], green),
-        ([mm(552.8, 0.0, 0.0), mm(549.6, 0.0, 559.2), mm(556.0, 548.8, 559.2), mm(556.0, 548.8, 0.0)], red),
+        (
+            [
+                mm(552.8, 0.0, 0.0),
+                mm(0.0, 0.0, 0.0),
+                mm(0.0, 0.0, 559.2),
+                mm(549.6, 0.0, 559.2),
+            ],
+            white,
+        ),
+        (
+            [
+                mm(343.0, 548.0, 227.0),
+                mm(343.0, 548.0, 332.0),
+                mm(213.0, 548.0, 332.0),
+                mm(213.0, 548.0, 227.0),
+            ],
+            light,
+        ),
+        (
+            [
+                mm(556.0, 548.8, 0.0),
+                mm(556.0, 548.8, 559.2),
+                mm(0.0, 548.8, 559.2),
+                mm(0.0, 548.8, 0.0),
+            ],
+            white,
+        ),
+        (
+            [
+                mm(549.6, 0.0, 559.2),
+                mm(0.0, 0.0, 559.2),
+                mm(0.0, 548.8, 559.2),
+                mm(556.0, 548.8, 559.2),
+            ],
+            white,
+        ),
+        (
+            [
+                mm(0.0, 0.0, 559.2),
+                mm(0.0, 0.0, 0.0),
+                mm(0.0, 548.8, 0.0),
+                mm(0.0, 548.8, 559.2),
+            ],
+            green,
+        ),
+        (
+            [
+                mm(552.8, 0.0, 0.0),
+                mm(549.6, 0.0, 559.2),
+                mm(556.0, 548.8, 559.2),
+                mm(556.0, 548.8, 0.0),
+            ],
+            red,
+        ),
     ];
     for (corners, material) in walls {
         quad(&mut b, corners, material);
     }
-    block(&mut b, [(130.0, 65.0), (82.0, 225.0), (240.0, 272.0), (290.0, 114.0)], 165.0, white);
-    block(&mut b, [(423.0, 247.0), (265.0, 296.0), (314.0, 456.0), (472.0, 406.0)], 330.0, white);
+    block(
+        &mut b,
+        [(130.0, 65.0), (82.0, 225.0), (240.0, 272.0), (290.0, 114.0)],
+        165.0,
+        white,
+    );
+    block(
+        &mut b,
+        [
+            (423.0, 247.0),
+            (265.0, 296.0),
+            (314.0, 456.0),
+            (472.0, 406.0),
+        ],
+        330.0,
+        white,
+    );
     b
 }
 
 /// A block standing on the floor over a four-corner footprint (x, z in mm, counter-clockwise
 /// seen from above): top and sides.
 fn block(b: &mut SceneBuilder, footprint: [(f32, f32); 4], height: f32, material: u32) {
-    prism(b, &footprint.map(|(x, z)| (x * 1e-3, z * 1e-3)), 0.0, height * 1e-3, material);
+    prism(
+        b,
+        &footprint.map(|(x, z)| (x * 1e-3, z * 1e-3)),
+        0.0,
+        height * 1e-3,
+        material,
+    );
 }
 
 fn settings() -> SceneSettings {

@@ -25,29 +25,73 @@ pub fn polygon(b: &mut SceneBuilder, corners: &[Vec3], material: u32) {
 /// A vertical prism over a convex footprint of (x, z) points, counter-clockwise seen from above
 /// (from +y): top and sides, no bottom.
 pub fn prism(b: &mut SceneBuilder, footprint: &[(f32, f32)], y0: f32, y1: f32, material: u32) {
-    let at = |i: usize, y: f32| vec3(footprint[i % footprint.len()].0, y, footprint[i % footprint.len()].1);
+    let at = |i: usize, y: f32| {
+        vec3(
+            footprint[i % footprint.len()].0,
+            y,
+            footprint[i % footprint.len()].1,
+        )
+    };
     let top: Vec<Vec3> = (0..footprint.len()).map(|i| at(i, y1)).collect();
     polygon(b, &top, material);
     for i in 0..footprint.len() {
-        quad(b, [at(i + 1, y0), at(i + 1, y1), at(i, y1), at(i, y0)], material);
+        quad(
+            b,
+            [at(i + 1, y0), at(i + 1, y1), at(i, y1), at(i, y0)],
+            material,
+        );
     }
 }
 
 /// An axis-aligned box; `with_bottom` false leaves out the face on the ground.
 pub fn cuboid(b: &mut SceneBuilder, min: Vec3, max: Vec3, with_bottom: bool, material: u32) {
     let corner = |x: bool, y: bool, z: bool| {
-        vec3(if x { max.x } else { min.x }, if y { max.y } else { min.y }, if z { max.z } else { min.z })
+        vec3(
+            if x { max.x } else { min.x },
+            if y { max.y } else { min.y },
+            if z { max.z } else { min.z },
+        )
     };
     let (f, t) = (false, true);
     let mut faces = vec![
-        [corner(f, t, f), corner(f, t, t), corner(t, t, t), corner(t, t, f)], // top (+y)
-        [corner(f, f, t), corner(t, f, t), corner(t, t, t), corner(f, t, t)], // +z
-        [corner(t, f, f), corner(f, f, f), corner(f, t, f), corner(t, t, f)], // -z
-        [corner(t, f, t), corner(t, f, f), corner(t, t, f), corner(t, t, t)], // +x
-        [corner(f, f, f), corner(f, f, t), corner(f, t, t), corner(f, t, f)], // -x
+        [
+            corner(f, t, f),
+            corner(f, t, t),
+            corner(t, t, t),
+            corner(t, t, f),
+        ], // top (+y)
+        [
+            corner(f, f, t),
+            corner(t, f, t),
+            corner(t, t, t),
+            corner(f, t, t),
+        ], // +z
+        [
+            corner(t, f, f),
+            corner(f, f, f),
+            corner(f, t, f),
+            corner(t, t, f),
+        ], // -z
+        [
+            corner(t, f, t),
+            corner(t, f, f),
+            corner(t, t, f),
+            corner(t, t, t),
+        ], // +x
+        [
+            corner(f, f, f),
+            corner(f, f, t),
+            corner(f, t, t),
+            corner(f, t, f),
+        ], // -x
     ];
     if with_bottom {
-        faces.push([corner(f, f, f), corner(t, f, f), corner(t, f, t), corner(f, f, t)]);
+        faces.push([
+            corner(f, f, f),
+            corner(t, f, f),
+            corner(t, f, t),
+            corner(f, f, t),
+        ]);
     }
     for face in faces {
         quad(b, face, material);
@@ -56,7 +100,15 @@ pub fn cuboid(b: &mut SceneBuilder, min: Vec3, max: Vec3, with_bottom: bool, mat
 
 /// An open vertical cylinder (no caps: columns carry a capital and stand on a base), finely
 /// tessellated: `segments` around, `rings` bands up.
-pub fn cylinder(b: &mut SceneBuilder, base: Vec3, radius: f32, height: f32, segments: u32, rings: u32, material: u32) {
+pub fn cylinder(
+    b: &mut SceneBuilder,
+    base: Vec3,
+    radius: f32,
+    height: f32,
+    segments: u32,
+    rings: u32,
+    material: u32,
+) {
     let ring = |j: u32| -> Vec<u32> {
         let y = base.y + height * j as f32 / rings as f32;
         (0..segments)
@@ -83,8 +135,26 @@ pub fn cylinder(b: &mut SceneBuilder, base: Vec3, radius: f32, height: f32, segm
 pub fn gable_roof(b: &mut SceneBuilder, min: Vec3, max: Vec3, ridge_y: f32, roof: u32, gable: u32) {
     let mid = 0.5 * (min.x + max.x);
     let (y, (z0, z1)) = (min.y, (min.z, max.z));
-    quad(b, [vec3(max.x, y, z1), vec3(max.x, y, z0), vec3(mid, ridge_y, z0), vec3(mid, ridge_y, z1)], roof);
-    quad(b, [vec3(min.x, y, z0), vec3(min.x, y, z1), vec3(mid, ridge_y, z1), vec3(mid, ridge_y, z0)], roof);
+    quad(
+        b,
+        [
+            vec3(max.x, y, z1),
+            vec3(max.x, y, z0),
+            vec3(mid, ridge_y, z0),
+            vec3(mid, ridge_y, z1),
+        ],
+        roof,
+    );
+    quad(
+        b,
+        [
+            vec3(min.x, y, z0),
+            vec3(min.x, y, z1),
+            vec3(mid, ridge_y, z1),
+            vec3(mid, ridge_y, z0),
+        ],
+        roof,
+    );
     for (z, [l, r]) in [(z1, [min.x, max.x]), (z0, [max.x, min.x])] {
         let v = [vec3(l, y, z), vec3(r, y, z), vec3(mid, ridge_y, z)].map(|p| b.vertex(p));
         b.triangle(v, gable);
@@ -110,7 +180,10 @@ mod tests {
         for t in 0..scene.mesh.triangles.len() {
             let [a, b, c] = scene.mesh.triangle_positions(t);
             let n = scene.mesh.face_normal(t);
-            assert!(n.dot((a + b + c) / 3.0 - centre) > 0.0, "triangle {t} faces inward");
+            assert!(
+                n.dot((a + b + c) / 3.0 - centre) > 0.0,
+                "triangle {t} faces inward"
+            );
         }
     }
 
@@ -132,7 +205,10 @@ mod tests {
         assert_eq!(s.report.crease_split_vertices, 0);
         assert_outward(&s, vec3(0.0, 1.0, 0.0));
         let (lo, hi) = s.mesh.bounds();
-        assert!(lo.abs_diff_eq(vec3(-1.0, 0.0, -1.0), 1e-5) && hi.abs_diff_eq(vec3(1.0, 2.0, 1.0), 1e-5));
+        assert!(
+            lo.abs_diff_eq(vec3(-1.0, 0.0, -1.0), 1e-5)
+                && hi.abs_diff_eq(vec3(1.0, 2.0, 1.0), 1e-5)
+        );
     }
 
     #[test]

@@ -25,7 +25,10 @@ pub enum Shading {
 
 impl Shading {
     fn shadow_line(n: u32) -> (Vec2, f32) {
-        (Vec2::new(1.0, 0.3).normalize(), 0.41 * n as f32 / Vec2::new(1.0, 0.3).length())
+        (
+            Vec2::new(1.0, 0.3).normalize(),
+            0.41 * n as f32 / Vec2::new(1.0, 0.3).length(),
+        )
     }
 
     pub fn luminance(self, p: Vec2, n: u32) -> f32 {
@@ -56,7 +59,13 @@ pub struct Synthetic {
 
 impl Synthetic {
     pub fn new(n: u32, res: u32, shading: Shading) -> Self {
-        let mesh = SubdivisionMesh::new(&crate::mesh::grid_mesh(n), MeshParams { min_edge_length: 0.0, ..Default::default() });
+        let mesh = SubdivisionMesh::new(
+            &crate::mesh::grid_mesh(n),
+            MeshParams {
+                min_edge_length: 0.0,
+                ..Default::default()
+            },
+        );
         let mut s = Synthetic {
             mesh,
             cache: ShadingCache::new(usize::MAX),
@@ -66,7 +75,11 @@ impl Synthetic {
             n,
             res,
         };
-        s.shade((0..s.mesh.vertex_count() as u32).collect::<Vec<_>>().as_slice());
+        s.shade(
+            (0..s.mesh.vertex_count() as u32)
+                .collect::<Vec<_>>()
+                .as_slice(),
+        );
         s.project();
         s
     }
@@ -108,7 +121,9 @@ impl Synthetic {
     pub fn error(&self) -> f64 {
         let total: f64 = (0..self.res * self.res)
             .map(|i| {
-                let truth = self.shading.luminance(self.pixel_centre(i % self.res, i / self.res), self.n);
+                let truth = self
+                    .shading
+                    .luminance(self.pixel_centre(i % self.res, i / self.res), self.n);
                 f64::from((self.image.luminance[i as usize] - truth).abs())
             })
             .sum();
@@ -117,7 +132,10 @@ impl Synthetic {
 
     /// Whether the leaf's vertices lie on both sides of the shadow line.
     pub fn straddles_shadow(&self, leaf: NodeId) -> bool {
-        let lit = self.mesh.leaf_positions(leaf).map(|p| self.shading.luminance(p.truncate(), self.n) > 0.5);
+        let lit = self
+            .mesh
+            .leaf_positions(leaf)
+            .map(|p| self.shading.luminance(p.truncate(), self.n) > 0.5);
         lit.contains(&true) && lit.contains(&false)
     }
 
@@ -130,9 +148,23 @@ impl Synthetic {
 
     fn shade(&mut self, vertices: &[u32]) {
         for &vertex in vertices {
-            let l = self.shading.luminance(self.mesh.vertex(vertex).position.truncate(), self.n);
-            let sample = CachedSample { rgb: [l; 3], quality: Quality::INTERACTIVE, view_dependent: false, eye: None, last_seen: 0 };
-            self.cache.insert(SampleKey { vertex, side: Side::Front }, sample);
+            let l = self
+                .shading
+                .luminance(self.mesh.vertex(vertex).position.truncate(), self.n);
+            let sample = CachedSample {
+                rgb: [l; 3],
+                quality: Quality::INTERACTIVE,
+                view_dependent: false,
+                eye: None,
+                last_seen: 0,
+            };
+            self.cache.insert(
+                SampleKey {
+                    vertex,
+                    side: Side::Front,
+                },
+                sample,
+            );
         }
     }
 
@@ -143,13 +175,23 @@ impl Synthetic {
     /// Rasterises the leaves from above: the ID image, the Gouraud luminance, the visible set.
     fn project(&mut self) {
         let pixels = (self.res * self.res) as usize;
-        let mut image = LuminanceImage { width: self.res, height: self.res, luminance: vec![0.0; pixels], ids: vec![LuminanceImage::NONE; pixels] };
+        let mut image = LuminanceImage {
+            width: self.res,
+            height: self.res,
+            luminance: vec![0.0; pixels],
+            ids: vec![LuminanceImage::NONE; pixels],
+        };
         let scale = self.res as f32 / self.n as f32;
         for leaf in self.mesh.leaves() {
             let p = self.mesh.leaf_positions(leaf).map(Vec3::truncate);
-            let lum = self.cache.leaf_radiance(&self.mesh, leaf, Side::Front).map(|rgb| rgb.map(crate::nld::luminance));
+            let lum = self
+                .cache
+                .leaf_radiance(&self.mesh, leaf, Side::Front)
+                .map(|rgb| rgb.map(crate::nld::luminance));
             let lo = (p[0].min(p[1]).min(p[2]) * scale).floor().max(Vec2::ZERO);
-            let hi = (p[0].max(p[1]).max(p[2]) * scale).ceil().min(Vec2::splat(self.res as f32));
+            let hi = (p[0].max(p[1]).max(p[2]) * scale)
+                .ceil()
+                .min(Vec2::splat(self.res as f32));
             for y in lo.y as u32..hi.y as u32 {
                 for x in lo.x as u32..hi.x as u32 {
                     let i = (y * self.res + x) as usize;
@@ -158,7 +200,8 @@ impl Synthetic {
                     }
                     if let Some(w) = barycentric(p, self.pixel_centre(x, y)) {
                         image.ids[i] = leaf;
-                        image.luminance[i] = lum.map_or(0.0, |l| w[0] * l[0] + w[1] * l[1] + w[2] * l[2]);
+                        image.luminance[i] =
+                            lum.map_or(0.0, |l| w[0] * l[0] + w[1] * l[1] + w[2] * l[2]);
                     }
                 }
             }
@@ -168,7 +211,14 @@ impl Synthetic {
             *counts.entry(id).or_default() += 1;
         }
         self.visible = VisibleSet {
-            leaves: counts.into_iter().map(|(leaf, pixels)| VisibleLeaf { leaf, side: Side::Front, pixels }).collect(),
+            leaves: counts
+                .into_iter()
+                .map(|(leaf, pixels)| VisibleLeaf {
+                    leaf,
+                    side: Side::Front,
+                    pixels,
+                })
+                .collect(),
             width: self.res,
             height: self.res,
         };
@@ -182,7 +232,7 @@ fn barycentric(p: [Vec2; 3], q: Vec2) -> Option<[f32; 3]> {
     if area == 0.0 {
         return None;
     }
-    let w1 = (q - p[0]).perp_dot(p[2] - p[0]) / -area;
+    let w1 = (q - p[0]).perp_dot(p[2] - p[0]) / area;
     let w2 = (p[1] - p[0]).perp_dot(q - p[0]) / area;
     let w0 = 1.0 - w1 - w2;
     let eps = -1e-6;

@@ -25,10 +25,20 @@ impl Quad {
     /// The four (or, at odd or unit sizes, fewer) quadrants.
     fn children(self) -> impl Iterator<Item = Quad> {
         let (w0, h0) = (self.w.div_ceil(2), self.h.div_ceil(2));
-        [(0, 0, w0, h0), (w0, 0, self.w - w0, h0), (0, h0, w0, self.h - h0), (w0, h0, self.w - w0, self.h - h0)]
-            .into_iter()
-            .filter(|&(_, _, w, h)| w > 0 && h > 0)
-            .map(move |(dx, dy, w, h)| Quad { x: self.x + dx, y: self.y + dy, w, h })
+        [
+            (0, 0, w0, h0),
+            (w0, 0, self.w - w0, h0),
+            (0, h0, w0, self.h - h0),
+            (w0, h0, self.w - w0, self.h - h0),
+        ]
+        .into_iter()
+        .filter(|&(_, _, w, h)| w > 0 && h > 0)
+        .map(move |(dx, dy, w, h)| Quad {
+            x: self.x + dx,
+            y: self.y + dy,
+            w,
+            h,
+        })
     }
 
     /// S of eq. 4.5 over the corners that see geometry.
@@ -78,27 +88,45 @@ impl Criterion for NldIs {
     }
 
     fn select(&mut self, input: &CriterionInput, max: usize) -> Vec<NodeId> {
-        let Some(image) = input.image else { return Vec::new() };
+        let Some(image) = input.image else {
+            return Vec::new();
+        };
         if image.width == 0 || image.height == 0 {
             return Vec::new();
         }
         if !self.started {
             self.started = true;
-            self.queue.push_back(Quad { x: 0, y: 0, w: image.width, h: image.height });
+            self.queue.push_back(Quad {
+                x: 0,
+                y: 0,
+                w: image.width,
+                h: image.height,
+            });
         }
-        let pixels: HashMap<NodeId, u32, FastHash> = input.visible.leaves.iter().map(|v| (v.leaf, v.pixels)).collect();
-        let budget = (f64::from(self.fraction) * f64::from(image.width) * f64::from(image.height)) as usize;
+        let pixels: HashMap<NodeId, u32, FastHash> = input
+            .visible
+            .leaves
+            .iter()
+            .map(|v| (v.leaf, v.pixels))
+            .collect();
+        let budget =
+            (f64::from(self.fraction) * f64::from(image.width) * f64::from(image.height)) as usize;
         let mut out = Vec::new();
         while out.len() < max {
             if self.selected.len() >= budget {
                 self.queue.clear();
             }
-            let Some(quad) = self.queue.pop_front() else { break };
+            let Some(quad) = self.queue.pop_front() else {
+                break;
+            };
             // The image may have shrunk since the quad was queued.
             if quad.x + quad.w > image.width || quad.y + quad.h > image.height {
                 continue;
             }
-            let children: Vec<Quad> = quad.children().filter(|c| c.w * c.h < quad.w * quad.h).collect();
+            let children: Vec<Quad> = quad
+                .children()
+                .filter(|c| c.w * c.h < quad.w * quad.h)
+                .collect();
             let best = children
                 .iter()
                 .map(|&c| (c, c.nld(image, input.l_white)))
@@ -110,7 +138,9 @@ impl Criterion for NldIs {
                 && s > 0.0
             {
                 let leaf = child.centre_id(image);
-                let big_enough = pixels.get(&leaf).is_some_and(|&p| p >= self.min_leaf_pixels);
+                let big_enough = pixels
+                    .get(&leaf)
+                    .is_some_and(|&p| p >= self.min_leaf_pixels);
                 if big_enough && input.mesh.is_leaf(leaf) && self.selected.insert(leaf) {
                     out.push(leaf);
                 }
@@ -144,7 +174,10 @@ mod tests {
         is.reset();
         let picked = is.select(&edge.input(), 8);
         assert_eq!(picked.len(), 8);
-        assert!(picked.iter().all(|&l| edge.distance_to_shadow(l) < 3.0), "only leaves near the shadow edge");
+        assert!(
+            picked.iter().all(|&l| edge.distance_to_shadow(l) < 3.0),
+            "only leaves near the shadow edge"
+        );
     }
 
     #[test]

@@ -3,8 +3,8 @@
 //! `s_ref_step` each time a whole pass over the visible set selects nothing, down to `s_min`.
 //! Large-triangle rule (§4.3.5, fig. 4.10): a leaf covering more than `large_triangle_fraction`
 //! of the image is selected whatever its S, since a shadow may cross it without touching its
-//! vertices. A leaf is selected at most once per S_ref level (one the caller declined to split
-//! is not offered again), and the level does not drop while the visible set still lists split
+//! vertices. A leaf is offered once until `reset` (one the caller declined to split, being too
+//! small, would be declined again), and the level does not drop while the visible set still lists split
 //! leaves or leaves without all samples: their children or samples may be above S_ref.
 
 use std::collections::HashSet;
@@ -20,7 +20,8 @@ pub struct NldOs {
     found_in_pass: bool,
     waiting_in_pass: bool,
     done: bool,
-    selected_at_level: HashSet<NodeId, FastHash>,
+    /// Leaves returned since `reset`.
+    offered: HashSet<NodeId, FastHash>,
 }
 
 /// What the end of a pass over the visible set leads to.
@@ -40,7 +41,7 @@ impl NldOs {
             found_in_pass: false,
             waiting_in_pass: false,
             done: false,
-            selected_at_level: HashSet::default(),
+            offered: HashSet::default(),
         }
     }
 
@@ -56,7 +57,6 @@ impl NldOs {
             PassEnd::Wait
         } else if self.s_ref > self.settings.s_min {
             self.s_ref = (self.s_ref - self.settings.s_ref_step).max(self.settings.s_min);
-            self.selected_at_level.clear();
             PassEnd::Again
         } else {
             self.done = true;
@@ -96,10 +96,14 @@ impl Criterion for NldOs {
                 self.waiting_in_pass = true;
                 continue;
             }
-            if v.pixels < self.settings.min_leaf_pixels || self.selected_at_level.contains(&v.leaf) {
+            if v.pixels < self.settings.min_leaf_pixels || self.offered.contains(&v.leaf) {
                 continue;
             }
-            let wanted = if is_large(v.pixels, input.visible, self.settings.large_triangle_fraction) {
+            let wanted = if is_large(
+                v.pixels,
+                input.visible,
+                self.settings.large_triangle_fraction,
+            ) {
                 true
             } else if let Some(s) = leaf_nld(input, v.leaf, v.side) {
                 s > self.s_ref
@@ -108,7 +112,7 @@ impl Criterion for NldOs {
                 false
             };
             if wanted {
-                self.selected_at_level.insert(v.leaf);
+                self.offered.insert(v.leaf);
                 self.found_in_pass = true;
                 out.push(v.leaf);
             }
@@ -129,7 +133,10 @@ mod tests {
     #[test]
     fn a_flat_lit_region_is_left_alone() {
         let flat = Synthetic::new(6, 96, Shading::Flat);
-        let mut os = NldOs::new(&CriterionSettings { large_triangle_fraction: 1.0, ..Default::default() });
+        let mut os = NldOs::new(&CriterionSettings {
+            large_triangle_fraction: 1.0,
+            ..Default::default()
+        });
         for _ in 0..10 {
             assert!(os.select(&flat.input(), 100).is_empty());
         }
@@ -139,17 +146,34 @@ mod tests {
     #[test]
     fn a_shadow_edge_across_a_strip_is_followed() {
         let mut edge = Synthetic::new(6, 96, Shading::ShadowEdge);
-        let settings = CriterionSettings { large_triangle_fraction: 1.0, ..Default::default() };
+        let settings = CriterionSettings {
+            large_triangle_fraction: 1.0,
+            ..Default::default()
+        };
         let mut os = NldOs::new(&settings);
         for _ in 0..6 {
             let picked = os.select(&edge.input(), 16);
-            assert!(picked.iter().all(|&l| edge.straddles_shadow(l)), "only leaves across the edge");
+            assert!(
+                picked.iter().all(|&l| edge.straddles_shadow(l)),
+                "only leaves across the edge"
+            );
             edge.refine_and_shade(&picked);
         }
         // Refinement concentrates along the edge: the finest leaves straddle it.
-        assert!(edge.mesh.leaf_count() > 3 * 72, "refined: {}", edge.mesh.leaf_count());
-        let deepest = edge.mesh.leaves().max_by_key(|&l| edge.mesh.node(l).depth).unwrap();
-        assert!(edge.distance_to_shadow(deepest) < 0.5, "deepest leaf {deepest} is near the shadow line");
+        assert!(
+            edge.mesh.leaf_count() > 3 * 72,
+            "refined: {}",
+            edge.mesh.leaf_count()
+        );
+        let deepest = edge
+            .mesh
+            .leaves()
+            .max_by_key(|&l| edge.mesh.node(l).depth)
+            .unwrap();
+        assert!(
+            edge.distance_to_shadow(deepest) < 0.5,
+            "deepest leaf {deepest} is near the shadow line"
+        );
     }
 
     #[test]
@@ -157,8 +181,15 @@ mod tests {
         let blob = Synthetic::new(1, 64, Shading::Flat);
         let mut os = NldOs::new(&CriterionSettings::default());
         let picked = os.select(&blob.input(), 10);
-        assert_eq!(picked.len(), 2, "both halves of the one square cover half the image");
-        let mut none = NldOs::new(&CriterionSettings { large_triangle_fraction: 1.0, ..Default::default() });
+        assert_eq!(
+            picked.len(),
+            2,
+            "both halves of the one square cover half the image"
+        );
+        let mut none = NldOs::new(&CriterionSettings {
+            large_triangle_fraction: 1.0,
+            ..Default::default()
+        });
         assert!(none.select(&blob.input(), 10).is_empty());
     }
 }

@@ -21,7 +21,12 @@ pub struct Rnd {
 
 impl Rnd {
     pub fn new(settings: &CriterionSettings, seed: u64) -> Self {
-        Rnd { seed, rng: Pcg64Mcg::seed_from_u64(seed), fraction: settings.rnd_fraction, picks: 0 }
+        Rnd {
+            seed,
+            rng: Pcg64Mcg::seed_from_u64(seed),
+            fraction: settings.rnd_fraction,
+            picks: 0,
+        }
     }
 }
 
@@ -44,7 +49,9 @@ impl Criterion for Rnd {
                 Some(*sum)
             })
             .collect();
-        let image = visible.image_pixels().max(cumulative.last().copied().unwrap_or(0));
+        let image = visible
+            .image_pixels()
+            .max(cumulative.last().copied().unwrap_or(0));
         let budget = (f64::from(self.fraction) * visible.image_pixels() as f64) as u64;
         let mut chosen = HashSet::<NodeId, FastHash>::default();
         let mut out = Vec::new();
@@ -76,11 +83,21 @@ mod tests {
     #[test]
     fn picks_follow_pixels_stop_after_the_fraction_and_repeat_after_reset() {
         let scene = Synthetic::new(4, 64, Shading::Flat);
-        let settings = CriterionSettings { rnd_fraction: 0.01, ..Default::default() };
+        let settings = CriterionSettings {
+            rnd_fraction: 0.01,
+            ..Default::default()
+        };
         let mut rnd = Rnd::new(&settings, 3);
         let first = rnd.select(&scene.input(), 1000);
-        assert!(!first.is_empty() && first.len() <= 41, "{} picks of at most 40 + 1", first.len());
-        assert!(rnd.select(&scene.input(), 1000).is_empty(), "the pass is over");
+        assert!(
+            !first.is_empty() && first.len() <= 41,
+            "{} picks of at most 40 + 1",
+            first.len()
+        );
+        assert!(
+            rnd.select(&scene.input(), 1000).is_empty(),
+            "the pass is over"
+        );
         rnd.reset();
         assert_eq!(rnd.select(&scene.input(), 1000), first);
     }

@@ -19,20 +19,29 @@ impl Interval {
 
     /// The same segment seen from an edge running the other way.
     fn reversed(self) -> Interval {
-        Interval { lo: 1.0 - self.hi, hi: 1.0 - self.lo }
+        Interval {
+            lo: 1.0 - self.hi,
+            hi: 1.0 - self.lo,
+        }
     }
 
     /// This interval of `[from, to]` expressed in the parent's parameters.
     fn into_range(self, from: f64, to: f64) -> Interval {
         let w = to - from;
-        Interval { lo: from + self.lo * w, hi: from + self.hi * w }
+        Interval {
+            lo: from + self.lo * w,
+            hi: from + self.hi * w,
+        }
     }
 
     /// The part over `[from, to]`, expressed in that sub-edge's parameters, if they overlap.
     fn within(self, from: f64, to: f64) -> Option<Interval> {
         (self.hi.min(to) > self.lo.max(from)).then(|| {
             let w = to - from;
-            Interval { lo: (self.lo - from) / w, hi: (self.hi - from) / w }
+            Interval {
+                lo: (self.lo - from) / w,
+                hi: (self.hi - from) / w,
+            }
         })
     }
 }
@@ -52,13 +61,19 @@ enum ParentEdge {
 /// `refine::red_children`).
 fn red_parent_edge(child: usize, edge: usize) -> ParentEdge {
     if child == 3 {
-        ParentEdge::Interior { child: (edge + 1) % 3, edge: (edge + 2) % 3 }
+        ParentEdge::Interior {
+            child: (edge + 1) % 3,
+            edge: (edge + 2) % 3,
+        }
     } else if edge == child {
         ParentEdge::Half(child, false)
     } else if edge == (child + 2) % 3 {
         ParentEdge::Half(edge, true)
     } else {
-        ParentEdge::Interior { child: 3, edge: (child + 2) % 3 }
+        ParentEdge::Interior {
+            child: 3,
+            edge: (child + 2) % 3,
+        }
     }
 }
 
@@ -74,19 +89,22 @@ fn green_parent_edge(s: usize, child: usize, edge: usize) -> ParentEdge {
     }
 }
 
-/// The children lying along parent edge `k`: (child index, its edge, part of the parent edge).
-fn children_along(split: Split, k: usize) -> Vec<(usize, usize, f64, f64)> {
+/// The children lying along parent edge `k`: (child index, its edge, part of the parent edge);
+/// one or two of them, the second `None` when one child holds the whole edge.
+type AlongEdge = [Option<(usize, usize, f64, f64)>; 2];
+
+fn children_along(split: Split, k: usize) -> AlongEdge {
     match split {
-        Split::None => Vec::new(),
-        Split::Red { .. } => vec![(k, k, 0.0, 0.5), ((k + 1) % 3, k, 0.5, 1.0)],
+        Split::None => [None, None],
+        Split::Red { .. } => [Some((k, k, 0.0, 0.5)), Some(((k + 1) % 3, k, 0.5, 1.0))],
         Split::Green { edge, .. } => {
             let s = edge as usize;
             if k == s {
-                vec![(0, 0, 0.0, 0.5), (1, 0, 0.5, 1.0)]
+                [Some((0, 0, 0.0, 0.5)), Some((1, 0, 0.5, 1.0))]
             } else if k == (s + 1) % 3 {
-                vec![(1, 1, 0.0, 1.0)]
+                [Some((1, 1, 0.0, 1.0)), None]
             } else {
-                vec![(0, 2, 0.0, 1.0)]
+                [Some((0, 2, 0.0, 1.0)), None]
             }
         }
     }
@@ -105,7 +123,10 @@ impl BaseAdjacency {
     pub(super) fn new(nodes: &[Node], vertex_point: &[u32], degenerate: &[bool]) -> Self {
         let points = |t: usize, k: usize| {
             let v = nodes[t].vertices;
-            (vertex_point[v[k] as usize], vertex_point[v[(k + 1) % 3] as usize])
+            (
+                vertex_point[v[k] as usize],
+                vertex_point[v[(k + 1) % 3] as usize],
+            )
         };
         let mut edges: Vec<(u64, u32, u8)> = (0..nodes.len())
             .filter(|&t| !degenerate[t])
@@ -142,7 +163,8 @@ impl BaseAdjacency {
     }
 
     pub(super) fn heap_bytes(&self) -> usize {
-        self.offsets.capacity() * 4 + self.across.capacity() * std::mem::size_of::<(u32, u8, bool)>()
+        self.offsets.capacity() * 4
+            + self.across.capacity() * std::mem::size_of::<(u32, u8, bool)>()
     }
 }
 
@@ -161,7 +183,11 @@ impl SubdivisionMesh {
                 ParentEdge::Whole(e) => edge = e,
                 ParentEdge::Half(e, second) => {
                     edge = e;
-                    part = if second { part.into_range(0.5, 1.0) } else { part.into_range(0.0, 0.5) };
+                    part = if second {
+                        part.into_range(0.5, 1.0)
+                    } else {
+                        part.into_range(0.0, 0.5)
+                    };
                 }
                 ParentEdge::Interior { child, edge } => {
                     let sibling = self.node(parent).children().start + child as u32;
@@ -184,7 +210,7 @@ impl SubdivisionMesh {
             return;
         }
         let first = node.children().start;
-        for (child, edge, from, to) in children_along(node.split, k) {
+        for (child, edge, from, to) in children_along(node.split, k).into_iter().flatten() {
             if let Some(sub) = part.within(from, to) {
                 self.leaves_along(first + child as u32, edge, sub, out);
             }
@@ -201,17 +227,26 @@ mod tests {
     #[test]
     fn child_tables_are_inverse() {
         for s in 0..3u8 {
-            let splits = [Split::Red { first_child: 0 }, Split::Green { first_child: 0, edge: s }];
+            let splits = [
+                Split::Red { first_child: 0 },
+                Split::Green {
+                    first_child: 0,
+                    edge: s,
+                },
+            ];
             for split in splits {
                 for k in 0..3 {
-                    for (child, edge, from, _) in children_along(split, k) {
+                    let along = children_along(split, k);
+                    for (child, edge, from, _) in along.into_iter().flatten() {
                         let place = match split {
-                            Split::Green { edge: s, .. } => green_parent_edge(s as usize, child, edge),
+                            Split::Green { edge: s, .. } => {
+                                green_parent_edge(s as usize, child, edge)
+                            }
                             _ => red_parent_edge(child, edge),
                         };
-                        let expected = match children_along(split, k).len() {
-                            1 => ParentEdge::Whole(k),
-                            _ => ParentEdge::Half(k, from > 0.0),
+                        let expected = match along[1] {
+                            None => ParentEdge::Whole(k),
+                            Some(_) => ParentEdge::Half(k, from > 0.0),
                         };
                         assert_eq!(place, expected, "{split:?} edge {k} child {child}");
                     }
@@ -229,7 +264,13 @@ mod tests {
                 }
             }
         }
-        assert_eq!(green_parent_edge(1, 0, 1), ParentEdge::Interior { child: 1, edge: 2 });
-        assert_eq!(green_parent_edge(1, 1, 2), ParentEdge::Interior { child: 0, edge: 1 });
+        assert_eq!(
+            green_parent_edge(1, 0, 1),
+            ParentEdge::Interior { child: 1, edge: 2 }
+        );
+        assert_eq!(
+            green_parent_edge(1, 1, 2),
+            ParentEdge::Interior { child: 0, edge: 1 }
+        );
     }
 }

@@ -40,6 +40,10 @@ mod tests {
         let build = FastHash::default();
         let buckets: std::collections::HashSet<u64> =
             (0..1024u64).map(|k| build.hash_one(k) & 1023).collect();
-        assert!(buckets.len() > 600, "only {} of 1024 buckets used", buckets.len());
+        assert!(
+            buckets.len() > 600,
+            "only {} of 1024 buckets used",
+            buckets.len()
+        );
     }
 }

@@ -43,8 +43,8 @@ use std::collections::HashMap;
 use glam::Vec3;
 
 pub use angles::{angle_bound, min_angle};
-pub use grid::grid_mesh;
 use fast_hash::FastHash;
+pub use grid::grid_mesh;
 pub use step::RefinementStep;
 
 /// Any triangle of the hierarchy. Never reused: a removed node stays as a dead entry.
@@ -73,7 +73,10 @@ impl Default for MeshParams {
     fn default() -> Self {
         // The pixel veto of the caller (`refine`'s `too_small`) is the working limit; this one
         // only guards scenes in metres against refining below a millimetre.
-        MeshParams { min_edge_length: 1e-3, weld_tolerance_rel: 1e-6 }
+        MeshParams {
+            min_edge_length: 1e-3,
+            weld_tolerance_rel: 1e-6,
+        }
     }
 }
 
@@ -103,9 +106,14 @@ pub enum NodeKind {
 pub enum Split {
     None,
     /// Four children `first..first + 4`: the corners at vertices 0, 1, 2, then the middle one.
-    Red { first_child: NodeId },
+    Red {
+        first_child: NodeId,
+    },
     /// Two children `first..first + 2` bisecting edge `edge` (vertices `edge`, `edge + 1`).
-    Green { first_child: NodeId, edge: u8 },
+    Green {
+        first_child: NodeId,
+        edge: u8,
+    },
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -171,7 +179,11 @@ fn pair_key(a: u32, b: u32) -> u64 {
 impl SubdivisionMesh {
     pub fn new(mesh: &scene::Mesh, params: MeshParams) -> Self {
         let (lo, hi) = mesh.bounds();
-        let extent = if mesh.positions.is_empty() { 0.0 } else { (hi - lo).length() };
+        let extent = if mesh.positions.is_empty() {
+            0.0
+        } else {
+            (hi - lo).length()
+        };
         let (vertex_point, point_positions) =
             weld::weld(&mesh.positions, params.weld_tolerance_rel * extent);
         let vertices = base_vertices(mesh);
@@ -198,7 +210,10 @@ impl SubdivisionMesh {
             .collect();
         let adjacency = adjacency::BaseAdjacency::new(&nodes, &vertex_point, &degenerate);
         SubdivisionMesh {
-            min_split_edge: 2.0 * params.min_edge_length.max(MIN_EDGE_FRACTION_OF_EXTENT * extent),
+            min_split_edge: 2.0
+                * params
+                    .min_edge_length
+                    .max(MIN_EDGE_FRACTION_OF_EXTENT * extent),
             leaf_count: nodes.len(),
             base_count: nodes.len(),
             nodes,
@@ -263,7 +278,9 @@ impl SubdivisionMesh {
     }
 
     pub fn leaf_positions(&self, id: NodeId) -> [Vec3; 3] {
-        self.node(id).vertices.map(|v| self.vertices[v as usize].position)
+        self.node(id)
+            .vertices
+            .map(|v| self.vertices[v as usize].position)
     }
 
     /// The smallest angle any descendant of `base` can have (see the module documentation).

@@ -40,8 +40,13 @@ impl SubdivisionMesh {
     /// leaves (split by an earlier closure of the same call), leaves `too_small` vetoes (the
     /// caller's projected-size limit), and those whose red children would have edges below
     /// `MeshParams::min_edge_length`.
-    pub fn refine(&mut self, selected: &[NodeId], too_small: &dyn Fn(NodeId) -> bool) -> Vec<RefinementStep> {
+    pub fn refine(
+        &mut self,
+        selected: &[NodeId],
+        too_small: &dyn Fn(NodeId) -> bool,
+    ) -> Vec<RefinementStep> {
         let mut steps = Vec::new();
+        let mut queue = Vec::new();
         for &leaf in selected {
             if !self.is_leaf(leaf) || self.is_degenerate(leaf) || too_small(leaf) {
                 continue;
@@ -55,7 +60,6 @@ impl SubdivisionMesh {
                 continue;
             }
             let mut step = StepRecorder::default();
-            let mut queue = Vec::new();
             self.red_split(target, &mut step, &mut queue);
             self.close(&mut step, &mut queue);
             steps.push(step.finish(self));
@@ -71,7 +75,9 @@ impl SubdivisionMesh {
                 continue;
             }
             let mut hanging = (0..3).filter(|&k| self.splits_of(self.edge_key(id, k)) > 0);
-            let Some(first) = hanging.next() else { continue };
+            let Some(first) = hanging.next() else {
+                continue;
+            };
             let more = hanging.next().is_some();
             let node = self.node(id);
             match (node.kind, node.parent) {
@@ -84,12 +90,22 @@ impl SubdivisionMesh {
 
     /// Red split of a leaf or of a green-split node (whose greens are removed first). Queues the
     /// leaves across its edges and its corner children, which may now have hanging vertices.
-    pub(super) fn red_split(&mut self, id: NodeId, step: &mut StepRecorder, queue: &mut Vec<NodeId>) {
+    pub(super) fn red_split(
+        &mut self,
+        id: NodeId,
+        step: &mut StepRecorder,
+        queue: &mut Vec<NodeId>,
+    ) {
         if matches!(self.node(id).split, Split::Green { .. }) {
             self.remove_children(id, step);
         }
         let mids = [0, 1, 2].map(|k| self.split_edge(id, k, step));
-        let first = self.push_children(id, NodeKind::Red, &red_children(self.node(id).vertices, mids), step);
+        let first = self.push_children(
+            id,
+            NodeKind::Red,
+            &red_children(self.node(id).vertices, mids),
+            step,
+        );
         self.nodes[id as usize].split = Split::Red { first_child: first };
         for k in 0..3 {
             self.leaves_across(id, k, queue);
@@ -98,10 +114,24 @@ impl SubdivisionMesh {
     }
 
     /// Green bisection of edge `s` of a leaf; queues the two halves.
-    pub(super) fn green_split(&mut self, id: NodeId, s: usize, step: &mut StepRecorder, queue: &mut Vec<NodeId>) {
+    pub(super) fn green_split(
+        &mut self,
+        id: NodeId,
+        s: usize,
+        step: &mut StepRecorder,
+        queue: &mut Vec<NodeId>,
+    ) {
         let m = self.split_edge(id, s, step);
-        let first = self.push_children(id, NodeKind::Green, &green_children(self.node(id).vertices, s, m), step);
-        self.nodes[id as usize].split = Split::Green { first_child: first, edge: s as u8 };
+        let first = self.push_children(
+            id,
+            NodeKind::Green,
+            &green_children(self.node(id).vertices, s, m),
+            step,
+        );
+        self.nodes[id as usize].split = Split::Green {
+            first_child: first,
+            edge: s as u8,
+        };
         queue.extend([first, first + 1]);
     }
 
@@ -128,7 +158,13 @@ impl SubdivisionMesh {
         self.nodes[id as usize].split = Split::None;
     }
 
-    fn push_children(&mut self, parent: NodeId, kind: NodeKind, children: &[[VertexId; 3]], step: &mut StepRecorder) -> NodeId {
+    fn push_children(
+        &mut self,
+        parent: NodeId,
+        kind: NodeKind,
+        children: &[[VertexId; 3]],
+        step: &mut StepRecorder,
+    ) -> NodeId {
         step.before_change(self, parent);
         let p = *self.node(parent);
         let first = self.nodes.len() as NodeId;
@@ -157,11 +193,17 @@ impl SubdivisionMesh {
         let split = self
             .edge_splits
             .entry(pair_key(pa, pb))
-            .or_insert(EdgeSplit { mid_point: next_point, splits: 0 });
+            .or_insert(EdgeSplit {
+                mid_point: next_point,
+                splits: 0,
+            });
         split.splits += 1;
         let mid_point = split.mid_point;
         if mid_point == next_point {
-            let (a, b) = (self.point_positions[pa as usize], self.point_positions[pb as usize]);
+            let (a, b) = (
+                self.point_positions[pa as usize],
+                self.point_positions[pb as usize],
+            );
             self.point_positions.push(0.5 * (a + b));
         }
         let vertex_key = pair_key(va, vb);
@@ -180,7 +222,13 @@ impl SubdivisionMesh {
     /// The midpoint vertex of edge (va, vb) of node `id`: shaded on the node's base triangle,
     /// normal halfway between the ends' (the node's face normal, turned to `va`'s side, if those
     /// cancel).
-    fn midpoint_vertex(&self, id: NodeId, va: VertexId, vb: VertexId, position: Vec3) -> MeshVertex {
+    fn midpoint_vertex(
+        &self,
+        id: NodeId,
+        va: VertexId,
+        vb: VertexId,
+        position: Vec3,
+    ) -> MeshVertex {
         let (na, nb) = (self.vertex(va).normal, self.vertex(vb).normal);
         let normal = (na + nb).try_normalize().unwrap_or_else(|| {
             let [a, b, c] = self.leaf_positions(id);
@@ -188,7 +236,12 @@ impl SubdivisionMesh {
             if face.dot(na) < 0.0 { -face } else { face }
         });
         let base = self.node(id).base;
-        MeshVertex { position, normal, base_triangle: base, bary: barycentric(self.leaf_positions(base), position) }
+        MeshVertex {
+            position,
+            normal,
+            base_triangle: base,
+            bary: barycentric(self.leaf_positions(base), position),
+        }
     }
 }
 
@@ -223,16 +276,26 @@ mod tests {
         assert_eq!(mesh.leaf_count(), 8);
         assert_eq!(step.replaced_leaves.len(), 2, "both greens go");
         assert_eq!(step.new_leaves.len(), 4);
-        assert!(step.new_leaves.iter().all(|&l| mesh.node(l).parent == Some(1)));
+        assert!(
+            step.new_leaves
+                .iter()
+                .all(|&l| mesh.node(l).parent == Some(1))
+        );
     }
 
     #[test]
     fn vetoed_and_too_short_leaves_are_not_split() {
         let mut mesh = SubdivisionMesh::new(&square(), MeshParams::default());
         assert!(mesh.refine(&[0], &|id| id == 0).is_empty());
-        let params = MeshParams { min_edge_length: 0.8, ..MeshParams::default() };
+        let params = MeshParams {
+            min_edge_length: 0.8,
+            ..MeshParams::default()
+        };
         let mut coarse = SubdivisionMesh::new(&square(), params);
-        assert!(coarse.refine(&[0], &|_| false).is_empty(), "children would have edges < 0.8");
+        assert!(
+            coarse.refine(&[0], &|_| false).is_empty(),
+            "children would have edges < 0.8"
+        );
         assert_eq!(coarse.leaf_count(), 2);
     }
 

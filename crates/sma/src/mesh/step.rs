@@ -1,9 +1,6 @@
 //! One refinement or coarsening step and its whole closure: the unit the SMA sends to a viewer
 //! in one update (DESIGN.md §4), so the viewer never shows a T-junction or a hole.
 
-use std::collections::HashSet;
-
-use super::fast_hash::FastHash;
 use super::{NodeId, SubdivisionMesh, VertexId};
 
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -16,11 +13,11 @@ pub struct RefinementStep {
     pub new_vertices: Vec<VertexId>,
 }
 
-/// Records each node's leaf state the first time the step changes it.
+/// Records each node's leaf state the first time the step changes it. A step touches tens of
+/// nodes, so a linear scan beats a hash set (and its allocation) here.
 #[derive(Default)]
 pub(super) struct StepRecorder {
     touched: Vec<(NodeId, bool)>,
-    seen: HashSet<NodeId, FastHash>,
     pub(super) new_vertices: Vec<VertexId>,
 }
 
@@ -28,7 +25,7 @@ impl StepRecorder {
     /// Call before changing whether `id` is a leaf.
     pub(super) fn before_change(&mut self, mesh: &SubdivisionMesh, id: NodeId) {
         let was_leaf = (id as usize) < mesh.nodes.len() && mesh.is_leaf(id);
-        if self.seen.insert(id) {
+        if !self.touched.iter().any(|&(t, _)| t == id) {
             self.touched.push((id, was_leaf));
         }
     }
@@ -44,6 +41,10 @@ impl StepRecorder {
                 _ => {}
             }
         }
-        RefinementStep { new_leaves, replaced_leaves, new_vertices: self.new_vertices }
+        RefinementStep {
+            new_leaves,
+            replaced_leaves,
+            new_vertices: self.new_vertices,
+        }
     }
 }

@@ -10,6 +10,15 @@ pub(crate) fn square() -> Mesh {
     Mesh {
         positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y],
         normals: vec![Vec3::Z; 4],
-        triangles: vec![Triangle { vertices: [0, 1, 2], material: 0 }, Triangle { vertices: [0, 2, 3], material: 0 }],
+        triangles: vec![
+            Triangle {
+                vertices: [0, 1, 2],
+                material: 0,
+            },
+            Triangle {
+                vertices: [0, 2, 3],
+                material: 0,
+            },
+        ],
     }
 }

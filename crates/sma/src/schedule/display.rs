@@ -39,8 +39,12 @@ impl Display {
         cache: &ShadingCache,
     ) -> Vec<SmaToViewer> {
         let wanted: HashSet<TriangleId> = targets.iter().map(|&(n, s)| shown_id(n, s)).collect();
-        let removed: Vec<TriangleId> =
-            self.shown.keys().filter(|id| !wanted.contains(id)).copied().collect();
+        let removed: Vec<TriangleId> = self
+            .shown
+            .keys()
+            .filter(|id| !wanted.contains(id))
+            .copied()
+            .collect();
         for id in &removed {
             self.shown.remove(id);
         }
@@ -69,16 +73,22 @@ impl Display {
             messages.push(SmaToViewer::Remove { ids: removed });
         }
         for chunk in inserts.chunks(MAX_TRIANGLES_PER_MESSAGE) {
-            messages.push(SmaToViewer::Insert { triangles: chunk.to_vec() });
+            messages.push(SmaToViewer::Insert {
+                triangles: chunk.to_vec(),
+            });
         }
         for chunk in updates.chunks(MAX_TRIANGLES_PER_MESSAGE) {
-            messages.push(SmaToViewer::Update { triangles: chunk.to_vec() });
+            messages.push(SmaToViewer::Update {
+                triangles: chunk.to_vec(),
+            });
         }
         messages
     }
 
     /// The shown triangles as (node, side, radiance), for the luminance image of `nld-is`.
     pub fn shown_triangles(&self) -> impl Iterator<Item = (NodeId, [[f32; 3]; 3])> + '_ {
-        self.shown.iter().map(|(&id, &rgb)| (crate::visible::split_shown_id(id).0, rgb))
+        self.shown
+            .iter()
+            .map(|(&id, &rgb)| (crate::visible::split_shown_id(id).0, rgb))
     }
 }

@@ -97,15 +97,22 @@ fn merge(steps: Vec<RefinementStep>) -> Vec<Group> {
     members
         .into_values()
         .map(|ids| {
-            let created: HashSet<NodeId> =
-                ids.iter().flat_map(|&i| steps[i].new_leaves.iter().copied()).collect();
-            let replaced: HashSet<NodeId> =
-                ids.iter().flat_map(|&i| steps[i].replaced_leaves.iter().copied()).collect();
+            let created: HashSet<NodeId> = ids
+                .iter()
+                .flat_map(|&i| steps[i].new_leaves.iter().copied())
+                .collect();
+            let replaced: HashSet<NodeId> = ids
+                .iter()
+                .flat_map(|&i| steps[i].replaced_leaves.iter().copied())
+                .collect();
             let mut new_leaves: Vec<NodeId> = created.difference(&replaced).copied().collect();
             let mut replaced_leaves: Vec<NodeId> = replaced.difference(&created).copied().collect();
             new_leaves.sort_unstable();
             replaced_leaves.sort_unstable();
-            Group { new_leaves, replaced_leaves }
+            Group {
+                new_leaves,
+                replaced_leaves,
+            }
         })
         .collect()
 }

@@ -29,7 +29,12 @@ pub fn targets(
             None => out.push((v.leaf, v.side)),
             Some(g) if seen_groups.insert(g) => {
                 let group = pending.group(g).expect("a leaf's group is pending");
-                out.extend(group.replaced_leaves.iter().map(|&r| (r, side_facing(mesh, r, eye))));
+                out.extend(
+                    group
+                        .replaced_leaves
+                        .iter()
+                        .map(|&r| (r, side_facing(mesh, r, eye))),
+                );
             }
             Some(_) => {}
         }
@@ -47,7 +52,11 @@ pub struct Qualities {
 
 impl Qualities {
     pub fn new(full: Quality) -> Self {
-        let first = if Quality::DIRECT.rank() < full.rank() { Quality::DIRECT } else { full };
+        let first = if Quality::DIRECT.rank() < full.rank() {
+            Quality::DIRECT
+        } else {
+            full
+        };
         Qualities { first, full }
     }
 }
@@ -88,17 +97,29 @@ pub fn needs(input: &NeedsInput) -> Vec<Need> {
         let priority = v.pixels as f32 / (1.0 + dx * dx + dy * dy);
         let refining = input.pending.group_of(v.leaf).is_some();
         for vertex in input.mesh.node(v.leaf).vertices {
-            let key = SampleKey { vertex, side: v.side };
+            let key = SampleKey {
+                vertex,
+                side: v.side,
+            };
             need_key(input, key, refining, priority, &mut out);
         }
     }
     out
 }
 
-fn need_key(input: &NeedsInput, key: SampleKey, refining: bool, priority: f32, out: &mut Vec<Need>) {
+fn need_key(
+    input: &NeedsInput,
+    key: SampleKey,
+    refining: bool,
+    priority: f32,
+    out: &mut Vec<Need>,
+) {
     let mv = input.mesh.vertex(key.vertex);
-    let view_dependent =
-        input.view_dependent.get(mv.base_triangle as usize).copied().unwrap_or(false);
+    let view_dependent = input
+        .view_dependent
+        .get(mv.base_triangle as usize)
+        .copied()
+        .unwrap_or(false);
     let point = ShadePoint {
         key,
         base_triangle: mv.base_triangle,
@@ -108,7 +129,13 @@ fn need_key(input: &NeedsInput, key: SampleKey, refining: bool, priority: f32, o
     };
     let full = input.qualities.full;
     let mut push = |quality, urgency, new_eye| {
-        out.push(Need { point, quality, urgency, priority, new_eye });
+        out.push(Need {
+            point,
+            quality,
+            urgency,
+            priority,
+            new_eye,
+        });
     };
     match input.cache.get(key) {
         None if refining => push(full, Urgency::Refinement, false),

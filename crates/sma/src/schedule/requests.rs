@@ -50,13 +50,18 @@ pub struct Requests {
 
 impl Requests {
     pub fn new(seed: u64) -> Self {
-        Requests { seed, ..Default::default() }
+        Requests {
+            seed,
+            ..Default::default()
+        }
     }
 
     /// Replaces the queue with `needs`, best first; one entry per (key, quality).
     pub fn replan(&mut self, mut needs: Vec<Need>) {
         needs.sort_by(|a, b| {
-            a.urgency.cmp(&b.urgency).then(b.priority.total_cmp(&a.priority))
+            a.urgency
+                .cmp(&b.urgency)
+                .then(b.priority.total_cmp(&a.priority))
         });
         let mut seen = std::collections::HashSet::new();
         needs.retain(|n| seen.insert((n.point.key, n.quality.rank())));
@@ -82,7 +87,9 @@ impl Requests {
 
     /// Whether `key` is being shaded at `quality` or better.
     pub fn in_flight_at(&self, key: SampleKey, quality: Quality) -> bool {
-        self.in_flight.get(&key).is_some_and(|f| f.best >= quality.rank())
+        self.in_flight
+            .get(&key)
+            .is_some_and(|f| f.best >= quality.rank())
     }
 
     /// The next batch: up to `max_points` queued needs of the quality at the head of the queue,
@@ -91,7 +98,9 @@ impl Requests {
         let mut points = Vec::new();
         let mut quality = None;
         while points.len() < max_points {
-            let Some(need) = self.queue.front().copied() else { break };
+            let Some(need) = self.queue.front().copied() else {
+                break;
+            };
             if quality.is_some_and(|q| q != need.quality) {
                 break;
             }
@@ -100,7 +109,10 @@ impl Requests {
                 continue;
             }
             quality = Some(need.quality);
-            let entry = self.in_flight.entry(need.point.key).or_insert(InFlight { best: (0, 0), count: 0 });
+            let entry = self.in_flight.entry(need.point.key).or_insert(InFlight {
+                best: (0, 0),
+                count: 0,
+            });
             entry.best = entry.best.max(need.quality.rank());
             entry.count += 1;
             points.push(need.point);
@@ -110,12 +122,18 @@ impl Requests {
         self.batches_in_flight += 1;
         let batch_id = self.next_batch_id;
         let seed = self.seed ^ batch_id.wrapping_mul(0x9E37_79B9_7F4A_7C15);
-        Some(ShadeBatch { batch_id, quality, seed, points })
+        Some(ShadeBatch {
+            batch_id,
+            quality,
+            seed,
+            points,
+        })
     }
 
     fn satisfied(&self, need: &Need, cache: &ShadingCache) -> bool {
         let cached = cache.get(need.point.key).is_some_and(|s| {
-            s.quality.rank() >= need.quality.rank() && (!need.new_eye || s.eye.map(|e| e.to_array()) == need.point.eye)
+            s.quality.rank() >= need.quality.rank()
+                && (!need.new_eye || s.eye.map(|e| e.to_array()) == need.point.eye)
         });
         cached || self.in_flight_at(need.point.key, need.quality)
     }
@@ -140,9 +158,24 @@ mod tests {
     use protocol::Side;
 
     fn need(vertex: u32, quality: Quality, urgency: Urgency, priority: f32) -> Need {
-        let key = SampleKey { vertex, side: Side::Front };
-        let point = ShadePoint { key, base_triangle: 0, bary: [0.0; 2], side: Side::Front, eye: None };
-        Need { point, quality, urgency, priority, new_eye: false }
+        let key = SampleKey {
+            vertex,
+            side: Side::Front,
+        };
+        let point = ShadePoint {
+            key,
+            base_triangle: 0,
+            bary: [0.0; 2],
+            side: Side::Front,
+            eye: None,
+        };
+        Need {
+            point,
+            quality,
+            urgency,
+            priority,
+            new_eye: false,
+        }
     }
 
     #[test]
@@ -158,7 +191,10 @@ mod tests {
         assert_eq!(r.outstanding(), 3);
         let b = r.next_batch(8, &cache).unwrap();
         assert_eq!(b.quality, Quality::DIRECT);
-        assert_eq!(b.points.iter().map(|p| p.key.vertex).collect::<Vec<_>>(), vec![3, 2]);
+        assert_eq!(
+            b.points.iter().map(|p| p.key.vertex).collect::<Vec<_>>(),
+            vec![3, 2]
+        );
         // Re-planning the same needs while they fly asks nothing twice.
         r.replan(vec![need(3, Quality::DIRECT, Urgency::Missing, 50.0)]);
         assert!(r.next_batch(8, &cache).is_none());

@@ -59,7 +59,12 @@ impl Gpu {
             trace: wgpu::Trace::Off,
         }))
         .map_err(|e| GpuError::Device(e.to_string()))?;
-        Ok(Gpu { device, queue, adapter: adapter.get_info(), primitive_index })
+        Ok(Gpu {
+            device,
+            queue,
+            adapter: adapter.get_info(),
+            primitive_index,
+        })
     }
 
     /// "llvmpipe (LLVM 15.0.6, 256 bits) / Vulkan / Cpu", for logs and benchmark tables.
@@ -69,20 +74,30 @@ impl Gpu {
             self.adapter.name,
             self.adapter.backend,
             self.adapter.device_type,
-            if self.primitive_index { "" } else { " (per-vertex id fallback)" }
+            if self.primitive_index {
+                ""
+            } else {
+                " (per-vertex id fallback)"
+            }
         )
     }
 
     /// A vertex buffer holding `bytes`, reusing `slot` when it is large enough.
     pub fn upload_into(&self, slot: &mut Option<wgpu::Buffer>, bytes: &[u8]) {
-        let fits = slot.as_ref().is_some_and(|b| b.size() >= bytes.len() as u64);
+        let fits = slot
+            .as_ref()
+            .is_some_and(|b| b.size() >= bytes.len() as u64);
         if !fits {
-            *slot = Some(self.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("triangles"),
-                size: (bytes.len() as u64).max(16).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT),
-                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }));
+            *slot = Some(
+                self.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("triangles"),
+                    size: (bytes.len() as u64)
+                        .max(16)
+                        .next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT),
+                    usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                }),
+            );
         }
         if let Some(buffer) = slot.as_ref() {
             let len = bytes.len() - bytes.len() % wgpu::COPY_BUFFER_ALIGNMENT as usize;
@@ -110,7 +125,11 @@ pub struct OffscreenTarget {
 
 impl OffscreenTarget {
     pub fn new(gpu: &Gpu, format: wgpu::TextureFormat, width: u32, height: u32) -> Self {
-        let size = wgpu::Extent3d { width, height, depth_or_array_layers: 1 };
+        let size = wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        };
         let texture = |label, format, usage| {
             gpu.device.create_texture(&wgpu::TextureDescriptor {
                 label: Some(label),
@@ -128,7 +147,11 @@ impl OffscreenTarget {
             format,
             wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
         );
-        let depth = texture("depth", DEPTH_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT);
+        let depth = texture(
+            "depth",
+            DEPTH_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        );
         let padded_row = (width * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
         let readback = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
@@ -136,7 +159,14 @@ impl OffscreenTarget {
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        OffscreenTarget { width, height, color, depth, readback, padded_row }
+        OffscreenTarget {
+            width,
+            height,
+            color,
+            depth,
+            readback,
+            padded_row,
+        }
     }
 
     /// Records one render pass that clears to zero and draws `vertex_count` vertices of
@@ -150,8 +180,12 @@ impl OffscreenTarget {
         vertices: Option<&wgpu::Buffer>,
         vertex_count: u32,
     ) -> Result<Vec<T>, GpuError> {
-        let color_view = self.color.create_view(&wgpu::TextureViewDescriptor::default());
-        let depth_view = self.depth.create_view(&wgpu::TextureViewDescriptor::default());
+        let color_view = self
+            .color
+            .create_view(&wgpu::TextureViewDescriptor::default());
+        let depth_view = self
+            .depth
+            .create_view(&wgpu::TextureViewDescriptor::default());
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -199,7 +233,11 @@ impl OffscreenTarget {
                     rows_per_image: Some(self.height),
                 },
             },
-            wgpu::Extent3d { width: self.width, height: self.height, depth_or_array_layers: 1 },
+            wgpu::Extent3d {
+                width: self.width,
+                height: self.height,
+                depth_or_array_layers: 1,
+            },
         );
         gpu.queue.submit([encoder.finish()]);
         self.read_back(gpu)
@@ -219,7 +257,9 @@ impl OffscreenTarget {
             .map_err(|e| GpuError::Readback(e.to_string()))?;
         let mut texels = Vec::with_capacity((self.width * self.height) as usize);
         {
-            let bytes = slice.get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
+            let bytes = slice
+                .get_mapped_range()
+                .map_err(|e| GpuError::Readback(e.to_string()))?;
             let row_bytes = (self.width * 4) as usize;
             for row in bytes.chunks_exact(self.padded_row as usize) {
                 texels.extend_from_slice(bytemuck::cast_slice::<u8, T>(&row[..row_bytes]));
@@ -245,29 +285,39 @@ impl MatrixUniform {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("view-projection"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            }],
-        });
+        let layout = gpu
+            .device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("view-projection"),
+                entries: &[wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                }],
+            });
         let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("view-projection"),
             layout: &layout,
-            entries: &[wgpu::BindGroupEntry { binding: 0, resource: buffer.as_entire_binding() }],
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: buffer.as_entire_binding(),
+            }],
         });
-        MatrixUniform { buffer, layout, bind_group }
+        MatrixUniform {
+            buffer,
+            layout,
+            bind_group,
+        }
     }
 
     pub fn set(&self, gpu: &Gpu, m: glam::Mat4) {
-        gpu.queue.write_buffer(&self.buffer, 0, bytemuck::cast_slice(&m.to_cols_array()));
+        gpu.queue
+            .write_buffer(&self.buffer, 0, bytemuck::cast_slice(&m.to_cols_array()));
     }
 
     /// A triangle-list pipeline writing one 4-byte `target` format, depth-tested with reversed Z,
@@ -279,49 +329,54 @@ impl MatrixUniform {
         vertex_layout: wgpu::VertexBufferLayout<'_>,
         target: wgpu::TextureFormat,
     ) -> wgpu::RenderPipeline {
-        let module = gpu.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("pass shader"),
-            source: wgpu::ShaderSource::Wgsl(shader.into()),
-        });
-        let layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("pass layout"),
-            bind_group_layouts: &[Some(&self.layout)],
-            immediate_size: 0,
-        });
-        gpu.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("pass pipeline"),
-            layout: Some(&layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[Some(vertex_layout)],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Greater),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: target,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        })
+        let module = gpu
+            .device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("pass shader"),
+                source: wgpu::ShaderSource::Wgsl(shader.into()),
+            });
+        let layout = gpu
+            .device
+            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("pass layout"),
+                bind_group_layouts: &[Some(&self.layout)],
+                immediate_size: 0,
+            });
+        gpu.device
+            .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("pass pipeline"),
+                layout: Some(&layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(vertex_layout)],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Greater),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: target,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
     }
 }

@@ -69,7 +69,10 @@ impl Coverage {
     /// Centroid in pixels (pixel centres at +0.5).
     pub fn centroid(&self) -> (f32, f32) {
         let n = self.pixels.max(1) as f64;
-        ((self.sum_x as f64 / n + 0.5) as f32, (self.sum_y as f64 / n + 0.5) as f32)
+        (
+            (self.sum_x as f64 / n + 0.5) as f32,
+            (self.sum_y as f64 / n + 0.5) as f32,
+        )
     }
 }
 
@@ -125,7 +128,12 @@ impl IdPass {
             attributes,
         };
         let pipeline = uniform.pipeline(gpu, shader, layout, wgpu::TextureFormat::R32Uint);
-        IdPass { uniform, pipeline, vertex_ids, target: None }
+        IdPass {
+            uniform,
+            pipeline,
+            vertex_ids,
+            target: None,
+        }
     }
 
     /// Uploads triangles; triangle `i` of `triangles` gets id `i + 1` in the image.
@@ -154,7 +162,13 @@ impl IdPass {
         height: u32,
     ) -> Result<IdImage, GpuError> {
         self.uniform.set(gpu, reversed_z(view_proj));
-        let target = fitted_target(&mut self.target, gpu, wgpu::TextureFormat::R32Uint, width, height);
+        let target = fitted_target(
+            &mut self.target,
+            gpu,
+            wgpu::TextureFormat::R32Uint,
+            width,
+            height,
+        );
         let ids = target.draw_and_read::<u32>(
             gpu,
             &self.pipeline,
@@ -174,7 +188,10 @@ pub fn fitted_target<'a>(
     width: u32,
     height: u32,
 ) -> &'a OffscreenTarget {
-    if slot.as_ref().is_none_or(|t| t.width != width || t.height != height) {
+    if slot
+        .as_ref()
+        .is_none_or(|t| t.width != width || t.height != height)
+    {
         *slot = Some(OffscreenTarget::new(gpu, format, width, height));
     }
     slot.as_ref().expect("just filled")

@@ -39,27 +39,33 @@ impl Visibility {
     pub fn new(gpu: Gpu, mesh: &SubdivisionMesh, bounds: (Vec3, Vec3)) -> Self {
         let pass = IdPass::new(&gpu);
         let mut base = TriangleBuffer::default();
-        let base_triangles: Vec<[Vec3; 3]> =
-            (0..mesh.base_count() as NodeId).map(|b| mesh.leaf_positions(b)).collect();
+        let base_triangles: Vec<[Vec3; 3]> = (0..mesh.base_count() as NodeId)
+            .map(|b| mesh.leaf_positions(b))
+            .collect();
         pass.upload(&gpu, &base_triangles, &mut base);
-        Visibility { gpu, pass, base, leaves: TriangleBuffer::default(), bounds }
+        Visibility {
+            gpu,
+            pass,
+            base,
+            leaves: TriangleBuffer::default(),
+            bounds,
+        }
     }
 
     pub fn gpu(&self) -> &Gpu {
         &self.gpu
     }
 
-    /// Camera -> clip for this scene: far reaches the farthest corner of the scene bounds; near
-    /// is a small fraction of it (depth is reversed-Z float, so the ratio costs no precision).
     pub fn view_projection(&self, camera: &Camera) -> Mat4 {
-        let (lo, hi) = self.bounds;
-        let eye = camera.eye_vec();
-        let far = (eye - lo).abs().max((eye - hi).abs()).length().max(1e-3) * 1.01;
-        camera.view_projection(far * 1e-5, far)
+        scene_view_projection(camera, self.bounds)
     }
 
     /// Levels 1 and 2 for one camera.
-    pub fn leaf_view(&mut self, mesh: &SubdivisionMesh, camera: &Camera) -> Result<LeafView, GpuError> {
+    pub fn leaf_view(
+        &mut self,
+        mesh: &SubdivisionMesh,
+        camera: &Camera,
+    ) -> Result<LeafView, GpuError> {
         let view_proj = self.view_projection(camera);
         let (w, h) = (camera.width, camera.height);
         let level1 = self.pass.render(&self.gpu, &self.base, view_proj, w, h)?;
@@ -79,13 +85,24 @@ impl Visibility {
         let (mut leaves, mut centroids) = (Vec::new(), Vec::new());
         for (i, c) in coverage.iter().enumerate().filter(|(_, c)| c.pixels > 0) {
             let leaf = submitted[i];
-            leaves.push(VisibleLeaf { leaf, side: side_facing(mesh, leaf, eye), pixels: c.pixels });
+            leaves.push(VisibleLeaf {
+                leaf,
+                side: side_facing(mesh, leaf, eye),
+                pixels: c.pixels,
+            });
             centroids.push(Coverage::centroid(c));
         }
-        let pixel_leaves =
-            level2.ids.iter().map(|&id| id.checked_sub(1).map(|i| submitted[i as usize])).collect();
+        let pixel_leaves = level2
+            .ids
+            .iter()
+            .map(|&id| id.checked_sub(1).map(|i| submitted[i as usize]))
+            .collect();
         Ok(LeafView {
-            visible: VisibleSet { leaves, width: w, height: h },
+            visible: VisibleSet {
+                leaves,
+                width: w,
+                height: h,
+            },
             centroids,
             pixel_leaves,
             visible_bases: bases.len(),
@@ -94,13 +111,30 @@ impl Visibility {
     }
 }
 
+/// Camera -> clip for a scene with `bounds`: far reaches the farthest corner of the bounds; near
+/// is a small fraction of it (depth is reversed-Z float, so the ratio costs no precision).
+pub fn scene_view_projection(camera: &Camera, (lo, hi): (Vec3, Vec3)) -> Mat4 {
+    let eye = camera.eye_vec();
+    let far = (eye - lo).abs().max((eye - hi).abs()).length().max(1e-3) * 1.01;
+    camera.view_projection(far * 1e-5, far)
+}
+
 /// The side of `node` that faces `eye`, relative to its vertices' canonical normals
 /// (DESIGN.md §5). A pinhole camera sees a flat triangle from exactly the side of its plane the eye
 /// is on, so this is exact for every pixel of the triangle.
 pub fn side_facing(mesh: &SubdivisionMesh, node: NodeId, eye: Vec3) -> Side {
     let [a, b, c] = mesh.leaf_positions(node);
     let face = (b - a).cross(c - a);
-    let canonical: Vec3 = mesh.node(node).vertices.iter().map(|&v| mesh.vertex(v).normal).sum();
+    let canonical: Vec3 = mesh
+        .node(node)
+        .vertices
+        .iter()
+        .map(|&v| mesh.vertex(v).normal)
+        .sum();
     let toward_eye = face.dot(eye - (a + b + c) / 3.0);
-    if toward_eye * face.dot(canonical) >= 0.0 { Side::Front } else { Side::Back }
+    if toward_eye * face.dot(canonical) >= 0.0 {
+        Side::Front
+    } else {
+        Side::Back
+    }
 }

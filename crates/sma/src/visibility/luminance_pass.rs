@@ -1,5 +1,7 @@
 //! The luminance pass for `nld-is` (DESIGN.md §6): the triangles a viewer shows, Gouraud-shaded
-//! with their vertex luminances, into an R32Float image (0 where nothing is seen).
+//! with their vertex luminances, into an image of f32 (0 where nothing is seen). The floats are
+//! written as their bits into R32Uint: R32Float is not renderable on every adapter (llvmpipe
+//! through GL refuses it), R32Uint is, and without blending the bits pass through unchanged.
 
 use glam::{Mat4, Vec3};
 
@@ -12,8 +14,8 @@ struct Out { @builtin(position) pos: vec4<f32>, @location(0) lum: f32 };
 @vertex fn vs_main(@location(0) p: vec3<f32>, @location(1) lum: f32) -> Out {
     return Out(view_proj * vec4<f32>(p, 1.0), lum);
 }
-@fragment fn fs_main(v: Out) -> @location(0) f32 {
-    return v.lum;
+@fragment fn fs_main(v: Out) -> @location(0) u32 {
+    return bitcast<u32>(v.lum);
 }
 "#;
 
@@ -34,8 +36,13 @@ impl LuminancePass {
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &ATTRS,
         };
-        let pipeline = uniform.pipeline(gpu, SHADER, layout, wgpu::TextureFormat::R32Float);
-        LuminancePass { uniform, pipeline, vertices: None, target: None }
+        let pipeline = uniform.pipeline(gpu, SHADER, layout, wgpu::TextureFormat::R32Uint);
+        LuminancePass {
+            uniform,
+            pipeline,
+            vertices: None,
+            target: None,
+        }
     }
 
     /// Draws triangles given as (positions, vertex luminances) and reads the image back.
@@ -55,14 +62,20 @@ impl LuminancePass {
         }
         gpu.upload_into(&mut self.vertices, bytemuck::cast_slice(&words));
         self.uniform.set(gpu, reversed_z(view_proj));
-        let target =
-            fitted_target(&mut self.target, gpu, wgpu::TextureFormat::R32Float, width, height);
-        target.draw_and_read::<f32>(
+        let target = fitted_target(
+            &mut self.target,
+            gpu,
+            wgpu::TextureFormat::R32Uint,
+            width,
+            height,
+        );
+        let bits = target.draw_and_read::<u32>(
             gpu,
             &self.pipeline,
             &self.uniform.bind_group,
             self.vertices.as_ref(),
             triangles.len() as u32 * 3,
-        )
+        )?;
+        Ok(bits.into_iter().map(f32::from_bits).collect())
     }
 }

@@ -41,17 +41,26 @@ impl StandIn {
     pub fn start(scene: SceneInfo) -> StandIn {
         let (seen_tx, seen) = mpsc::channel();
         let (commands, commands_rx) = tokio_mpsc::unbounded_channel();
-        let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap();
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap();
         let listener = runtime
             .block_on(tokio::net::TcpListener::bind("127.0.0.1:0"))
             .expect("binding a loopback port");
         let addr = listener.local_addr().unwrap().to_string();
         std::thread::spawn(move || runtime.block_on(serve(listener, scene, seen_tx, commands_rx)));
-        StandIn { addr, seen, commands }
+        StandIn {
+            addr,
+            seen,
+            commands,
+        }
     }
 
     pub fn send(&self, msg: SmaToViewer) {
-        self.commands.send(Command::Send(msg)).expect("stand-in gone");
+        self.commands
+            .send(Command::Send(msg))
+            .expect("stand-in gone");
     }
 
     pub fn drop_session(&self) {
@@ -91,14 +100,26 @@ async fn serve(
     let mut session = 0;
     while let Ok((stream, _)) = listener.accept().await {
         session += 1;
-        let (mut reader, mut writer) = split_tcp::<ViewerToSma, SmaToViewer>(stream, DEFAULT_MAX_FRAME);
-        if accept_handshake(&mut reader, &mut writer, Role::Sma, Role::Viewer, Some(scene.fingerprint), false)
-            .await
-            .is_err()
+        let (mut reader, mut writer) =
+            split_tcp::<ViewerToSma, SmaToViewer>(stream, DEFAULT_MAX_FRAME);
+        if accept_handshake(
+            &mut reader,
+            &mut writer,
+            Role::Sma,
+            Role::Viewer,
+            Some(scene.fingerprint),
+            false,
+        )
+        .await
+        .is_err()
         {
             continue;
         }
-        if writer.send(&SmaToViewer::SceneInfo(scene.clone())).await.is_err() {
+        if writer
+            .send(&SmaToViewer::SceneInfo(scene.clone()))
+            .await
+            .is_err()
+        {
             continue;
         }
         let _ = seen.send(Seen::Session(session));
@@ -132,7 +153,10 @@ pub fn scene() -> SceneInfo {
     SceneInfo {
         name: "stand-in".into(),
         fingerprint: [7; 32],
-        bounds: Bounds { min: [-2.0, -2.0, -2.0], max: [2.0, 2.0, 2.0] },
+        bounds: Bounds {
+            min: [-2.0, -2.0, -2.0],
+            max: [2.0, 2.0, 2.0],
+        },
         viewpoints: vec![vp("front", [0.0, 0.0, 3.0]), vp("side", [3.0, 0.0, 0.0])],
         criteria: vec!["nld_os".into(), "nld_is".into(), "rnd".into()],
     }
@@ -145,16 +169,30 @@ pub fn known_triangles() -> Vec<ShownTriangle> {
     let quad = |id: u64, x0: f32, x1: f32, z: f32, left: [f32; 3], right: [f32; 3]| {
         let (a, b, c, d) = ([x0, -0.6, z], [x1, -0.6, z], [x1, 0.6, z], [x0, 0.6, z]);
         vec![
-            ShownTriangle { id, positions: [a, b, c], radiance: [left, right, right] },
-            ShownTriangle { id: id + 1, positions: [a, c, d], radiance: [left, right, left] },
+            ShownTriangle {
+                id,
+                positions: [a, b, c],
+                radiance: [left, right, right],
+            },
+            ShownTriangle {
+                id: id + 1,
+                positions: [a, c, d],
+                radiance: [left, right, left],
+            },
         ]
     };
-    let mut t = quad(10, -1.4, -0.2, 0.0, [2.0, 0.8, 0.3], [2.0, 0.8, 0.3]);
-    t.extend(quad(20, 0.2, 1.4, 0.0, [0.2, 0.2, 0.2], [4.0, 4.0, 4.0]));
-    t.push(ShownTriangle {
+    // The occluder comes first, so only the depth test can keep it in front.
+    let mut t = vec![ShownTriangle {
         id: 30,
         positions: [[-1.3, 0.1, 0.5], [-0.9, 0.1, 0.5], [-1.1, 0.5, 0.5]],
         radiance: [[0.1, 0.9, 0.1]; 3],
-    });
+    }];
+    t.extend(quad(10, -1.4, -0.2, 0.0, [2.0, 0.8, 0.3], [2.0, 0.8, 0.3]));
+    t.extend(quad(20, 0.2, 1.4, 0.0, [0.2, 0.2, 0.2], [4.0, 4.0, 4.0]));
     t
+}
+
+/// The camera of the "front" viewpoint at a given size.
+pub fn front_camera(seq: u64, width: u32, height: u32) -> protocol::viewer_link::Camera {
+    protocol::viewer_link::Camera::from_viewpoint(&scene().viewpoints[0], seq, width, height)
 }

@@ -1,0 +1,249 @@
+//! A scripted protocol viewer that checks what the SMA sends (issue 5, Tests): it keeps the
+//! viewer's triangle table and fails on a duplicate insert, a remove or update of an unknown id,
+//! an `Error`, or an `Epoch` whose `shown` disagrees with the table. Used by the service tests
+//! (in-process and with real processes) and by the service benchmarks.
+
+use std::collections::HashMap;
+use std::time::Duration;
+
+use anyhow::{Context, bail};
+use glam::Vec3;
+use protocol::connection::{TcpReader, TcpWriter, connect_handshake};
+use protocol::frame::DEFAULT_MAX_FRAME;
+use protocol::viewer_link::{
+    Camera, Epoch, SceneInfo, ShownTriangle, SmaToViewer, TriangleId, ViewerToSma,
+};
+use protocol::{Hello, Role, split_tcp};
+use tokio::net::TcpStream;
+
+use crate::visibility::{Gpu, IdPass, TriangleBuffer, scene_view_projection};
+
+pub struct Probe {
+    reader: TcpReader<SmaToViewer>,
+    writer: TcpWriter<ViewerToSma>,
+    pub scene: SceneInfo,
+    pub table: HashMap<TriangleId, ShownTriangle>,
+    pub l_white: Option<f32>,
+    pub epochs: Vec<Epoch>,
+    /// `Refinement` replies, in order.
+    pub refinement: Vec<(String, bool)>,
+    next_seq: u64,
+}
+
+impl Probe {
+    /// Connects, shakes hands as a viewer, and reads `SceneInfo`.
+    pub async fn connect(addr: &str) -> anyhow::Result<Probe> {
+        let stream = TcpStream::connect(addr)
+            .await
+            .with_context(|| format!("connecting to {addr}"))?;
+        let (mut reader, mut writer) = split_tcp(stream, DEFAULT_MAX_FRAME);
+        connect_handshake(
+            &mut reader,
+            &mut writer,
+            Hello::new(Role::Viewer, None),
+            Role::Sma,
+        )
+        .await?;
+        let scene = match reader.recv().await? {
+            SmaToViewer::SceneInfo(info) => info,
+            other => bail!("expected SceneInfo first, got {other:?}"),
+        };
+        Ok(Probe {
+            reader,
+            writer,
+            scene,
+            table: HashMap::new(),
+            l_white: None,
+            epochs: Vec::new(),
+            refinement: Vec::new(),
+            next_seq: 0,
+        })
+    }
+
+    pub async fn send(&mut self, message: ViewerToSma) -> anyhow::Result<()> {
+        Ok(self.writer.send(&message).await?)
+    }
+
+    /// Sends a camera for a named viewpoint of the scene; returns its seq.
+    pub async fn view(&mut self, name: &str, width: u32, height: u32) -> anyhow::Result<Camera> {
+        let vp = self
+            .scene
+            .viewpoints
+            .iter()
+            .find(|v| v.name == name)
+            .context("no such viewpoint")?;
+        let camera = Camera::from_viewpoint(&vp.clone(), self.next_seq + 1, width, height);
+        self.camera(camera).await
+    }
+
+    /// Sends `camera` with the next seq; returns it as sent.
+    pub async fn camera(&mut self, mut camera: Camera) -> anyhow::Result<Camera> {
+        self.next_seq += 1;
+        camera.seq = self.next_seq;
+        self.send(ViewerToSma::Camera(camera.clone())).await?;
+        Ok(camera)
+    }
+
+    /// Applies messages up to and including the next `Epoch`, checking the table.
+    pub async fn next_epoch(&mut self) -> anyhow::Result<Epoch> {
+        loop {
+            match self.reader.recv().await? {
+                SmaToViewer::Insert { triangles } => {
+                    for t in triangles {
+                        if self.table.insert(t.id, t.clone()).is_some() {
+                            bail!("duplicate insert of triangle {}", t.id);
+                        }
+                    }
+                }
+                SmaToViewer::Remove { ids } => {
+                    for id in ids {
+                        if self.table.remove(&id).is_none() {
+                            bail!("remove of unknown triangle {id}");
+                        }
+                    }
+                }
+                SmaToViewer::Update { triangles } => {
+                    for r in triangles {
+                        let t = self
+                            .table
+                            .get_mut(&r.id)
+                            .with_context(|| format!("update of unknown {}", r.id))?;
+                        t.radiance = r.radiance;
+                    }
+                }
+                SmaToViewer::ToneMap { l_white } => self.l_white = Some(l_white),
+                SmaToViewer::Epoch(epoch) => {
+                    if epoch.shown != self.table.len() as u64 {
+                        bail!(
+                            "epoch says {} shown, the table holds {}",
+                            epoch.shown,
+                            self.table.len()
+                        );
+                    }
+                    self.epochs.push(epoch);
+                    return Ok(epoch);
+                }
+                SmaToViewer::Refinement { criterion, paused } => {
+                    self.refinement.push((criterion, paused))
+                }
+                SmaToViewer::Stats(_) | SmaToViewer::SceneInfo(_) => {}
+                SmaToViewer::Error { message } => bail!("the SMA reported an error: {message}"),
+            }
+        }
+    }
+
+    /// Epochs until one satisfies `done`, within `timeout`.
+    pub async fn until(
+        &mut self,
+        timeout: Duration,
+        mut done: impl FnMut(&Epoch) -> bool,
+    ) -> anyhow::Result<Epoch> {
+        tokio::time::timeout(timeout, async {
+            loop {
+                let epoch = self.next_epoch().await?;
+                if done(&epoch) {
+                    return Ok(epoch);
+                }
+            }
+        })
+        .await
+        .with_context(|| {
+            format!(
+                "no satisfying epoch within {timeout:?}; last {:?}",
+                self.epochs.last()
+            )
+        })?
+    }
+
+    /// The first epoch answering camera `seq` with nothing outstanding.
+    pub async fn complete(&mut self, seq: u64, timeout: Duration) -> anyhow::Result<Epoch> {
+        self.until(timeout, |e| e.camera_seq == seq && e.outstanding == 0)
+            .await
+    }
+
+    /// Pairs of shown triangles whose interiors overlap (coplanar and intersecting): a parent
+    /// shown with its child, or two sides of one leaf. Shared edges and corners do not count.
+    pub fn overlaps(&self) -> Vec<(TriangleId, TriangleId)> {
+        let tris: Vec<(TriangleId, [Vec3; 3])> = self
+            .table
+            .values()
+            .map(|t| (t.id, t.positions.map(Vec3::from)))
+            .collect();
+        let mut out = Vec::new();
+        for (i, (a_id, a)) in tris.iter().enumerate() {
+            for (b_id, b) in &tris[i + 1..] {
+                if coplanar_overlap(a, b) {
+                    out.push((*a_id, *b_id));
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Whether two triangles lie in one plane and their interiors meet (separating-axis test in
+/// the plane, with a tolerance so that touching edges are not an overlap).
+fn coplanar_overlap(a: &[Vec3; 3], b: &[Vec3; 3]) -> bool {
+    let n = (a[1] - a[0]).cross(a[2] - a[0]);
+    let scale = (a[1] - a[0])
+        .length()
+        .max((b[1] - b[0]).length())
+        .max(1e-12);
+    let Some(n) = n.try_normalize() else {
+        return false;
+    };
+    if b.iter().any(|p| (p - a[0]).dot(n).abs() > 1e-4 * scale) {
+        return false;
+    }
+    let u = (a[1] - a[0]).normalize();
+    let v = n.cross(u);
+    let flat = |t: &[Vec3; 3]| t.map(|p| glam::Vec2::new((p - a[0]).dot(u), (p - a[0]).dot(v)));
+    let (pa, pb) = (flat(a), flat(b));
+    let eps = 1e-4 * scale;
+    for tri in [&pa, &pb] {
+        for k in 0..3 {
+            let e = tri[(k + 1) % 3] - tri[k];
+            let axis = glam::Vec2::new(-e.y, e.x).normalize_or_zero();
+            let range = |t: &[glam::Vec2; 3]| {
+                t.iter()
+                    .map(|p| p.dot(axis))
+                    .fold((f32::MAX, f32::MIN), |(lo, hi), x| (lo.min(x), hi.max(x)))
+            };
+            let ((alo, ahi), (blo, bhi)) = (range(&pa), range(&pb));
+            if ahi <= blo + eps || bhi <= alo + eps {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// Pixels covered by `triangles` seen from `camera` (with the SMA's near and far planes for a
+/// scene of `bounds`): the coverage of an ID pass.
+pub fn coverage(
+    gpu: &Gpu,
+    triangles: &[[Vec3; 3]],
+    camera: &Camera,
+    bounds: (Vec3, Vec3),
+) -> anyhow::Result<Vec<bool>> {
+    let mut pass = IdPass::new(gpu);
+    let mut buffer = TriangleBuffer::default();
+    pass.upload(gpu, triangles, &mut buffer);
+    let view_proj = scene_view_projection(camera, bounds);
+    let image = pass.render(gpu, &buffer, view_proj, camera.width, camera.height)?;
+    Ok(image.ids.iter().map(|&id| id != 0).collect())
+}
+
+/// The table's triangles, for [`coverage`].
+pub fn table_triangles(probe: &Probe) -> Vec<[Vec3; 3]> {
+    probe
+        .table
+        .values()
+        .map(|t| t.positions.map(Vec3::from))
+        .collect()
+}
+
+/// Scene bounds as sent in `SceneInfo`.
+pub fn bounds(info: &SceneInfo) -> (Vec3, Vec3) {
+    (Vec3::from(info.bounds.min), Vec3::from(info.bounds.max))
+}

@@ -1,0 +1,464 @@
+//! The SMA service in-process over loopback (issue 5, Tests), against fake renderers that shade
+//! a known function of position and record every request, and the scripted viewer of
+//! `sma::probe`, which fails on any inconsistency of its triangle table. Needs a wgpu adapter
+//! (Mesa without a GPU): without one the tests say so and return, unless
+//! `WALKTHROUGH_REQUIRE_GPU` is set.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use glam::Vec3;
+use protocol::connection::accept_handshake;
+use protocol::renderer_link::{FromRenderer, Quality, Radiance, SampleKey, ShadePoint, ToRenderer};
+use protocol::viewer_link::ViewerToSma;
+use protocol::{Role, Side, split_tcp};
+use scene::{Material, Scene, SceneBuilder, SceneSettings, ViewpointSetting};
+use sma::cli::Cli;
+use sma::probe::{self, Probe};
+use sma::visibility::Gpu;
+use tokio::net::TcpListener;
+
+const W: u32 = 200;
+const H: u32 = 150;
+const WAIT: Duration = Duration::from_secs(60);
+
+fn gpu_available() -> bool {
+    match Gpu::new() {
+        Ok(_) => true,
+        Err(e) if std::env::var_os("WALKTHROUGH_REQUIRE_GPU").is_some() => {
+            panic!("WALKTHROUGH_REQUIRE_GPU is set but no adapter: {e}")
+        }
+        Err(e) => {
+            eprintln!(
+                "SKIPPED: no wgpu adapter ({e}); set WALKTHROUGH_REQUIRE_GPU to make this fail"
+            );
+            false
+        }
+    }
+}
+
+fn viewpoint(name: &str, eye: [f32; 3], target: [f32; 3]) -> ViewpointSetting {
+    ViewpointSetting {
+        name: name.into(),
+        eye,
+        target,
+        up: [0.0, 1.0, 0.0],
+        fov_y_deg: 60.0,
+    }
+}
+
+/// A floor and a free-standing wall (x in -1..1, y in 0..2, z = 0), seen from the front, from
+/// the back, and from the front a little to the side. `wall` is its material.
+fn wall_scene(wall: Material) -> Scene {
+    let settings = SceneSettings {
+        name: "wall".into(),
+        obj: String::new(),
+        units: "m".into(),
+        crease_angle_deg: 45.0,
+        sun: None,
+        sky: Default::default(),
+        quality: Default::default(),
+        viewpoints: vec![
+            viewpoint("front", [0.3, 1.2, 4.0], [0.0, 0.8, 0.0]),
+            viewpoint("side", [1.5, 1.2, 3.8], [0.0, 0.8, 0.0]),
+            viewpoint("back", [-0.3, 1.2, -4.0], [0.0, 0.8, 0.0]),
+        ],
+    };
+    let mut b = SceneBuilder::new(settings);
+    let floor = b.material(Material::diffuse("floor", Vec3::splat(0.5)));
+    let wall = b.material(wall);
+    let quad = |b: &mut SceneBuilder, corners: [Vec3; 4], m: u32| {
+        let v = corners.map(|p| b.vertex(p));
+        b.triangle([v[0], v[1], v[2]], m);
+        b.triangle([v[0], v[2], v[3]], m);
+    };
+    let f = |x, z| Vec3::new(x, 0.0, z);
+    quad(
+        &mut b,
+        [f(-4.0, -4.0), f(-4.0, 4.0), f(4.0, 4.0), f(4.0, -4.0)],
+        floor,
+    );
+    let w = |x, y| Vec3::new(x, y, 0.0);
+    quad(
+        &mut b,
+        [w(-1.0, 0.0), w(1.0, 0.0), w(1.0, 2.0), w(-1.0, 2.0)],
+        wall,
+    );
+    b.build().expect("valid test scene")
+}
+
+fn diffuse_wall() -> Scene {
+    wall_scene(Material::diffuse("wall", Vec3::splat(0.7)))
+}
+
+/// What the fake renderer returns: a sharp "shadow" edge at x = 0.3 (something to refine), the
+/// back side darker, the cheap quality dimmer, so each of those shows in the radiance.
+fn fake_radiance(scene: &Scene, point: &ShadePoint, quality: Quality) -> [f32; 3] {
+    let [a, b, c] = scene.mesh.triangle_positions(point.base_triangle as usize);
+    let [u, v] = point.bary;
+    let p = a * (1.0 - u - v) + b * u + c * v;
+    let lit = if p.x > 0.3 { 1.0 } else { 0.1 };
+    let side = if point.side == Side::Back { 0.5 } else { 1.0 };
+    let q = if quality == Quality::DIRECT { 0.8 } else { 1.0 };
+    [lit * side * q; 3]
+}
+
+type Log = Arc<Mutex<Vec<(SampleKey, Quality, Option<[f32; 3]>)>>>;
+
+/// A renderer stand-in on a free port. With `die_after = Some(n)` it takes its n-th batch,
+/// answers nothing, closes the connection and stops listening (a renderer killed mid-batch).
+async fn fake_renderer(scene: Scene, die_after: Option<usize>) -> (String, Log) {
+    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap().to_string();
+    let log: Log = Arc::default();
+    let task_log = log.clone();
+    tokio::spawn(async move {
+        let mut batches = 0;
+        while let Ok((stream, _)) = listener.accept().await {
+            let (mut reader, mut writer) = split_tcp::<ToRenderer, FromRenderer>(stream, 1 << 26);
+            let fp = Some(scene.fingerprint);
+            if accept_handshake(
+                &mut reader,
+                &mut writer,
+                Role::Renderer,
+                Role::Sma,
+                fp,
+                true,
+            )
+            .await
+            .is_err()
+            {
+                continue;
+            }
+            while let Ok(ToRenderer::ShadeBatch(batch)) = reader.recv().await {
+                batches += 1;
+                if die_after == Some(batches) {
+                    return; // drops the listener and this connection, unanswered
+                }
+                task_log
+                    .lock()
+                    .unwrap()
+                    .extend(batch.points.iter().map(|p| (p.key, batch.quality, p.eye)));
+                let rgb = batch
+                    .points
+                    .iter()
+                    .map(|p| fake_radiance(&scene, p, batch.quality))
+                    .collect();
+                let reply = Radiance {
+                    batch_id: batch.batch_id,
+                    quality: batch.quality,
+                    rgb,
+                    flags: vec![0; batch.points.len()],
+                    micros: 1,
+                };
+                if writer.send(&FromRenderer::Radiance(reply)).await.is_err() {
+                    break;
+                }
+            }
+        }
+    });
+    (addr, log)
+}
+
+fn cli(renderers: Vec<String>, refine: bool) -> Cli {
+    let mut cli = Cli::with_renderers(renderers);
+    cli.listen = "127.0.0.1:0".into();
+    cli.no_refine = !refine;
+    cli.rest_ms = 0;
+    cli.stats_secs = 60.0;
+    cli
+}
+
+/// Every (key, quality) requested at most once, for the same eye.
+fn repeated_requests(log: &Log) -> Vec<(SampleKey, Quality)> {
+    let mut count: HashMap<(SampleKey, (u32, u32)), (usize, Quality)> = HashMap::new();
+    for (key, q, _) in log.lock().unwrap().iter() {
+        count.entry((*key, q.rank())).or_insert((0, *q)).0 += 1;
+    }
+    count
+        .into_iter()
+        .filter(|(_, (n, _))| *n > 1)
+        .map(|((k, _), (_, q))| (k, q))
+        .collect()
+}
+
+fn scene_coverage(scene: &Scene, camera: &protocol::viewer_link::Camera) -> Vec<bool> {
+    let tris: Vec<[Vec3; 3]> = (0..scene.mesh.triangles.len())
+        .map(|t| scene.mesh.triangle_positions(t))
+        .collect();
+    probe::coverage(&Gpu::new().unwrap(), &tris, camera, scene.mesh.bounds()).unwrap()
+}
+
+fn differing(a: &[bool], b: &[bool]) -> usize {
+    a.iter().zip(b).filter(|(x, y)| x != y).count()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn first_picture_then_refinement_stays_consistent_and_covers_the_visible_surface() {
+    if !gpu_available() {
+        return;
+    }
+    let scene = diffuse_wall();
+    let (renderer, log) = fake_renderer(scene.clone(), None).await;
+    let sma = sma::server::start(&cli(vec![renderer], true), scene.clone())
+        .await
+        .unwrap();
+    let mut probe = Probe::connect(&sma.addr.to_string()).await.unwrap();
+    probe.send(ViewerToSma::Pause).await.unwrap();
+    let camera = probe.view("front", W, H).await.unwrap();
+    let first = probe.complete(camera.seq, WAIT).await.unwrap();
+    let base_coverage = scene_coverage(&scene, &camera);
+    let shown_coverage = probe::coverage(
+        &Gpu::new().unwrap(),
+        &probe::table_triangles(&probe),
+        &camera,
+        scene.mesh.bounds(),
+    )
+    .unwrap();
+    assert_eq!(
+        differing(&base_coverage, &shown_coverage),
+        0,
+        "unrefined: shown = visible surface"
+    );
+    assert!(probe.overlaps().is_empty());
+    // Progressive quality: every shown vertex carries the full-quality value by now.
+    assert!(
+        log.lock()
+            .unwrap()
+            .iter()
+            .any(|(_, q, _)| *q == Quality::DIRECT)
+    );
+    for t in probe.table.values() {
+        for (p, rgb) in t.positions.iter().zip(t.radiance) {
+            let lit = if p[0] > 0.3 { 1.0 } else { 0.1 };
+            assert!(
+                (rgb[0] - lit).abs() < 1e-6 || (rgb[0] - 0.5 * lit).abs() < 1e-6,
+                "{p:?}: {rgb:?}"
+            );
+        }
+    }
+
+    probe.send(ViewerToSma::Resume).await.unwrap();
+    // Many refinement rounds; at each complete epoch on the way, no two shown leaves overlap.
+    let mut refined = first;
+    while refined.shown < 20 * first.shown {
+        refined = probe
+            .until(WAIT, |e| e.outstanding == 0 && e.shown > refined.shown)
+            .await
+            .unwrap();
+        assert!(
+            probe.overlaps().is_empty(),
+            "shown leaves overlap at {refined:?}"
+        );
+    }
+    assert!(
+        probe.overlaps().is_empty(),
+        "shown leaves overlap after refinement"
+    );
+    let refined_coverage = probe::coverage(
+        &Gpu::new().unwrap(),
+        &probe::table_triangles(&probe),
+        &camera,
+        scene.mesh.bounds(),
+    )
+    .unwrap();
+    let diff = differing(&base_coverage, &refined_coverage);
+    // Subdivided edges are rasterised from midpoints rounded to f32: a few edge pixels may flip.
+    assert!(
+        diff <= (W * H) as usize / 1000,
+        "{diff} pixels of coverage changed with refinement"
+    );
+    assert!(refined.shown > first.shown, "refinement added triangles");
+    assert!(
+        repeated_requests(&log).is_empty(),
+        "a diffuse sample was requested twice"
+    );
+
+    // A camera change mid-refinement is answered (and the table stays consistent).
+    let moved = probe.view("side", W, H).await.unwrap();
+    probe.complete(moved.seq, WAIT).await.unwrap();
+    assert!(probe.overlaps().is_empty());
+    sma.stop().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn walking_around_a_wall_shows_its_other_side() {
+    if !gpu_available() {
+        return;
+    }
+    let scene = diffuse_wall();
+    let (renderer, _) = fake_renderer(scene.clone(), None).await;
+    let sma = sma::server::start(&cli(vec![renderer], false), scene.clone())
+        .await
+        .unwrap();
+    let mut probe = Probe::connect(&sma.addr.to_string()).await.unwrap();
+    let wall_sides = |probe: &Probe| -> Vec<(Side, f32)> {
+        probe
+            .table
+            .values()
+            .filter(|t| t.positions.iter().all(|p| p[2].abs() < 1e-6))
+            .filter(|t| t.positions.iter().any(|p| p[1] > 1e-6))
+            .map(|t| (sma::visible::split_shown_id(t.id).1, t.radiance[0][0]))
+            .collect()
+    };
+    let front = probe.view("front", W, H).await.unwrap();
+    probe.complete(front.seq, WAIT).await.unwrap();
+    let seen = wall_sides(&probe);
+    assert!(!seen.is_empty());
+    let back = probe.view("back", W, H).await.unwrap();
+    probe.complete(back.seq, WAIT).await.unwrap();
+    let other = wall_sides(&probe);
+    assert!(!other.is_empty());
+    let sides: Vec<Side> = seen.iter().chain(&other).map(|s| s.0).collect();
+    assert!(
+        sides.contains(&Side::Front) && sides.contains(&Side::Back),
+        "{sides:?}"
+    );
+    // Each view shows the wall with the samples of the side facing it: one side per view.
+    assert!(seen.iter().all(|s| s.0 == seen[0].0) && other.iter().all(|s| s.0 == other[0].0));
+    assert_ne!(seen[0].0, other[0].0);
+    // The fake shades the back at half the front's radiance.
+    let (front_max, back_max) = if seen[0].0 == Side::Front {
+        (&seen, &other)
+    } else {
+        (&other, &seen)
+    };
+    let max = |v: &Vec<(Side, f32)>| v.iter().map(|s| s.1).fold(0.0, f32::max);
+    assert!((max(front_max) - 2.0 * max(back_max)).abs() < 1e-6);
+    sma.stop().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn mirror_samples_are_retaken_after_the_eye_moves_and_diffuse_ones_never() {
+    if !gpu_available() {
+        return;
+    }
+    for mirror in [false, true] {
+        let scene = if mirror {
+            wall_scene(Material::mirror("mirror", Vec3::ZERO, Vec3::splat(0.9)))
+        } else {
+            diffuse_wall()
+        };
+        let (renderer, log) = fake_renderer(scene.clone(), None).await;
+        let sma = sma::server::start(&cli(vec![renderer], false), scene.clone())
+            .await
+            .unwrap();
+        let mut probe = Probe::connect(&sma.addr.to_string()).await.unwrap();
+        for view in ["front", "side", "front"] {
+            let cam = probe.view(view, W, H).await.unwrap();
+            probe.complete(cam.seq, WAIT).await.unwrap();
+        }
+        let repeated = repeated_requests(&log);
+        if mirror {
+            assert!(
+                !repeated.is_empty(),
+                "no mirror sample was retaken after the eye moved"
+            );
+            let log = log.lock().unwrap();
+            // Only mirror vertices (those given an eye) are retaken.
+            let eyed: std::collections::HashSet<SampleKey> = log
+                .iter()
+                .filter(|(_, _, e)| e.is_some())
+                .map(|(k, _, _)| *k)
+                .collect();
+            assert!(
+                repeated.iter().all(|(k, _)| eyed.contains(k)),
+                "a diffuse sample was retaken"
+            );
+        } else {
+            assert!(
+                repeated.is_empty(),
+                "diffuse samples re-requested: {repeated:?}"
+            );
+        }
+        sma.stop().await.unwrap();
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_renderer_killed_mid_batch_loses_no_request() {
+    if !gpu_available() {
+        return;
+    }
+    let scene = diffuse_wall();
+    let (dying, _) = fake_renderer(scene.clone(), Some(2)).await;
+    let (healthy, _) = fake_renderer(scene.clone(), None).await;
+    let mut cli = cli(vec![dying, healthy], false);
+    cli.batch_points = 2; // many small batches, so the dying one holds some
+    let sma = sma::server::start(&cli, scene.clone()).await.unwrap();
+    let mut probe = Probe::connect(&sma.addr.to_string()).await.unwrap();
+    let cam = probe.view("front", W, H).await.unwrap();
+    probe.complete(cam.seq, WAIT).await.unwrap();
+    let shown = probe::coverage(
+        &Gpu::new().unwrap(),
+        &probe::table_triangles(&probe),
+        &cam,
+        scene.mesh.bounds(),
+    )
+    .unwrap();
+    assert_eq!(differing(&scene_coverage(&scene, &cam), &shown), 0);
+    sma.stop().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn two_viewers_share_one_cache_and_a_bad_frame_closes_only_its_viewer() {
+    if !gpu_available() {
+        return;
+    }
+    let scene = diffuse_wall();
+    let (renderer, log) = fake_renderer(scene.clone(), None).await;
+    let sma = sma::server::start(&cli(vec![renderer], false), scene.clone())
+        .await
+        .unwrap();
+    let addr = sma.addr.to_string();
+    let mut a = Probe::connect(&addr).await.unwrap();
+    let mut b = Probe::connect(&addr).await.unwrap();
+    let ca = a.view("front", W, H).await.unwrap();
+    let cb = b.view("side", W, H).await.unwrap();
+    a.complete(ca.seq, WAIT).await.unwrap();
+    b.complete(cb.seq, WAIT).await.unwrap();
+    let common: Vec<_> = a
+        .table
+        .keys()
+        .filter(|id| b.table.contains_key(id))
+        .collect();
+    assert!(!common.is_empty());
+    for id in common {
+        assert_eq!(
+            a.table[id], b.table[id],
+            "one cache, one radiance per triangle"
+        );
+    }
+    assert!(
+        repeated_requests(&log).is_empty(),
+        "a sample was shaded twice for two viewers"
+    );
+
+    // A viewer sending garbage gets an Error and is closed; the other goes on.
+    let mut bad = Probe::connect(&addr).await.unwrap();
+    bad.send(ViewerToSma::Camera(protocol::viewer_link::Camera {
+        width: 0,
+        ..ca.clone()
+    }))
+    .await
+    .unwrap();
+    let err = bad.next_epoch().await.unwrap_err().to_string();
+    assert!(err.contains("error"), "{err}");
+    let moved = a.view("side", W, H).await.unwrap();
+    a.complete(moved.seq, WAIT).await.unwrap();
+
+    // SetCriterion, Pause and Resume are acknowledged.
+    a.send(ViewerToSma::SetCriterion { name: "rnd".into() })
+        .await
+        .unwrap();
+    a.send(ViewerToSma::SetCriterion {
+        name: "no-such".into(),
+    })
+    .await
+    .unwrap();
+    let e = a.next_epoch().await;
+    assert!(e.is_err_and(|e| e.to_string().contains("unknown criterion")));
+    assert!(a.refinement.iter().any(|(c, _)| c == "rnd"));
+    sma.stop().await.unwrap();
+}

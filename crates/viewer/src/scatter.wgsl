@@ -1,0 +1,28 @@
+// Scatters changed triangles into the vertex buffer (vertex_buffer.rs): removals and recolours hit
+// random slots, and one dispatch over a packed list of (slot, 18 floats) is far cheaper than a
+// buffer write per slot.
+
+struct Params {
+    count: u32,
+    // Invocations per row of workgroups (a batch can exceed 65535 workgroups in one dimension).
+    row: u32,
+};
+
+const WORDS: u32 = 19u; // slot + 3 vertices × (position, radiance)
+
+@group(0) @binding(0) var<storage, read> patches: array<u32>;
+@group(0) @binding(1) var<storage, read_write> vertices: array<u32>;
+@group(0) @binding(2) var<uniform> params: Params;
+
+@compute @workgroup_size(64)
+fn scatter(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x + id.y * params.row;
+    if i >= params.count {
+        return;
+    }
+    let from = i * WORDS;
+    let to = patches[from] * 18u;
+    for (var k = 0u; k < 18u; k++) {
+        vertices[to + k] = patches[from + 1u + k];
+    }
+}

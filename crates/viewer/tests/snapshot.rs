@@ -1,0 +1,229 @@
+//! Offscreen drawing of known triangles: expected pixel colours with the tone-mapping formulas
+//! (thesis eq. 4.1, 4.2) computed here independently of the shader; Gouraud interpolation; the
+//! depth test; the wireframe overlay; and the headless binary writing its snapshot files.
+
+mod common;
+
+use common::{StandIn, front_camera, known_triangles, scene};
+use protocol::viewer_link::{Epoch, SmaToViewer, ViewerToSma};
+use viewer::gpu::{Gpu, headless_or_skip};
+use viewer::{DrawSettings, Snapshot, ToneMap, render_offscreen_with};
+
+const W: u32 = 160;
+const H: u32 = 120;
+const L_WHITE: f32 = 4.0;
+
+fn luminance(c: [f32; 3]) -> f32 {
+    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+}
+
+fn srgb8(c: f32) -> f32 {
+    let c = c.clamp(0.0, 1.0);
+    let s = if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    };
+    s * 255.0
+}
+
+/// The formula, written out: display luminance from luminance, colour ratios kept, sRGB 8-bit.
+fn expected(rgb: [f32; 3], op: ToneMap) -> [f32; 3] {
+    let l = luminance(rgb);
+    let ld = match op {
+        ToneMap::Drago => (1.0 + l).ln() / (1.0 + L_WHITE).ln(),
+        ToneMap::Reinhard => l * (1.0 + l / (L_WHITE * L_WHITE)) / (1.0 + l),
+    };
+    rgb.map(|c| srgb8(c * ld / l))
+}
+
+fn pixel(s: &Snapshot, x: u32, y: u32) -> [f32; 3] {
+    let p = s.display.get_pixel(x, y).0;
+    [p[0] as f32, p[1] as f32, p[2] as f32]
+}
+
+fn assert_close(found: [f32; 3], want: [f32; 3], tol: f32, what: &str) {
+    let ok = found.iter().zip(want).all(|(f, w)| (f - w).abs() <= tol);
+    assert!(ok, "{what}: found {found:?}, expected {want:?} (±{tol})");
+}
+
+fn gpu(test: &str) -> Option<Gpu> {
+    headless_or_skip(test).expect("a graphics adapter is required")
+}
+
+fn draw(gpu: &Gpu, op: ToneMap, wireframe: bool) -> Snapshot {
+    let settings = DrawSettings {
+        tone_map: op,
+        l_white: L_WHITE,
+        wireframe,
+    };
+    render_offscreen_with(gpu, &known_triangles(), &front_camera(1, W, H), &settings).unwrap()
+}
+
+/// World x on the z = 0 plane seen through the centre of pixel column `px` (front camera).
+fn world_x(px: u32) -> f32 {
+    let half_width = 3.0 * 30f32.to_radians().tan() * W as f32 / H as f32;
+    ((px as f32 + 0.5) / W as f32 * 2.0 - 1.0) * half_width
+}
+
+#[test]
+fn known_triangles_have_the_expected_colours() {
+    let Some(gpu) = gpu("known_triangles_have_the_expected_colours") else {
+        return;
+    };
+    for op in [ToneMap::Drago, ToneMap::Reinhard] {
+        let s = draw(&gpu, op, false);
+        let flat = [2.0, 0.8, 0.3];
+        assert_close(
+            pixel(&s, 55, 70),
+            expected(flat, op),
+            1.0,
+            &format!("{op:?} flat square"),
+        );
+        assert_close(
+            pixel(&s, 34, 50),
+            expected([0.1, 0.9, 0.1], op),
+            1.0,
+            "occluder in front",
+        );
+        assert_close(pixel(&s, 5, 5), [0.0; 3], 0.0, "background");
+        // Gouraud: radiance grows linearly in x from 0.2 (x = 0.2) to 4.0 (x = 1.4).
+        for px in [92, 105, 125] {
+            let l = 0.2 + 3.8 * (world_x(px) - 0.2) / 1.2;
+            assert_close(
+                pixel(&s, px, 60),
+                expected([l; 3], op),
+                1.0,
+                &format!("{op:?} ramp x={px}"),
+            );
+        }
+    }
+}
+
+#[test]
+fn the_linear_image_holds_the_radiance() {
+    let Some(gpu) = gpu("the_linear_image_holds_the_radiance") else {
+        return;
+    };
+    let s = draw(&gpu, ToneMap::Drago, true);
+    let at = |x: u32, y: u32| s.linear[(y * W + x) as usize];
+    // Relative 1e-3: GL draws linear radiance in half floats (Vulkan in full floats).
+    let near = |c: f32, w: f32| (c - w).abs() <= 1e-3 * w;
+    let flat = at(55, 70);
+    assert!(
+        flat.iter().zip([2.0, 0.8, 0.3]).all(|(&c, w)| near(c, w)),
+        "{flat:?}"
+    );
+    assert_eq!(at(5, 5), [0.0; 3]);
+    let l = 0.2 + 3.8 * (world_x(105) - 0.2) / 1.2;
+    let ramp = at(105, 60);
+    assert!(
+        ramp.iter().all(|&c| (c - l).abs() < 2e-3 * l),
+        "{ramp:?} vs {l}"
+    );
+}
+
+#[test]
+fn the_wireframe_marks_edges_only() {
+    let Some(gpu) = gpu("the_wireframe_marks_edges_only") else {
+        return;
+    };
+    let plain = draw(&gpu, ToneMap::Drago, false);
+    let wire = draw(&gpu, ToneMap::Drago, true);
+    // The left square's diagonal and borders change; its interior away from edges does not.
+    let changed = (0..W)
+        .flat_map(|x| (0..H).map(move |y| (x, y)))
+        .filter(|&(x, y)| plain.display.get_pixel(x, y) != wire.display.get_pixel(x, y))
+        .count();
+    assert!(changed > 200, "only {changed} pixels show edges");
+    assert_eq!(
+        plain.display.get_pixel(62, 75),
+        wire.display.get_pixel(62, 75)
+    );
+}
+
+#[test]
+fn headless_binary_writes_snapshots_when_the_sma_is_idle() {
+    let Some(gpu) = gpu("headless_binary_writes_snapshots_when_the_sma_is_idle") else {
+        return;
+    };
+    let sma = StandIn::start(scene());
+    let out = tempfile::tempdir().unwrap();
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_viewer"))
+        .args([
+            "--connect",
+            &sma.addr,
+            "--headless",
+            "--view",
+            "front",
+            "--snapshot-when-idle",
+        ])
+        .args([
+            "--width",
+            &W.to_string(),
+            "--height",
+            &H.to_string(),
+            "--seconds",
+            "60",
+        ])
+        .args(["--criterion", "nld_is", "--no-refine", "--out"])
+        .arg(out.path())
+        .spawn()
+        .unwrap();
+    let camera = sma.expect_camera();
+    assert_eq!(camera, front_camera(camera.seq, W, H));
+    let criterion = sma.expect("criterion", |s| match s {
+        common::Seen::Message(ViewerToSma::SetCriterion { name }) => Some(name),
+        _ => None,
+    });
+    assert_eq!(criterion, "nld_is");
+    sma.expect("pause", |s| {
+        matches!(s, common::Seen::Message(ViewerToSma::Pause)).then_some(())
+    });
+    let triangles = known_triangles();
+    let n = triangles.len() as u64;
+    sma.send(SmaToViewer::Insert {
+        triangles: triangles.clone(),
+    });
+    sma.send(SmaToViewer::ToneMap { l_white: L_WHITE });
+    let epoch = Epoch {
+        camera_seq: camera.seq,
+        shown: n,
+        inserted: n,
+        samples: 42,
+        ..Epoch::default()
+    };
+    sma.send(SmaToViewer::Epoch(epoch));
+    let status = child.wait().unwrap();
+    assert!(status.success(), "viewer exited with {status}");
+
+    let csv = std::fs::read_to_string(out.path().join("snapshots.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().collect();
+    assert_eq!(rows.len(), 2, "{csv}");
+    let fields: Vec<&str> = rows[1].split(',').collect();
+    let (seq, n) = (camera.seq.to_string(), n.to_string());
+    assert_eq!(fields[2..8], [seq.as_str(), &n, &n, "0", "42", "0"]);
+
+    let png = image::open(out.path().join(fields[8])).unwrap().into_rgb8();
+    let settings = DrawSettings {
+        tone_map: ToneMap::Drago,
+        l_white: L_WHITE,
+        wireframe: false,
+    };
+    let want = render_offscreen_with(&gpu, &triangles, &camera, &settings).unwrap();
+    let same = png
+        .pixels()
+        .zip(want.display.pixels())
+        .all(|(a, b)| a.0[..3] == b.0[..3]);
+    assert!(same, "the snapshot differs from the offscreen drawing");
+
+    let exr = exr::prelude::read_first_rgba_layer_from_file(
+        out.path().join(fields[9]),
+        |size, _| vec![[0f32; 3]; size.width() * size.height()],
+        |pixels, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            pixels[pos.y() * W as usize + pos.x()] = [r, g, b]
+        },
+    )
+    .unwrap();
+    assert_eq!(exr.layer_data.channel_data.pixels, want.linear);
+}
