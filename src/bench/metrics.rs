@@ -123,8 +123,9 @@ fn srgb8(linear: f32) -> u8 {
     (v * 255.0).round().clamp(0.0, 255.0) as u8
 }
 
-/// Which pixels see geometry: the reference renderer marks a primary ray that hits nothing with
-/// alpha 0. A file without alpha is taken as fully covered.
+/// Which pixels see geometry: the ground truth carries the renderer's coverage as alpha (0 where no
+/// camera ray of the pixel hit anything, see `convergence::ground_truth`). A file without alpha is
+/// taken as fully covered.
 pub fn coverage(gt: &LinearImage) -> Vec<bool> {
     match &gt.alpha {
         Some(alpha) => alpha.iter().map(|a| *a > 0.5).collect(),

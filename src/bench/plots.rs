@@ -88,17 +88,24 @@ fn panel_rows<'a>(run: &[&'a Measurement], against_samples: bool) -> Vec<&'a Mea
     }
 }
 
-fn draw_series<'a, X>(
-    chart: &mut ChartContext<
-        'a,
-        SVGBackend<'a>,
-        Cartesian2d<X, plotters::coord::types::RangedCoordf64>,
-    >,
+fn draw_chart<'a, X>(
+    mut chart: ChartContext<'a, SVGBackend<'a>, Cartesian2d<X, RangedCoordf64>>,
+    (x_name, y_name): (&str, &str),
     series: &[(String, Vec<(f64, f64)>)],
 ) -> anyhow::Result<()>
 where
-    X: Ranged<ValueType = f64>,
+    X: Ranged<ValueType = f64> + ValueFormatter<f64>,
 {
+    // Only the labelled grid lines: the fine ones crowd the small panels.
+    chart
+        .configure_mesh()
+        .light_line_style(TRANSPARENT)
+        .x_labels(6)
+        .x_label_formatter(&|x| format!("{x:.0}"))
+        .x_desc(x_name)
+        .y_desc(y_name)
+        .draw()
+        .map_err(plot_error)?;
     for (i, (label, points)) in series.iter().enumerate() {
         let colour = Palette99::pick(i).to_rgba();
         chart

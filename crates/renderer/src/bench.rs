@@ -77,6 +77,11 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
             ""
         }
     )?;
+    // Other processes on the machine change every figure: say how busy it was.
+    if let Ok(load) = std::fs::read_to_string("/proc/loadavg") {
+        let one_minute = load.split_whitespace().next().unwrap_or("?");
+        writeln!(md, "Load average when the run started: {one_minute}.\n")?;
+    }
     let sponza = match scene::load(SPONZA) {
         Ok(s) => Some(World::new(s)),
         Err(e) => {
@@ -151,10 +156,16 @@ impl Rays {
                 .as_uvec3();
             let d = self.dir[i];
             let octant = (d.x < 0.0) as u64 | ((d.y < 0.0) as u64) << 1 | ((d.z < 0.0) as u64) << 2;
-            octant << 30 | morton3(q.x, q.y, q.z)
+            // 32 bits: the octant above the top 29 bits of the Morton code.
+            octant << 29 | morton3(q.x, q.y, q.z) >> 1
         };
-        let mut idx: Vec<usize> = (0..self.len()).collect();
-        idx.sort_by_key(|&i| key(i));
+        // Keys computed once, sorted in parallel with the index in the low bits.
+        let mut keyed: Vec<u64> = (0..self.len())
+            .into_par_iter()
+            .map(|i| key(i) << 32 | i as u64)
+            .collect();
+        keyed.par_sort_unstable();
+        let idx: Vec<usize> = keyed.iter().map(|k| (k & 0xffff_ffff) as usize).collect();
         Rays {
             origin: idx.iter().map(|&i| self.origin[i]).collect(),
             dir: idx.iter().map(|&i| self.dir[i]).collect(),
@@ -268,17 +279,30 @@ impl NaiveBvh {
 
 const CHUNK: usize = 4096;
 
-/// Rays per second (millions) of `trace` over `rays`, in parallel chunks; median of runs.
-fn mrays_per_s(rays: &Rays, runs: usize, trace: impl Fn(Vec3, Vec3, f32) -> bool + Sync) -> f64 {
-    let secs = time_median(runs, || {
-        let hits: usize = (0..rays.len())
-            .into_par_iter()
-            .with_min_len(CHUNK)
-            .filter(|&i| trace(rays.origin[i], rays.dir[i], rays.tmax[i]))
-            .count();
-        std::hint::black_box(hits);
-    });
-    rays.len() as f64 / secs / 1e6
+type TraceFn<'a> = &'a (dyn Fn(Vec3, Vec3, f32) -> bool + Sync);
+
+/// Seconds to trace `rays` once with `trace`, in parallel chunks.
+fn trace_secs(rays: &Rays, trace: TraceFn) -> f64 {
+    let start = Instant::now();
+    let hits: usize = (0..rays.len())
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .filter(|&i| trace(rays.origin[i], rays.dir[i], rays.tmax[i]))
+        .count();
+    std::hint::black_box(hits);
+    start.elapsed().as_secs_f64()
+}
+
+/// Baseline, ours and ours-ordered timed in turn within each run, so a change of machine load
+/// (other processes) hits all three alike: median M rays/s of each, and the median of the
+/// per-run ratios of the other two to the baseline.
+fn compare(runs: usize, variants: [(&Rays, TraceFn); 3]) -> ([f64; 3], [f64; 2]) {
+    let per_run: Vec<[f64; 3]> = (0..runs)
+        .map(|_| variants.map(|(rays, trace)| rays.len() as f64 / trace_secs(rays, trace) / 1e6))
+        .collect();
+    let rates = [0, 1, 2].map(|k| median(per_run.iter().map(|r| r[k]).collect()));
+    let ratios = [1, 2].map(|k| median(per_run.iter().map(|r| r[k] / r[0]).collect()));
+    (rates, ratios)
 }
 
 fn ray_throughput(scene: &scene::Scene, view: &str, cfg: &Config) -> anyhow::Result<String> {
@@ -298,26 +322,38 @@ fn ray_throughput(scene: &scene::Scene, view: &str, cfg: &Config) -> anyhow::Res
         (
             "primary",
             &primary,
-            &primary,
-            mrays_per_s(&primary, cfg.runs, naive_trace),
-            mrays_per_s(&primary, cfg.runs, closest),
-            mrays_per_s(&primary, cfg.runs, closest),
+            compare(
+                cfg.runs,
+                [
+                    (&primary, &naive_trace),
+                    (&primary, &closest),
+                    (&primary, &closest),
+                ],
+            ),
         ),
         (
             "bounce",
             &bounce,
-            &bounce_ordered,
-            mrays_per_s(&bounce, cfg.runs, naive_trace),
-            mrays_per_s(&bounce, cfg.runs, closest),
-            mrays_per_s(&bounce_ordered, cfg.runs, closest),
+            compare(
+                cfg.runs,
+                [
+                    (&bounce, &naive_trace),
+                    (&bounce, &closest),
+                    (&bounce_ordered, &closest),
+                ],
+            ),
         ),
         (
             "shadow (sun)",
             &shadow,
-            &shadow_ordered,
-            mrays_per_s(&shadow, cfg.runs, naive_trace),
-            mrays_per_s(&shadow, cfg.runs, any),
-            mrays_per_s(&shadow_ordered, cfg.runs, any),
+            compare(
+                cfg.runs,
+                [
+                    (&shadow, &naive_trace),
+                    (&shadow, &any),
+                    (&shadow_ordered, &any),
+                ],
+            ),
         ),
     ];
     let mut md = String::new();
@@ -328,19 +364,18 @@ fn ray_throughput(scene: &scene::Scene, view: &str, cfg: &Config) -> anyhow::Res
     )?;
     writeln!(
         md,
-        "Baseline: obvhs one ray at a time, default (medium) preset, triangles through `primitive_indices`, closest hit for every ray. Ours: slow preset (spatial splits), triangles stored in BVH order, early-exit shadow query; \"ordered\" adds sorting the rays by direction octant and Morton order of origin (sorting took {sort_ms:.0} ms for all bounce and shadow rays, not included).\n"
+        "Baseline: obvhs one ray at a time, default (medium) preset, triangles through `primitive_indices`, closest hit for every ray. Ours: slow preset (spatial splits), triangles stored in BVH order, early-exit shadow query; \"ordered\" adds sorting the rays by direction octant and Morton order of origin (primary rays are already in 8×8 pixel tiles; sorting took {sort_ms:.0} ms for all bounce and shadow rays, not included). The three are timed in turn within each run; ratios are medians of the per-run ratios.\n"
     )?;
     writeln!(
         md,
-        "| rays | count | baseline | ours | ours, ordered | ratio (ours ordered / baseline) |"
+        "| rays | count | baseline | ours | ours, ordered | ours / baseline | ours ordered / baseline |"
     )?;
-    writeln!(md, "|---|---:|---:|---:|---:|---:|")?;
-    for (name, rays, _, base, ours, ordered) in rows {
+    writeln!(md, "|---|---:|---:|---:|---:|---:|---:|")?;
+    for (name, rays, ([base, ours, ordered], [r_ours, r_ordered])) in rows {
         writeln!(
             md,
-            "| {name} | {} | {base:.2} | {ours:.2} | {ordered:.2} | {:.2}× |",
-            rays.len(),
-            ordered / base
+            "| {name} | {} | {base:.2} | {ours:.2} | {ordered:.2} | {r_ours:.2}× | {r_ordered:.2}× |",
+            rays.len()
         )?;
     }
     md.push('\n');
@@ -464,21 +499,45 @@ fn hidden_vertices(world: &World, cfg: &Config) -> anyhow::Result<String> {
     let start = Instant::now();
     for t in (0..mesh.triangles.len()).step_by(step) {
         for side in [Side::Front, Side::Back] {
-            let p = ShadePoint { key: SampleKey { vertex: 0, side }, base_triangle: t as u32, bary: [0.0, 0.0], side, eye: None };
-            let Ok(s) = crate::point::surface_of(world, &p) else { continue };
+            let p = ShadePoint {
+                key: SampleKey { vertex: 0, side },
+                base_triangle: t as u32,
+                bary: [0.0, 0.0],
+                side,
+                eye: None,
+            };
+            let Ok(s) = crate::point::surface_of(world, &p) else {
+                continue;
+            };
             n += 1;
             if crate::point::is_hidden(world, &s, &mut counts) {
                 hidden += 1;
-                moved += crate::point::locate(world, &p, &mut counts).is_ok_and(|l| l.moved) as usize;
+                moved +=
+                    crate::point::locate(world, &p, &mut counts).is_ok_and(|l| l.moved) as usize;
             }
         }
     }
     let ms = start.elapsed().as_secs_f64() * 1e3;
     let pct = |k: usize| 100.0 * k as f64 / n.max(1) as f64;
     let mut md = String::new();
-    writeln!(md, "### Hidden shading points, {} mesh vertices (first corner of every {step}th triangle, both sides)\n", world.scene.name)?;
-    writeln!(md, "| samples | hidden at their spot | moved to a visible spot | face side wholly hidden | probe rays/sample | ms (one thread) |\n|---:|---:|---:|---:|---:|---:|")?;
-    writeln!(md, "| {n} | {hidden} ({:.1} %) | {moved} ({:.1} %) | {} ({:.1} %) | {:.1} | {ms:.0} |\n", pct(hidden), pct(moved), hidden - moved, pct(hidden - moved), counts.probe as f64 / n.max(1) as f64)?;
+    writeln!(
+        md,
+        "### Hidden shading points, {} mesh vertices (first corner of every {step}th triangle, both sides)\n",
+        world.scene.name
+    )?;
+    writeln!(
+        md,
+        "| samples | hidden at their spot | moved to a visible spot | face side wholly hidden | probe rays/sample | ms (one thread) |\n|---:|---:|---:|---:|---:|---:|"
+    )?;
+    writeln!(
+        md,
+        "| {n} | {hidden} ({:.1} %) | {moved} ({:.1} %) | {} ({:.1} %) | {:.1} | {ms:.0} |\n",
+        pct(hidden),
+        pct(moved),
+        hidden - moved,
+        pct(hidden - moved),
+        counts.probe as f64 / n.max(1) as f64
+    )?;
     Ok(md)
 }
 
@@ -487,19 +546,18 @@ fn hidden_vertices(world: &World, cfg: &Config) -> anyhow::Result<String> {
 /// bounded depth: it is the error against the full solution.
 fn error_and_time(world: &World, view: &str, cfg: &Config) -> anyhow::Result<String> {
     let points = visible_points(world, view, cfg.error_points)?;
-    let lum = |q: Quality, seed: u64| -> (Vec<f64>, f64) {
+    // Luminances of one estimate, and the median time of `runs` estimates (same seed).
+    let lum = |q: Quality, seed: u64, runs: usize| -> (Vec<f64>, f64) {
         let batch = ShadeBatch {
             batch_id: 0,
             quality: q,
             seed,
             points: points.clone(),
         };
-        let t = Instant::now();
-        let (r, _) = shade_batch(world, &batch);
-        let secs = t.elapsed().as_secs_f64();
+        let mut rgb = Vec::new();
+        let secs = time_median(runs, || rgb = shade_batch(world, &batch).0.rgb);
         (
-            r.rgb
-                .iter()
+            rgb.iter()
                 .map(|c| luminance(Vec3::from(*c)) as f64)
                 .collect(),
             secs,
@@ -511,6 +569,7 @@ fn error_and_time(world: &World, view: &str, cfg: &Config) -> anyhow::Result<Str
             bounces: None,
         },
         999,
+        1,
     );
     let mean_truth = truth.iter().sum::<f64>() / truth.len() as f64;
     let mut md = String::new();
@@ -521,7 +580,7 @@ fn error_and_time(world: &World, view: &str, cfg: &Config) -> anyhow::Result<Str
     )?;
     writeln!(
         md,
-        "Relative RMS error of luminance at {} fixed visible points against a {}-path unbounded estimate (took {truth_secs:.1} s), and milliseconds per sample (both cores). Rows: paths; columns: bounces.\n",
+        "Relative RMS error of luminance at {} fixed visible points against a {}-path unbounded estimate (took {truth_secs:.1} s), and milliseconds per sample (both cores, median of 3). Rows: paths; columns: bounces; cells: error / time.\n",
         points.len(),
         cfg.reference_paths
     )?;
@@ -533,7 +592,7 @@ fn error_and_time(world: &World, view: &str, cfg: &Config) -> anyhow::Result<Str
         let cells: Vec<String> = BOUNCE_LEVELS
             .iter()
             .map(|&bounces| {
-                let (est, secs) = lum(Quality { paths, bounces }, 7);
+                let (est, secs) = lum(Quality { paths, bounces }, 7, 3);
                 let mse = est
                     .iter()
                     .zip(&truth)

@@ -65,7 +65,8 @@ pub enum Command {
         out: PathBuf,
         #[arg(long, default_value_t = 1)]
         seed: u64,
-        /// Tone-mapping white for the PNG (default: the image's largest luminance).
+        /// Tone-mapping white for the PNG (default: the largest luminance among pixels that see
+        /// geometry).
         #[arg(long)]
         l_white: Option<f32>,
         /// Worker threads (0 = one per core).

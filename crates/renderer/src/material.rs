@@ -189,7 +189,11 @@ mod tests {
                 let mut rng = stream(7, theta_deg as u64);
                 let k = 20_000;
                 let sampled: f32 = (0..k)
-                    .map(|_| b.sample(n, wo, [uniform2(&mut rng)[0], uniform2(&mut rng)[1], 0.5]))
+                    .map(|_| {
+                        let [u0, u1] = uniform2(&mut rng);
+                        // kd = 0: any lobe-choice value picks the glossy lobe.
+                        b.sample(n, wo, [u0, u1, 0.5])
+                    })
                     .map(|s| s.map_or(0.0, |s| s.weight.x))
                     .sum::<f32>()
                     / k as f32;

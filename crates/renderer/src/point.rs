@@ -20,7 +20,9 @@ const PROBES: usize = 16;
 /// A point is hidden when at least this many probes are blocked. A point in a room's corner has
 /// three quarters of its hemisphere close to the walls: 12 of 16, below the threshold.
 const HIDDEN_WHEN_BLOCKED: usize = 15;
-/// "Very close" as a fraction of the scene's extent.
+/// "Very close" as a fraction of the scene's extent. With 0.02 (and 0.25 below), 1.7 % of the
+/// visible points of bracara's street view VR were judged hidden (its streets are narrow); with
+/// these values 0.13 %, and none of Sponza's views S1 and S2 (160×120 pixels each).
 const CLOSE_OF_EXTENT: f32 = 0.005;
 /// How far a back face still counts as the inside of a solid around the point.
 const BACK_FACE_OF_EXTENT: f32 = 0.1;
@@ -131,13 +133,12 @@ pub fn is_hidden(world: &World, s: &Surface, counts: &mut RayCounts) -> bool {
     let mut blocked = 0;
     for (i, local) in probe_pattern().enumerate() {
         let dir = crate::sampling::to_world(s.normal, local);
-        let Some(hit) = world.trace(origin, dir, RayKind::Probe, counts) else {
-            continue;
-        };
-        let back_face = world.face_normal(hit.triangle).dot(dir) > 0.0;
-        if hit.t < close || (back_face && hit.t < back_face_range) {
-            blocked += 1;
-        }
+        let hit = world.trace_within(origin, dir, back_face_range, RayKind::Probe, counts);
+        let is_blocked = hit.is_some_and(|hit| {
+            let back_face = world.face_normal(hit.triangle).dot(dir) > 0.0;
+            hit.t < close || back_face
+        });
+        blocked += is_blocked as usize;
         // Stop as soon as the verdict cannot change.
         if blocked >= HIDDEN_WHEN_BLOCKED || (i + 1 - blocked) > PROBES - HIDDEN_WHEN_BLOCKED {
             break;

@@ -143,7 +143,8 @@ fn pixel(
 }
 
 /// Renders viewpoint `view` and writes `out` (EXR) and the PNG beside it (same name, `.png`).
-/// `l_white`: the tone-mapping white; the image's maximum luminance when `None`.
+/// `l_white`: the tone-mapping white; when `None`, the largest luminance of the pixels that see
+/// geometry.
 pub fn render_to_files(
     world: &World,
     view: &str,
@@ -165,7 +166,12 @@ pub fn render_to_files(
     let (image, counts) = render(world, &camera, s, Some(&bar));
     bar.finish();
     tonemap::write_exr(out, s.width, s.height, &image.pixels)?;
-    let l_white = l_white.unwrap_or_else(|| tonemap::max_luminance(&image.pixels));
+    // The white of the geometry, like the SMA's L_white (the largest cached sample, DESIGN.md §6):
+    // a visible sun disc or sky must not darken the whole picture.
+    let l_white = l_white.unwrap_or_else(|| {
+        let seen = image.pixels.iter().zip(&image.covered).filter(|(_, c)| **c);
+        tonemap::max_luminance(seen.map(|(p, _)| *p))
+    });
     tonemap::write_png(
         &out.with_extension("png"),
         s.width,

@@ -31,11 +31,11 @@ pub fn srgb_encode(x: f32) -> f32 {
     }
 }
 
-/// The largest finite luminance of an image (the default `L_white`).
-pub fn max_luminance(pixels: &[Vec3]) -> f32 {
+/// The largest finite luminance among `pixels` (the default `L_white`).
+pub fn max_luminance(pixels: impl IntoIterator<Item = Vec3>) -> f32 {
     pixels
-        .iter()
-        .map(|&p| luminance(p))
+        .into_iter()
+        .map(luminance)
         .filter(|l| l.is_finite())
         .fold(0.0, f32::max)
 }

@@ -105,8 +105,20 @@ impl World {
         kind: RayKind,
         counts: &mut RayCounts,
     ) -> Option<Hit> {
+        self.trace_within(origin, dir, f32::INFINITY, kind, counts)
+    }
+
+    /// Closest hit closer than `tmax`.
+    pub fn trace_within(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmax: f32,
+        kind: RayKind,
+        counts: &mut RayCounts,
+    ) -> Option<Hit> {
         counts.count(kind);
-        self.bvh.closest_hit(origin, dir, f32::INFINITY)
+        self.bvh.closest_hit(origin, dir, tmax)
     }
 
     pub fn occluded(

@@ -175,3 +175,25 @@ fn reference_image_of_main_has_the_known_regions() {
     let (a, b) = (mean(&img), mean(&other));
     assert!((a - b).abs() < 0.02 * a, "{a} vs {b}");
 }
+
+#[test]
+fn reference_files_are_written_and_read_back() {
+    let w = cornell();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("main.exr");
+    let s = ReferenceSettings {
+        width: 24,
+        height: 16,
+        spp: 2,
+        bounces: None,
+        seed: 3,
+    };
+    let (img, _) = renderer::reference::render_to_files(&w, "main", &s, &out, None).unwrap();
+    let (width, height, pixels) = renderer::tonemap::read_exr(&out).unwrap();
+    assert_eq!((width, height), (24, 16));
+    assert_eq!(pixels, img.pixels);
+    let png = image::open(out.with_extension("png")).unwrap().to_rgb8();
+    assert_eq!(png.dimensions(), (24, 16));
+    assert!(png.pixels().any(|p| p.0.iter().any(|&c| c > 0)));
+    assert!(renderer::reference::render_to_files(&w, "no-such-view", &s, &out, None).is_err());
+}

@@ -134,8 +134,11 @@ fn hidden_vertex_is_moved_and_flagged_and_lit() {
 fn open_points_and_room_corners_are_not_moved() {
     let w = floor_with_box_on_a_vertex();
     let p = point_hit_by(&w, Vec3::new(3.0, 1.0, 2.0), Vec3::NEG_Y);
-    let shaded = shade_point(&w, &p, DIRECT, &mut stream(1, 0), &mut RayCounts::default());
+    let mut open_counts = RayCounts::default();
+    let shaded = shade_point(&w, &p, DIRECT, &mut stream(1, 0), &mut open_counts);
     assert_eq!(shaded.flags, 0);
+    // Under an open sky the verdict is known after two unblocked probes.
+    assert_eq!(open_counts.probe, 2);
     // Corners of a room (three quarters of the hemisphere close to walls) are visible, not hidden.
     let mut b = SceneBuilder::new(settings(None, Sky::Uniform { radiance: [1.0; 3] }));
     let m = b.material(grey(0.5));

@@ -1,6 +1,8 @@
 //! Figures of the SMA service for BENCHMARKS.md (issue 5): the cost of one ID pass at 1024×768
 //! against submitted triangles (fixed cost and slope, thesis §5.4: 137 triangles/ms plus 30 ms on
-//! 2006 hardware), and the two-level visibility of a built-in scene's named views.
+//! 2006 hardware), the two-level visibility of a built-in scene's named views, and, when run from
+//! the `walkthrough` launcher (which can start renderer and SMA processes), the end-to-end
+//! latencies and the SMA's memory per leaf (see [`end_to_end`]).
 
 use std::fmt::Write;
 use std::time::Instant;
@@ -13,6 +15,8 @@ use rand::{RngExt, SeedableRng};
 use crate::mesh::{MeshParams, SubdivisionMesh};
 use crate::visibility::{Gpu, IdPass, TriangleBuffer, Visibility};
 
+mod end_to_end;
+
 const WIDTH: u32 = 1024;
 const HEIGHT: u32 = 768;
 
@@ -24,6 +28,7 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
     write_pass_cost(&mut md, &gpu, runs, quick)?;
     drop(gpu);
     write_scene_views(&mut md, runs)?;
+    md.push_str(&end_to_end::section(quick)?);
     Ok(md)
 }
 

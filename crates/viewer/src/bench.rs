@@ -134,13 +134,14 @@ fn apply_rates(plan: &Plan, gpu: Option<&Gpu>) -> anyhow::Result<Vec<f64>> {
             .map(|&id| random_triangle(id, &mut rng))
             .collect(),
     )]);
-    let mut uploaded = gpu.map(|g| GpuTriangles::new(g));
+    let mut uploaded = gpu.map(GpuTriangles::new);
     if let (Some(g), Some(u)) = (gpu, uploaded.as_mut()) {
         u.sync(g, &mut table);
         g.wait_idle()?;
     }
     let mut rates = Vec::new();
-    for _ in 0..plan.runs {
+    // Run 0 warms up (the first scatter dispatch compiles its shader) and is not counted.
+    for run in 0..=plan.runs {
         let batches: Vec<Vec<TableOp>> = (0..plan.batches_per_run)
             .map(|_| {
                 let inserts = (0..plan.batch)
@@ -166,6 +167,9 @@ fn apply_rates(plan: &Plan, gpu: Option<&Gpu>) -> anyhow::Result<Vec<f64>> {
             }
         }
         let seconds = start.elapsed().as_secs_f64();
+        if run == 0 {
+            continue;
+        }
         rates.push((2 * plan.batch * plan.batches_per_run) as f64 / seconds / 1e6);
     }
     Ok(rates)

@@ -13,7 +13,7 @@ use crate::camera_sender::{CameraSender, DEFAULT_INTERVAL};
 use crate::cli::Cli;
 use crate::draw::{DrawSettings, depth_range};
 use crate::gpu::Gpu;
-use crate::link::Link;
+use crate::link::{Link, LinkEvent};
 use crate::offscreen::Offscreen;
 use crate::session::{pick_viewpoint, preferences};
 use crate::snapshot_files::{SnapshotRecord, SnapshotWriter};
@@ -106,112 +106,173 @@ pub fn run(cli: &Cli) -> anyhow::Result<()> {
         cli.seconds.is_some() || !cli.snapshot_at_samples.is_empty() || cli.snapshot_when_idle,
         "headless needs an end: --seconds, --snapshot-at-samples or --snapshot-when-idle"
     );
-    let gpu = Gpu::headless()?;
-    tracing::info!(adapter = %gpu.describe(), "headless viewer");
-    let offscreen = Offscreen::new(&gpu, cli.width, cli.height);
-    let mut triangles = GpuTriangles::new(&gpu);
-    let mut writer = SnapshotWriter::create(&cli.out)?;
-    let mut plan = SnapshotPlan::new(
-        cli.snapshot_every,
-        cli.snapshot_at_samples.clone(),
-        cli.snapshot_when_idle,
-        cli.seconds,
-    );
     let path_text = cli
         .camera_path
         .as_ref()
         .map(|p| std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display())))
         .transpose()?;
-
+    let gpu = Gpu::headless()?;
+    tracing::info!(adapter = %gpu.describe(), "headless viewer");
     let (tx, events) = mpsc::channel();
     let link = Link::spawn(cli.connect.clone(), move |event| {
         let _ = tx.send(event);
     })?;
-    let launched = Instant::now();
-    let mut state = ViewState::default();
-    let mut sender = CameraSender::new(DEFAULT_INTERVAL);
-    let mut walk: Option<(Camera, Option<CameraPath>)> = None;
-    let mut started: Option<Instant> = None;
-    let mut index = 0;
-    let settings = |state: &ViewState| DrawSettings {
-        tone_map: cli.tonemap,
-        l_white: state.l_white,
-        wireframe: cli.wireframe,
+    let mut headless = Headless {
+        offscreen: Offscreen::new(&gpu, cli.width, cli.height),
+        triangles: GpuTriangles::new(&gpu),
+        writer: SnapshotWriter::create(&cli.out)?,
+        plan: SnapshotPlan::new(
+            cli.snapshot_every,
+            cli.snapshot_at_samples.clone(),
+            cli.snapshot_when_idle,
+            cli.seconds,
+        ),
+        gpu,
+        cli,
+        path_text,
+        link,
+        state: ViewState::default(),
+        sender: CameraSender::new(DEFAULT_INTERVAL),
+        walk: None,
+        snapshots: 0,
     };
+    let result = headless.run(&events);
+    headless.link.close();
+    result
+}
 
-    loop {
-        for event in first_and_pending(&events, TICK) {
-            match state.handle(event) {
-                Reaction::Resend => {
-                    let scene = state.scene.as_ref().expect("Connected carries the scene");
-                    if walk.is_none() {
-                        walk = Some(start_camera(cli, scene, path_text.as_deref())?);
-                    }
-                    let (camera, _) = walk.as_ref().expect("set above");
-                    link.send(ViewerToSma::Camera(sender.force(camera, Instant::now())));
-                    preferences(cli.criterion.as_deref(), cli.no_refine)
-                        .into_iter()
-                        .for_each(|m| link.send(m));
-                    started.get_or_insert_with(Instant::now);
+/// The camera in force and the scripted walk, if any, that moves it.
+struct Walk {
+    camera: Camera,
+    path: Option<CameraPath>,
+    /// t = 0: when the first camera was sent.
+    started: Instant,
+}
+
+struct Headless<'a> {
+    cli: &'a Cli,
+    gpu: Gpu,
+    offscreen: Offscreen,
+    triangles: GpuTriangles,
+    writer: SnapshotWriter,
+    plan: SnapshotPlan,
+    path_text: Option<String>,
+    link: Link,
+    state: ViewState,
+    sender: CameraSender,
+    /// None until the SMA's scene is known.
+    walk: Option<Walk>,
+    snapshots: u32,
+}
+
+impl Headless<'_> {
+    fn run(&mut self, events: &mpsc::Receiver<LinkEvent>) -> anyhow::Result<()> {
+        let launched = Instant::now();
+        loop {
+            for event in first_and_pending(events, TICK) {
+                if self.state.handle(event) == Reaction::Resend {
+                    self.restate()?;
                 }
-                Reaction::Drawn(_) | Reaction::Nothing => {}
             }
-        }
-        let Some(t0) = started else {
-            if cli
-                .seconds
-                .is_some_and(|s| launched.elapsed().as_secs_f64() >= s)
-            {
-                anyhow::bail!(
-                    "no SMA answered at {} within {:?} s",
-                    cli.connect,
-                    cli.seconds
-                );
-            }
-            continue;
-        };
-        let t = t0.elapsed().as_secs_f64();
-        let (camera, path) = walk.as_mut().expect("set with `started`");
-        if let Some(path) = path {
-            let vp = path.at(t as f32);
-            *camera = Camera::from_viewpoint(&vp, 0, cli.width, cli.height);
-            if let Some(sent) = sender.offer(camera, Instant::now()) {
-                link.send(ViewerToSma::Camera(sent));
-            }
-        }
-        if plan.due(t, state.epoch.as_ref(), sender.seq()) {
-            triangles.sync(&gpu, &mut state.table);
-            let depth = depth_range(camera, state.table.extent());
-            let snapshot =
-                offscreen.snapshot(&gpu, &triangles, camera, depth, &settings(&state))?;
-            let (inserted, removed) = state.take_interval();
-            let epoch = state.epoch.unwrap_or_default();
-            let record = SnapshotRecord {
-                index,
-                time_s: t,
-                camera_seq: epoch.camera_seq,
-                shown: state.table.len() as u64,
-                inserted,
-                removed,
-                samples: epoch.samples,
-                outstanding: epoch.outstanding,
+            let Some(walk) = &self.walk else {
+                let waited = launched.elapsed().as_secs_f64();
+                if self.cli.seconds.is_some_and(|s| waited >= s) {
+                    anyhow::bail!(
+                        "no SMA answered at {} within {waited:.1} s",
+                        self.cli.connect
+                    );
+                }
+                continue;
             };
-            writer.write(&record, &snapshot)?;
-            tracing::info!(
-                index,
-                t,
-                shown = record.shown,
-                samples = record.samples,
-                "snapshot"
-            );
-            index += 1;
-        }
-        if plan.finished(t) {
-            break;
+            let t = walk.started.elapsed().as_secs_f64();
+            self.follow_path(t);
+            if self
+                .plan
+                .due(t, self.state.epoch.as_ref(), self.sender.seq())
+            {
+                self.snapshot(t)?;
+            }
+            if self.plan.finished(t) {
+                return Ok(());
+            }
         }
     }
-    link.close();
-    Ok(())
+
+    /// A new session: send the camera and the refinement preferences again.
+    fn restate(&mut self) -> anyhow::Result<()> {
+        let Some(scene) = &self.state.scene else {
+            return Ok(());
+        };
+        if self.walk.is_none() {
+            let (camera, path) = start_camera(self.cli, scene, self.path_text.as_deref())?;
+            self.walk = Some(Walk {
+                camera,
+                path,
+                started: Instant::now(),
+            });
+        }
+        let camera = &self.walk.as_ref().expect("set above").camera;
+        self.link.send(ViewerToSma::Camera(
+            self.sender.force(camera, Instant::now()),
+        ));
+        for msg in preferences(self.cli.criterion.as_deref(), self.cli.no_refine) {
+            self.link.send(msg);
+        }
+        Ok(())
+    }
+
+    fn follow_path(&mut self, t: f64) {
+        let Some(Walk {
+            camera,
+            path: Some(path),
+            ..
+        }) = &mut self.walk
+        else {
+            return;
+        };
+        *camera = Camera::from_viewpoint(&path.at(t as f32), 0, self.cli.width, self.cli.height);
+        if let Some(sent) = self.sender.offer(camera, Instant::now()) {
+            self.link.send(ViewerToSma::Camera(sent));
+        }
+    }
+
+    fn snapshot(&mut self, t: f64) -> anyhow::Result<()> {
+        let Some(walk) = &self.walk else {
+            return Ok(());
+        };
+        self.triangles.sync(&self.gpu, &mut self.state.table);
+        let settings = DrawSettings {
+            tone_map: self.cli.tonemap,
+            l_white: self.state.l_white,
+            wireframe: self.cli.wireframe,
+        };
+        let depth = depth_range(&walk.camera, self.state.table.extent());
+        let image =
+            self.offscreen
+                .snapshot(&self.gpu, &self.triangles, &walk.camera, depth, &settings)?;
+        let (inserted, removed) = self.state.take_interval();
+        let epoch = self.state.epoch.unwrap_or_default();
+        let record = SnapshotRecord {
+            index: self.snapshots,
+            time_s: t,
+            camera_seq: epoch.camera_seq,
+            shown: self.state.table.len() as u64,
+            inserted,
+            removed,
+            samples: epoch.samples,
+            outstanding: epoch.outstanding,
+        };
+        self.writer.write(&record, &image)?;
+        tracing::info!(
+            index = record.index,
+            t,
+            shown = record.shown,
+            samples = record.samples,
+            "snapshot"
+        );
+        self.snapshots += 1;
+        Ok(())
+    }
 }
 
 /// The first camera and the walk to follow, once the scene is known.

@@ -2,7 +2,8 @@
 //! visible triangles, draws them with Gouraud-interpolated vertex radiance and tone mapping, and
 //! sends the camera back. It has no scene of its own: it learns the scene from `SceneInfo`.
 //!
-//! - [`table`]: triangle table, O(1) insert/remove/recolour, partial uploads ([`vertex_buffer`]);
+//! - [`table`]: triangle table, O(1) insert/remove/recolour; [`vertex_buffer`]: its GPU copy,
+//!   patched with partial uploads and a compute scatter;
 //! - [`update`]: changes held back until the `Epoch` that closes them;
 //! - [`link`]: the SMA connection with reconnect and backoff; [`view_state`] follows its events;
 //! - [`draw`] (with `draw.wgsl`): the pass with tone mapping; [`offscreen`]: the same pass into

@@ -20,9 +20,9 @@ fn scatter(@builtin(global_invocation_id) id: vec3<u32>) {
     if i >= params.count {
         return;
     }
-    let from = i * WORDS;
-    let to = patches[from] * 18u;
+    let source = i * WORDS;
+    let to = patches[source] * 18u;
     for (var k = 0u; k < 18u; k++) {
-        vertices[to + k] = patches[from + 1u + k];
+        vertices[to + k] = patches[source + 1u + k];
     }
 }

@@ -47,3 +47,60 @@ pub fn next_criterion(scene: &SceneInfo, current: Option<&str>) -> Option<String
     let next = at.map_or(0, |i| (i + 1) % list.len().max(1));
     list.get(next).cloned()
 }
+
+#[cfg(test)]
+mod tests {
+    use protocol::types::Bounds;
+
+    use super::*;
+
+    fn scene() -> SceneInfo {
+        let vp = |name: &str| Viewpoint {
+            name: name.into(),
+            eye: [0.0; 3],
+            target: [0.0, 0.0, -1.0],
+            up: [0.0, 1.0, 0.0],
+            fov_y_deg: 60.0,
+        };
+        SceneInfo {
+            name: "s".into(),
+            fingerprint: [0; 32],
+            bounds: Bounds {
+                min: [0.0; 3],
+                max: [1.0; 3],
+            },
+            viewpoints: vec![vp("MC"), vp("VT")],
+            criteria: vec!["nld_os".into(), "rnd".into()],
+        }
+    }
+
+    #[test]
+    fn viewpoints_by_name_or_first_and_unknown_names_are_errors() {
+        let s = scene();
+        assert_eq!(pick_viewpoint(&s, Some("VT")).unwrap().unwrap().name, "VT");
+        assert_eq!(pick_viewpoint(&s, None).unwrap().unwrap().name, "MC");
+        let e = pick_viewpoint(&s, Some("XX")).unwrap_err().to_string();
+        assert!(e.contains("XX") && e.contains("MC"), "{e}");
+    }
+
+    #[test]
+    fn criteria_cycle_and_preferences_follow_the_flags() {
+        let s = scene();
+        assert_eq!(next_criterion(&s, Some("nld_os")).as_deref(), Some("rnd"));
+        assert_eq!(next_criterion(&s, Some("rnd")).as_deref(), Some("nld_os"));
+        assert_eq!(next_criterion(&s, None).as_deref(), Some("nld_os"));
+        let empty = SceneInfo {
+            criteria: vec![],
+            ..s
+        };
+        assert_eq!(next_criterion(&empty, Some("rnd")), None);
+        assert_eq!(
+            preferences(Some("rnd"), true),
+            vec![
+                ViewerToSma::SetCriterion { name: "rnd".into() },
+                ViewerToSma::Pause
+            ]
+        );
+        assert!(preferences(None, false).is_empty());
+    }
+}

@@ -10,6 +10,7 @@
 //! unnecessary.
 
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 use std::ops::Range;
 
 use bytemuck::{Pod, Zeroable};
@@ -48,9 +49,34 @@ pub struct Extent {
     pub max: [f32; 3],
 }
 
+/// Hashes a triangle id with a 64-bit mixer (splitmix64's finaliser). The std SipHash guards
+/// against adversarial keys, which the SMA's ids are not, at several times the cost; at a million
+/// triangles the table's lookups are a large part of applying an update.
+#[derive(Default)]
+pub struct IdHasher(u64);
+
+impl Hasher for IdHasher {
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(self.0 ^ u64::from(b));
+        }
+    }
+
+    fn write_u64(&mut self, id: u64) {
+        let mut x = id ^ self.0.rotate_left(5);
+        x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        self.0 = x ^ (x >> 31);
+    }
+
+    fn finish(&self) -> u64 {
+        self.0
+    }
+}
+
 #[derive(Default)]
 pub struct TriangleTable {
-    slot_of: HashMap<TriangleId, u32>,
+    slot_of: HashMap<TriangleId, u32, BuildHasherDefault<IdHasher>>,
     /// The id held by each live slot.
     ids: Vec<TriangleId>,
     vertices: Vec<Vertex>,

@@ -24,6 +24,8 @@ pub struct GpuTriangles {
     count: u32,
     /// None where the adapter has no compute shaders (or the buffer outgrew a storage binding).
     scatter: Option<Scatter>,
+    /// The table outgrew the device's largest buffer at the last sync.
+    truncated: bool,
 }
 
 /// What one `sync` sent.
@@ -50,6 +52,7 @@ impl GpuTriangles {
             capacity: MIN_CAPACITY,
             count: 0,
             scatter: compute.then(|| Scatter::new(&gpu.device)),
+            truncated: false,
         }
     }
 
@@ -65,21 +68,28 @@ impl GpuTriangles {
     pub fn sync(&mut self, gpu: &Gpu, table: &mut TriangleTable) -> Upload {
         let len = table.len() as u64;
         let max = gpu.device.limits().max_buffer_size / TRIANGLE_BYTES;
-        if len > self.capacity && self.capacity < max {
+        let grow = len > self.capacity && self.capacity < max;
+        if grow {
             self.capacity = len.next_power_of_two().clamp(MIN_CAPACITY, max);
             self.buffer = create(&gpu.device, self.capacity);
             if let Some(s) = &mut self.scatter {
                 s.bind_group = None;
             }
+        }
+        // A table larger than the largest buffer the device allows is drawn as a prefix; changes
+        // past it are dropped, so the first sync that fits again sends everything.
+        let refill = self.truncated && len <= self.capacity;
+        self.truncated = len > self.capacity;
+        if self.truncated {
+            tracing::warn!(
+                len,
+                capacity = self.capacity,
+                "device buffer limit: drawing a prefix"
+            );
+        }
+        if grow || refill {
             self.count = len.min(self.capacity) as u32;
             table.clear_dirty();
-            if len > self.capacity {
-                tracing::warn!(
-                    len,
-                    capacity = self.capacity,
-                    "device buffer limit: drawing a prefix"
-                );
-            }
             let bytes = write(&gpu.queue, &self.buffer, table, 0..self.count);
             return Upload {
                 bytes,
@@ -346,10 +356,12 @@ mod tests {
                     .copied()
                     .collect();
                 let recolours = (0..500)
-                    .filter_map(|_| held.get(next(held.len().max(1) as u64) as usize))
-                    .map(|&id| Recolour {
-                        id,
-                        radiance: [[next(100) as f32; 3]; 3],
+                    .filter_map(|_| {
+                        let id = *held.get(next(held.len().max(1) as u64) as usize)?;
+                        Some(Recolour {
+                            id,
+                            radiance: [[next(100) as f32; 3]; 3],
+                        })
                     })
                     .collect();
                 table.apply(&[

@@ -4,7 +4,7 @@
 use protocol::viewer_link::{Epoch, SceneInfo, Stats};
 
 use crate::link::LinkEvent;
-use crate::table::{ApplyCounts, TriangleTable};
+use crate::table::TriangleTable;
 
 /// What the front end must do after an event.
 #[derive(Debug, PartialEq)]
@@ -29,7 +29,6 @@ pub struct ViewState {
     /// Active criterion and whether refinement is paused, as the SMA last said.
     pub refinement: Option<(String, bool)>,
     pub connected: bool,
-    pub last_apply: ApplyCounts,
 }
 
 impl Default for ViewState {
@@ -44,7 +43,6 @@ impl Default for ViewState {
             stats: Stats::default(),
             refinement: None,
             connected: false,
-            last_apply: ApplyCounts::default(),
         }
     }
 }
@@ -62,7 +60,12 @@ impl ViewState {
             }
             LinkEvent::Scene(info) => self.scene = Some(info),
             LinkEvent::Update(update) => {
-                self.last_apply = self.table.apply(&update.ops);
+                let counts = self.table.apply(&update.ops);
+                if counts.ignored > 0 {
+                    // Removes or recolours of triangles never inserted: the SMA and the viewer
+                    // disagree, which the next session (or the SMA's log) must explain.
+                    tracing::debug!(?counts, epoch = ?update.epoch, "update touched unknown triangles");
+                }
                 if let Some(l_white) = update.l_white {
                     self.l_white = l_white;
                 }

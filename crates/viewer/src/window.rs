@@ -305,7 +305,8 @@ impl App {
         let (Some(d), Some(walk)) = (&mut self.display, &self.walk) else {
             return;
         };
-        d.triangles.sync(&d.gpu, &mut self.state.table);
+        let upload = d.triangles.sync(&d.gpu, &mut self.state.table);
+        tracing::trace!(?upload, "frame upload");
         let texture = match d.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t)
             | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,

@@ -227,3 +227,63 @@ fn headless_binary_writes_snapshots_when_the_sma_is_idle() {
     .unwrap();
     assert_eq!(exr.layer_data.channel_data.pixels, want.linear);
 }
+
+#[test]
+fn headless_binary_follows_a_camera_path_and_snapshots_periodically() {
+    let test = "headless_binary_follows_a_camera_path_and_snapshots_periodically";
+    let Some(_gpu) = gpu(test) else { return };
+    let sma = StandIn::start(scene());
+    let out = tempfile::tempdir().unwrap();
+    let path = out.path().join("walk.txt");
+    std::fs::write(&path, "# walk in\n0  0 0 3  0 0 0\n0.4  0 0 1  0 0 0  45\n").unwrap();
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_viewer"))
+        .args([
+            "--connect",
+            &sma.addr,
+            "--headless",
+            "--width",
+            "64",
+            "--height",
+            "48",
+        ])
+        .args(["--snapshot-every", "0.5", "--seconds", "1", "--camera-path"])
+        .arg(&path)
+        .arg("--out")
+        .arg(out.path().join("snaps"))
+        .status()
+        .unwrap();
+    assert!(status.success(), "viewer exited with {status}");
+    // Everything the viewer sent, up to the end of its session.
+    let mut cameras = Vec::new();
+    sma.expect("the end of the session", |s| match s {
+        common::Seen::Message(ViewerToSma::Camera(c)) => {
+            cameras.push(c);
+            None
+        }
+        common::Seen::Ended => Some(()),
+        _ => None,
+    });
+    assert!(cameras.len() >= 2, "{cameras:?}");
+    assert!(
+        cameras
+            .windows(2)
+            .all(|w| w[1].seq > w[0].seq && w[1].eye[2] < w[0].eye[2])
+    );
+    let last = cameras.last().unwrap();
+    assert_eq!(
+        (last.eye, last.fov_y_deg),
+        ([0.0, 0.0, 1.0], 45.0),
+        "the walk ends where the path does"
+    );
+
+    let csv = std::fs::read_to_string(out.path().join("snaps/snapshots.csv")).unwrap();
+    let times: Vec<f64> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
+        .collect();
+    assert!(
+        times.len() >= 2 && times[0] < 0.5 && times.windows(2).all(|w| w[1] > w[0]),
+        "{times:?}"
+    );
+}

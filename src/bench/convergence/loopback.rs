@@ -73,8 +73,8 @@ impl Process {
     /// An error naming the process and the end of its log.
     fn failure(&self, what: &str) -> anyhow::Error {
         let log = std::fs::read_to_string(&self.log).unwrap_or_default();
-        let tail: Vec<&str> = log.lines().rev().take(15).collect();
-        let tail: Vec<&str> = tail.into_iter().rev().collect();
+        let lines: Vec<&str> = log.lines().collect();
+        let tail = &lines[lines.len().saturating_sub(15)..];
         anyhow::anyhow!(
             "{} {what} (log {}):\n{}",
             self.name,

@@ -90,15 +90,13 @@ pub fn samples_table(record: &ViewRecord, rows: &[Measurement]) -> String {
 
 /// `12 863` as the thesis writes it, with a thin space between thousands.
 pub fn thousands(n: u64) -> String {
-    let digits = n.to_string();
-    let mut out = String::new();
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i) % 3 == 0 {
-            out.push('\u{2009}');
-        }
-        out.push(c);
-    }
-    out
+    let reversed: Vec<char> = n.to_string().chars().rev().collect();
+    let groups: Vec<String> = reversed
+        .chunks(3)
+        .rev()
+        .map(|g| g.iter().rev().collect())
+        .collect();
+    groups.join("\u{2009}")
 }
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
 //! One SMA connection: handshake with the scene fingerprint, then batches in, replies out. Batches
 //! run concurrently on the rayon pool and are answered as each finishes, so the reply order is not
-//! the request order (replies carry the batch id).
+//! the request order (replies carry the batch id). After `Bye`, the end of the peer's stream or a
+//! shutdown, batches not yet answered are dropped (the SMA re-issues a lost renderer's work).
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -1,14 +1,14 @@
 //! Property tests of the subdivision mesh on random meshes (seams, mixed winding, needles,
 //! non-manifold fins) under random refinement and coarsening (issue 4).
 
-use std::collections::HashMap;
+use std::collections::{BTreeSet, HashMap};
 
 use glam::Vec3;
 use proptest::prelude::*;
 use scene::{Mesh, Triangle};
 
 use super::test_meshes::grid;
-use super::{NodeId, Split, SubdivisionMesh, min_angle};
+use super::{NodeId, RefinementStep, Split, SubdivisionMesh, min_angle};
 
 /// A grid with uneven columns (needles where a column is thin), some triangles flipped, some
 /// given their own vertex copies (a seam), and fins standing on some interior edges (three faces
@@ -142,19 +142,55 @@ fn check(mesh: &SubdivisionMesh, scene: &Mesh) -> Result<(), TestCaseError> {
     Ok(())
 }
 
-/// Coarsens bottom-up until nothing more is allowed.
-fn coarsen_all(mesh: &mut SubdivisionMesh) {
+/// Coarsens everything, one level per call, checking that each step is a conforming unit that
+/// takes the leaves from before it to after it.
+fn coarsen_all(mesh: &mut SubdivisionMesh, scene: &Mesh) -> Result<(), TestCaseError> {
     loop {
-        let mut changed = false;
-        for id in (0..mesh.node_count() as NodeId).rev() {
-            if mesh.node(id).alive && matches!(mesh.node(id).split, Split::Red { .. }) {
-                changed |= mesh.coarsen(id).is_some();
-            }
+        let parents: Vec<NodeId> = (0..mesh.node_count() as NodeId)
+            .filter(|&id| mesh.node(id).alive && matches!(mesh.node(id).split, Split::Red { .. }))
+            .collect();
+        let mut shown: BTreeSet<NodeId> = mesh.leaves().collect();
+        let steps = mesh.coarsen_many(&parents);
+        if steps.is_empty() {
+            return Ok(());
         }
-        if !changed {
-            return;
+        for step in steps {
+            apply(&mut shown, &step, mesh)?;
         }
+        prop_assert_eq!(&shown, &mesh.leaves().collect::<BTreeSet<_>>());
+        check(mesh, scene)?;
     }
+}
+
+/// Applies a step to the leaves a viewer shows: it replaces only leaves shown, adds only new
+/// ones, and covers exactly the area it replaces.
+fn apply(
+    shown: &mut BTreeSet<NodeId>,
+    step: &RefinementStep,
+    mesh: &SubdivisionMesh,
+) -> Result<(), TestCaseError> {
+    for l in &step.replaced_leaves {
+        prop_assert!(shown.remove(l), "step replaces leaf {} it did not have", l);
+    }
+    for &l in &step.new_leaves {
+        prop_assert!(shown.insert(l), "step adds leaf {} twice", l);
+    }
+    let sum = |ids: &[NodeId]| {
+        ids.iter()
+            .map(|&l| f64::from(area(mesh.leaf_positions(l))))
+            .sum::<f64>()
+    };
+    let (new, old) = (sum(&step.new_leaves), sum(&step.replaced_leaves));
+    prop_assert!(
+        (new - old).abs() <= 1e-4 * old,
+        "a step covers what it replaces"
+    );
+    Ok(())
+}
+
+/// The base triangles, which full coarsening must give back.
+fn base_leaves(mesh: &SubdivisionMesh) -> BTreeSet<NodeId> {
+    (0..mesh.base_count() as NodeId).collect()
 }
 
 proptest! {
@@ -175,19 +211,11 @@ proptest! {
             let leaves: Vec<NodeId> = mesh.leaves().collect();
             let selected: Vec<NodeId> = picks.iter().map(|i| leaves[i.index(leaves.len())]).collect();
             // Applied in order, the steps take the leaves from before the call to after it.
-            let mut shown: std::collections::BTreeSet<NodeId> = leaves.iter().copied().collect();
+            let mut shown: BTreeSet<NodeId> = leaves.iter().copied().collect();
             for step in mesh.refine(&selected, &|_| false) {
-                for l in &step.replaced_leaves {
-                    prop_assert!(shown.remove(l), "step replaces leaf {} it did not have", l);
-                }
-                for &l in &step.new_leaves {
-                    prop_assert!(shown.insert(l), "step adds leaf {} twice", l);
-                }
-                let sum = |ids: &[NodeId]| ids.iter().map(|&l| f64::from(area(mesh.leaf_positions(l)))).sum::<f64>();
-                let (new, old) = (sum(&step.new_leaves), sum(&step.replaced_leaves));
-                prop_assert!((new - old).abs() <= 1e-4 * old, "a step covers what it replaces");
+                apply(&mut shown, &step, &mesh)?;
             }
-            prop_assert_eq!(shown.into_iter().collect::<Vec<_>>(), mesh.leaves().collect::<std::collections::BTreeSet<_>>().into_iter().collect::<Vec<_>>());
+            prop_assert_eq!(shown, mesh.leaves().collect::<BTreeSet<_>>());
             check(&mesh, &scene)?;
             if coarsen {
                 let inner: Vec<NodeId> = (0..mesh.node_count() as NodeId)
@@ -205,15 +233,11 @@ proptest! {
                 }
             }
         }
-        let before = mesh.leaf_count();
-        coarsen_all(&mut mesh);
-        check(&mesh, &scene)?;
-        prop_assert!(mesh.leaf_count() <= before);
+        coarsen_all(&mut mesh, &scene)?;
+        prop_assert_eq!(mesh.leaves().collect::<BTreeSet<_>>(), base_leaves(&mesh));
     }
 
-    /// One refinement step is undone by coarsening its red nodes, newest first (the closure of a
-    /// single step never surrounds a red node with red neighbours on two sides... except a
-    /// selected one's neighbours, which coarsen once it has).
+    /// One refinement step, closure included, is undone by coarsening.
     #[test]
     fn coarsening_undoes_a_single_refinement(
         n in 1u32..4,
@@ -226,8 +250,7 @@ proptest! {
         let mut mesh = SubdivisionMesh::new(&scene, super::MeshParams { min_edge_length: 1e-3, weld_tolerance_rel: 1e-6 });
         let leaf = pick.index(mesh.base_count()) as NodeId;
         mesh.refine(&[leaf], &|_| false);
-        coarsen_all(&mut mesh);
-        check(&mesh, &scene)?;
-        prop_assert_eq!(mesh.leaves().collect::<Vec<_>>(), (0..mesh.base_count() as NodeId).collect::<Vec<_>>());
+        coarsen_all(&mut mesh, &scene)?;
+        prop_assert_eq!(mesh.leaves().collect::<BTreeSet<_>>(), base_leaves(&mesh));
     }
 }

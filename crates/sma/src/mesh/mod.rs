@@ -21,8 +21,10 @@
 //! the scene size (DESIGN.md §4), across material and crease seams, and an edge is a pair of
 //! points, so any number of faces may share one (non-manifold edges). An edge midpoint gets one
 //! vertex per pair of vertex copies, i.e. one per side of a seam, at one shared position
-//! (DESIGN.md §5). Coarsening (thesis §6, future work) undoes a red split when no neighbour is
-//! finer along the parent's edges, re-greening or un-greening what closure then needs.
+//! (DESIGN.md §5). Coarsening (thesis §6, future work) undoes red splits when no neighbour is
+//! finer along the parents' edges, re-greening or un-greening what closure then needs; parents
+//! that block each other (a uniformly refined patch) go together in one step, so coarsening
+//! everything, one level per call, gives back the base mesh.
 
 mod adjacency;
 mod angles;
@@ -143,8 +145,9 @@ impl Node {
 /// A split edge, keyed by its (welded) end points.
 #[derive(Clone, Copy, Debug)]
 struct EdgeSplit {
-    /// The point at the midpoint, shared by every face on the edge.
-    mid_point: u32,
+    /// The first midpoint vertex made on the edge; its point is the midpoint's, shared by every
+    /// face on the edge, and, unless an end is a seam vertex, it is the only midpoint vertex.
+    mid_vertex: VertexId,
     /// Live nodes whose split cut this edge; a leaf edge with a count above zero has a hanging
     /// vertex.
     splits: u32,
@@ -155,19 +158,36 @@ pub struct SubdivisionMesh {
     min_split_edge: f32,
     nodes: Vec<Node>,
     vertices: Vec<MeshVertex>,
-    /// Welded point of each vertex: adjacency goes by points, shading by vertices.
+    /// Welded point of each vertex, with [`SEAM_VERTEX`] set where the point may have other
+    /// vertices: adjacency goes by points, shading by vertices.
     vertex_point: Vec<u32>,
-    point_positions: Vec<Vec3>,
+    /// Points so far: the welded base points, then one per split edge.
+    point_count: u32,
     base_count: usize,
     /// Base triangles with two corners welded into one point: never split, no neighbours.
     degenerate: Vec<bool>,
     adjacency: adjacency::BaseAdjacency,
     /// Keyed by point pair; kept when the count drops to zero so a re-split reuses the point.
     edge_splits: HashMap<u64, EdgeSplit, FastHash>,
-    /// Keyed by vertex pair: one midpoint vertex per side of a seam; kept for ever so a re-split
-    /// finds the vertex, and its cached samples, again.
-    midpoint_vertices: HashMap<u64, VertexId, FastHash>,
+    /// Keyed by vertex pair: one midpoint vertex per side of a seam, for edges with a seam vertex
+    /// at an end (the others find theirs in `edge_splits`); kept for ever so a re-split finds the
+    /// vertex, and its cached samples, again.
+    seam_midpoints: HashMap<u64, VertexId, FastHash>,
     leaf_count: usize,
+}
+
+/// Flag in `vertex_point` of a vertex whose point may hold other vertices (a seam side, or a
+/// midpoint of an edge with such an end): only those need `seam_midpoints`.
+const SEAM_VERTEX: u32 = 1 << 31;
+
+/// Pushes onto a vector grown by a quarter when full rather than doubled: the node and vertex
+/// arrays are most of the mesh's memory (issue 4: <= 100 bytes per leaf all included), and the
+/// allocator moves a large block by remapping its pages, so the extra moves cost little.
+fn push_lean<T>(v: &mut Vec<T>, x: T) {
+    if v.len() == v.capacity() {
+        v.reserve_exact(v.len() / 4 + 16);
+    }
+    v.push(x);
 }
 
 /// Key of an unordered pair of ids.
@@ -209,6 +229,20 @@ impl SubdivisionMesh {
             })
             .collect();
         let adjacency = adjacency::BaseAdjacency::new(&nodes, &vertex_point, &degenerate);
+        let mut vertices_at = vec![0u32; point_positions.len()];
+        vertex_point
+            .iter()
+            .for_each(|&p| vertices_at[p as usize] += 1);
+        let vertex_point = vertex_point
+            .into_iter()
+            .map(|p| {
+                if vertices_at[p as usize] > 1 {
+                    p | SEAM_VERTEX
+                } else {
+                    p
+                }
+            })
+            .collect();
         SubdivisionMesh {
             min_split_edge: 2.0
                 * params
@@ -219,11 +253,11 @@ impl SubdivisionMesh {
             nodes,
             vertices,
             vertex_point,
-            point_positions,
+            point_count: point_positions.len() as u32,
             degenerate,
             adjacency,
             edge_splits: HashMap::default(),
-            midpoint_vertices: HashMap::default(),
+            seam_midpoints: HashMap::default(),
         }
     }
 
@@ -300,15 +334,18 @@ impl SubdivisionMesh {
         self.nodes.capacity() * size_of::<Node>()
             + self.vertices.capacity() * size_of::<MeshVertex>()
             + self.vertex_point.capacity() * size_of::<u32>()
-            + self.point_positions.capacity() * size_of::<Vec3>()
             + self.degenerate.capacity()
             + self.adjacency.heap_bytes()
             + table(&self.edge_splits)
-            + table(&self.midpoint_vertices)
+            + table(&self.seam_midpoints)
     }
 
     fn point_of(&self, v: VertexId) -> u32 {
-        self.vertex_point[v as usize]
+        self.vertex_point[v as usize] & !SEAM_VERTEX
+    }
+
+    fn is_seam(&self, v: VertexId) -> bool {
+        self.vertex_point[v as usize] & SEAM_VERTEX != 0
     }
 
     /// Vertices of edge `k` of a node, in the node's winding.

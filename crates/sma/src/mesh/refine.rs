@@ -4,8 +4,8 @@ use glam::Vec3;
 
 use super::step::StepRecorder;
 use super::{
-    EdgeSplit, MeshVertex, Node, NodeId, NodeKind, RefinementStep, Split, SubdivisionMesh,
-    VertexId, pair_key,
+    EdgeSplit, MeshVertex, Node, NodeId, NodeKind, RefinementStep, SEAM_VERTEX, Split,
+    SubdivisionMesh, VertexId, pair_key, push_lean,
 };
 
 /// Children of a red split of (a, b, c) with midpoints m0 on ab, m1 on bc, m2 on ca: the corners
@@ -170,15 +170,18 @@ impl SubdivisionMesh {
         let first = self.nodes.len() as NodeId;
         for (i, &vertices) in children.iter().enumerate() {
             step.before_change(self, first + i as NodeId);
-            self.nodes.push(Node {
-                vertices,
-                base: p.base,
-                parent: Some(parent),
-                depth: p.depth.saturating_add(1),
-                kind,
-                split: Split::None,
-                alive: true,
-            });
+            push_lean(
+                &mut self.nodes,
+                Node {
+                    vertices,
+                    base: p.base,
+                    parent: Some(parent),
+                    depth: p.depth.saturating_add(1),
+                    kind,
+                    split: Split::None,
+                    alive: true,
+                },
+            );
         }
         self.leaf_count += children.len() - 1;
         first
@@ -188,35 +191,40 @@ impl SubdivisionMesh {
     /// making the point and the vertex the first time.
     fn split_edge(&mut self, id: NodeId, k: usize, step: &mut StepRecorder) -> VertexId {
         let (va, vb) = self.edge_vertices(id, k);
-        let (pa, pb) = (self.point_of(va), self.point_of(vb));
-        let next_point = self.point_positions.len() as u32;
+        let next_vertex = self.vertices.len() as VertexId;
         let split = self
             .edge_splits
-            .entry(pair_key(pa, pb))
+            .entry(pair_key(self.point_of(va), self.point_of(vb)))
             .or_insert(EdgeSplit {
-                mid_point: next_point,
+                mid_vertex: next_vertex,
                 splits: 0,
             });
         split.splits += 1;
-        let mid_point = split.mid_point;
-        if mid_point == next_point {
-            let (a, b) = (
-                self.point_positions[pa as usize],
-                self.point_positions[pb as usize],
-            );
-            self.point_positions.push(0.5 * (a + b));
-        }
-        let vertex_key = pair_key(va, vb);
-        if let Some(&v) = self.midpoint_vertices.get(&vertex_key) {
+        let first = split.mid_vertex;
+        let seam = self.is_seam(va) || self.is_seam(vb);
+        let (point, position) = if first == next_vertex {
+            self.point_count += 1;
+            let [a, b] = [va, vb].map(|v| self.vertex(v).position);
+            (self.point_count - 1, 0.5 * (a + b))
+        } else if !seam {
+            // Neither end shares its point, so this edge is the only vertex pair on the points.
+            return first;
+        } else if let Some(&v) = self.seam_midpoints.get(&pair_key(va, vb)) {
             return v;
+        } else {
+            (self.point_of(first), self.vertex(first).position)
+        };
+        let vertex = self.midpoint_vertex(id, va, vb, position);
+        push_lean(&mut self.vertices, vertex);
+        push_lean(
+            &mut self.vertex_point,
+            if seam { point | SEAM_VERTEX } else { point },
+        );
+        if seam {
+            self.seam_midpoints.insert(pair_key(va, vb), next_vertex);
         }
-        let v = self.vertices.len() as VertexId;
-        let vertex = self.midpoint_vertex(id, va, vb, self.point_positions[mid_point as usize]);
-        self.vertices.push(vertex);
-        self.vertex_point.push(mid_point);
-        self.midpoint_vertices.insert(vertex_key, v);
-        step.new_vertices.push(v);
-        v
+        step.new_vertices.push(next_vertex);
+        next_vertex
     }
 
     /// The midpoint vertex of edge (va, vb) of node `id`: shaded on the node's base triangle,
