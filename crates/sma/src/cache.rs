@@ -44,11 +44,25 @@ pub struct ShadingCache {
     budget_bytes: usize,
     /// `slots[2 vertex + side]`: index into `samples`, or `NO_SLOT`.
     slots: Vec<u32>,
-    samples: Vec<(SampleKey, CachedSample)>,
+    samples: Vec<CachedSample>,
+    /// The slot of each sample, to re-point it when a removal moves the sample: four bytes
+    /// rather than a stored `SampleKey`'s eight (issue 4: <= 100 bytes per leaf all included).
+    owners: Vec<u32>,
 }
 
 fn slot_index(key: SampleKey) -> usize {
     2 * key.vertex as usize + usize::from(key.side == Side::Back)
+}
+
+fn slot_key(slot: u32) -> SampleKey {
+    SampleKey {
+        vertex: slot / 2,
+        side: if slot % 2 == 1 {
+            Side::Back
+        } else {
+            Side::Front
+        },
+    }
 }
 
 impl ShadingCache {
@@ -57,12 +71,13 @@ impl ShadingCache {
             budget_bytes,
             slots: Vec::new(),
             samples: Vec::new(),
+            owners: Vec::new(),
         }
     }
 
     pub fn get(&self, key: SampleKey) -> Option<&CachedSample> {
         match self.slots.get(slot_index(key)) {
-            Some(&s) if s != NO_SLOT => Some(&self.samples[s as usize].1),
+            Some(&s) if s != NO_SLOT => Some(&self.samples[s as usize]),
             _ => None,
         }
     }
@@ -80,11 +95,12 @@ impl ShadingCache {
         match self.slots[index] {
             NO_SLOT => {
                 self.slots[index] = self.samples.len() as u32;
-                self.samples.push((key, sample));
+                self.samples.push(sample);
+                self.owners.push(index as u32);
                 CacheInsert::New
             }
             s => {
-                let old = &mut self.samples[s as usize].1;
+                let old = &mut self.samples[s as usize];
                 let new_eye = sample.view_dependent && sample.eye != old.eye;
                 if sample.quality.rank() <= old.quality.rank() && !new_eye {
                     return CacheInsert::Ignored;
@@ -131,7 +147,7 @@ impl ShadingCache {
         if let Some(&s) = self.slots.get(slot_index(key))
             && s != NO_SLOT
         {
-            let seen = &mut self.samples[s as usize].1.last_seen;
+            let seen = &mut self.samples[s as usize].last_seen;
             *seen = (*seen).max(now);
         }
     }
@@ -161,8 +177,9 @@ impl ShadingCache {
         let mut candidates: Vec<(u64, SampleKey)> = self
             .samples
             .iter()
-            .filter(|(key, s)| s.last_seen < now && !keep(*key))
-            .map(|(key, s)| (s.last_seen, *key))
+            .zip(self.owners.iter().map(|&slot| slot_key(slot)))
+            .filter(|&(s, key)| s.last_seen < now && !keep(key))
+            .map(|(s, key)| (s.last_seen, key))
             .collect();
         candidates.sort_unstable_by_key(|&(seen, key)| (seen, slot_index(key)));
         let mut removed = 0;
@@ -179,8 +196,9 @@ impl ShadingCache {
     fn remove(&mut self, key: SampleKey) {
         let s = std::mem::replace(&mut self.slots[slot_index(key)], NO_SLOT) as usize;
         self.samples.swap_remove(s);
-        if let Some(&(moved, _)) = self.samples.get(s) {
-            self.slots[slot_index(moved)] = s as u32;
+        self.owners.swap_remove(s);
+        if let Some(&moved) = self.owners.get(s) {
+            self.slots[moved as usize] = s as u32;
         }
     }
 
@@ -195,7 +213,7 @@ impl ShadingCache {
     /// Bytes charged against the budget: the slot table plus the packed samples.
     pub fn bytes(&self) -> usize {
         self.slots.len() * size_of::<u32>()
-            + self.samples.len() * size_of::<(SampleKey, CachedSample)>()
+            + self.samples.len() * (size_of::<CachedSample>() + size_of::<u32>())
     }
 
     pub fn budget_bytes(&self) -> usize {
@@ -206,7 +224,7 @@ impl ShadingCache {
     pub fn max_luminance(&self) -> f32 {
         self.samples
             .iter()
-            .map(|(_, s)| luminance(s.rgb))
+            .map(|s| luminance(s.rgb))
             .fold(0.0, f32::max)
     }
 
@@ -341,7 +359,7 @@ mod tests {
             let start = rng.random_range(0..vertices - 300);
             let visible: Vec<SampleKey> = (start..start + 300).map(key).collect();
             for &k in &visible {
-                cache.insert(k, sample(1.0, Quality::DIRECT, now));
+                cache.insert(k, sample(k.vertex as f32, Quality::DIRECT, now));
                 cache.touch(k, now);
             }
             cache.evict(now, &|_| false);
@@ -351,8 +369,10 @@ mod tests {
                 cache.bytes()
             );
             assert!(
-                visible.iter().all(|&k| cache.get(k).is_some()),
-                "a visible sample was evicted"
+                visible
+                    .iter()
+                    .all(|&k| cache.get(k).is_some_and(|s| s.rgb[0] == k.vertex as f32)),
+                "a visible sample was evicted or moved to another key"
             );
         }
         assert!(cache.len() > 300);

@@ -81,22 +81,24 @@ pub struct CriterionSettings {
     /// All but RND: no selection of a leaf covering fewer pixels (§4.3.3: 6).
     pub min_leaf_pixels: u32,
     /// NLD_PX: ε of eq. 3.4, the weight of a leaf's size alone in its priority
-    /// `(ε + (1 - ε) S) × pixels`.
+    /// `(ε + (1 - ε) S) × pixels`; it ranks large flat leaves (fig. 4.10) against shading edges.
     pub nld_px_epsilon: f32,
 }
 
 /// Defaults from the synthetic convergence runs of `bench::criteria_experiment` (8×8 grid at
 /// 128×128, a hard shadow line, a shadow disc between vertices, a smooth ripple; mean absolute
-/// luminance error after 1,200 samples, R = 16; figures in BENCHMARKS.md):
-/// - `s_ref_start` 0.5, `s_ref_step` 0.1: the error did not move (0.0031) over
-///   start 0.3–0.8 and step 0.05–0.2; the middle values are kept.
-/// - `s_min` 0.05: 0.005, 0.02 and 0.05 gave the same error (0.0031), 0.1 a worse one (0.0032;
-///   0.0043 with the large-triangle fraction at 0.02); the largest that costs nothing stops
-///   refinement soonest.
-/// - `large_triangle_fraction` 0.002: 0.0031 against 0.0034 at 0.005 and 0.0042 at 0.02 (the
-///   disc inside a square is found only when big leaves are split regardless of S).
-/// - `nld_is_fraction` 0.1: 0.0044, same as 0.3, against 0.0051 at 0.02.
-/// - `nld_px_epsilon` 0.05: no measurable effect over 0–0.3 (0.0031).
+/// luminance error after 300 / 600 / 1,200 samples, R = 16; figures in BENCHMARKS.md):
+/// - `s_ref_start` 0.5, `s_ref_step` 0.1: the error did not move (0.0150 / 0.0091 / 0.0031)
+///   over start 0.3–0.8 and step 0.05–0.2; the middle values are kept.
+/// - `s_min` 0.05: 0.005, 0.02 and 0.05 gave the same error, 0.1 a worse one at 1,200 (0.0032);
+///   the largest that costs nothing stops refinement soonest.
+/// - `large_triangle_fraction` 0.002: 0.0031 at 1,200 against 0.0034 at 0.005 and 0.0042 at
+///   0.02 (the disc inside a square is found only when big leaves are split regardless of S);
+///   0.005 is better early for NLD_OS (0.0087 / 0.0044 against 0.0150 / 0.0091), since it
+///   spends fewer samples on flat leaves first; NLD_PX, which ranks them, needs no such trade.
+/// - `nld_is_fraction` 0.1: 0.0045 at 1,200, same as 0.3, against 0.0051 at 0.02.
+/// - `nld_px_epsilon` 0.05: 0.0062 / 0.0044 / 0.0031, against 0.0060 / 0.0045 / 0.0031 at 0 and
+///   0.0099 / 0.0065 / 0.0031 at 0.3.
 /// - `rnd_fraction` 0.1: as `nld_is_fraction`, so RND and NLD_IS passes select alike.
 /// - `min_leaf_pixels` 6: the thesis's value (§4.3.3).
 impl Default for CriterionSettings {

@@ -12,7 +12,10 @@
 //! - [`pool`]: the renderer pool;
 //! - [`viewer_link`]: accepted viewers;
 //! - [`schedule`]: the event loop tying them together;
-//! - [`cli`]: the command line.
+//! - [`server`]: the listener, and starting/stopping a whole SMA (also in-process, for tests);
+//! - [`cli`]: the command line;
+//! - [`probe`]: a scripted protocol viewer that checks the SMA's updates (tests, benchmarks);
+//! - [`service_bench`]: the service's figures for BENCHMARKS.md.
 
 pub mod bench;
 pub mod cache;

@@ -247,3 +247,30 @@ pub fn table_triangles(probe: &Probe) -> Vec<[Vec3; 3]> {
 pub fn bounds(info: &SceneInfo) -> (Vec3, Vec3) {
     (Vec3::from(info.bounds.min), Vec3::from(info.bounds.max))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn t(p: [[f32; 3]; 3]) -> [Vec3; 3] {
+        p.map(Vec3::from)
+    }
+
+    #[test]
+    fn overlap_means_shared_interior_in_one_plane() {
+        let parent = t([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0]]);
+        let child = t([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+        let neighbour = t([[2.0, 0.0, 0.0], [2.0, 2.0, 0.0], [0.0, 2.0, 0.0]]);
+        let corner_only = t([[2.0, 0.0, 0.0], [3.0, 0.0, 0.0], [3.0, 1.0, 0.0]]);
+        let lifted = t([[0.0, 0.0, 0.1], [1.0, 0.0, 0.1], [0.0, 1.0, 0.1]]);
+        assert!(coplanar_overlap(&parent, &child));
+        assert!(coplanar_overlap(&child, &parent));
+        assert!(coplanar_overlap(&parent, &parent));
+        assert!(
+            !coplanar_overlap(&parent, &neighbour),
+            "a shared edge is no overlap"
+        );
+        assert!(!coplanar_overlap(&parent, &corner_only));
+        assert!(!coplanar_overlap(&parent, &lifted), "another plane");
+    }
+}

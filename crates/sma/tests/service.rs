@@ -106,9 +106,17 @@ fn fake_radiance(scene: &Scene, point: &ShadePoint, quality: Quality) -> [f32; 3
 
 type Log = Arc<Mutex<Vec<(SampleKey, Quality, Option<[f32; 3]>)>>>;
 
-/// A renderer stand-in on a free port. With `die_after = Some(n)` it takes its n-th batch,
-/// answers nothing, closes the connection and stops listening (a renderer killed mid-batch).
-async fn fake_renderer(scene: Scene, die_after: Option<usize>) -> (String, Log) {
+/// How a fake renderer misbehaves at its n-th batch: it takes it, answers nothing, and closes
+/// the connection, then either stops listening (killed mid-batch) or accepts again (restarted).
+#[derive(Clone, Copy, PartialEq)]
+enum Fault {
+    None,
+    Die(usize),
+    Drop(usize),
+}
+
+/// A renderer stand-in on a free port that shades [`fake_radiance`] and logs every request.
+async fn fake_renderer(scene: Scene, fault: Fault) -> (String, Log) {
     let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
     let addr = listener.local_addr().unwrap().to_string();
     let log: Log = Arc::default();
@@ -133,8 +141,10 @@ async fn fake_renderer(scene: Scene, die_after: Option<usize>) -> (String, Log) 
             }
             while let Ok(ToRenderer::ShadeBatch(batch)) = reader.recv().await {
                 batches += 1;
-                if die_after == Some(batches) {
-                    return; // drops the listener and this connection, unanswered
+                match fault {
+                    Fault::Die(n) if n == batches => return, // listener and link dropped
+                    Fault::Drop(n) if n == batches => break, // link dropped, listener kept
+                    _ => {}
                 }
                 task_log
                     .lock()
@@ -200,7 +210,7 @@ async fn first_picture_then_refinement_stays_consistent_and_covers_the_visible_s
         return;
     }
     let scene = diffuse_wall();
-    let (renderer, log) = fake_renderer(scene.clone(), None).await;
+    let (renderer, log) = fake_renderer(scene.clone(), Fault::None).await;
     let sma = sma::server::start(&cli(vec![renderer], true), scene.clone())
         .await
         .unwrap();
@@ -288,7 +298,7 @@ async fn walking_around_a_wall_shows_its_other_side() {
         return;
     }
     let scene = diffuse_wall();
-    let (renderer, _) = fake_renderer(scene.clone(), None).await;
+    let (renderer, _) = fake_renderer(scene.clone(), Fault::None).await;
     let sma = sma::server::start(&cli(vec![renderer], false), scene.clone())
         .await
         .unwrap();
@@ -340,7 +350,7 @@ async fn mirror_samples_are_retaken_after_the_eye_moves_and_diffuse_ones_never()
         } else {
             diffuse_wall()
         };
-        let (renderer, log) = fake_renderer(scene.clone(), None).await;
+        let (renderer, log) = fake_renderer(scene.clone(), Fault::None).await;
         let sma = sma::server::start(&cli(vec![renderer], false), scene.clone())
             .await
             .unwrap();
@@ -382,8 +392,8 @@ async fn a_renderer_killed_mid_batch_loses_no_request() {
         return;
     }
     let scene = diffuse_wall();
-    let (dying, _) = fake_renderer(scene.clone(), Some(2)).await;
-    let (healthy, _) = fake_renderer(scene.clone(), None).await;
+    let (dying, _) = fake_renderer(scene.clone(), Fault::Die(2)).await;
+    let (healthy, _) = fake_renderer(scene.clone(), Fault::None).await;
     let mut cli = cli(vec![dying, healthy], false);
     cli.batch_points = 2; // many small batches, so the dying one holds some
     let sma = sma::server::start(&cli, scene.clone()).await.unwrap();
@@ -402,12 +412,41 @@ async fn a_renderer_killed_mid_batch_loses_no_request() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_dropped_renderer_link_reconnects_and_its_batch_is_reissued() {
+    if !gpu_available() {
+        return;
+    }
+    let scene = diffuse_wall();
+    let (flaky, log) = fake_renderer(scene.clone(), Fault::Drop(2)).await;
+    let mut cli = cli(vec![flaky], false);
+    cli.batch_points = 2;
+    let sma = sma::server::start(&cli, scene.clone()).await.unwrap();
+    let mut probe = Probe::connect(&sma.addr.to_string()).await.unwrap();
+    let cam = probe.view("front", W, H).await.unwrap();
+    // Only the one renderer: completing needs the reconnection and the re-issued batch.
+    probe.complete(cam.seq, WAIT).await.unwrap();
+    let shown = probe::coverage(
+        &Gpu::new().unwrap(),
+        &probe::table_triangles(&probe),
+        &cam,
+        scene.mesh.bounds(),
+    )
+    .unwrap();
+    assert_eq!(differing(&scene_coverage(&scene, &cam), &shown), 0);
+    assert!(
+        repeated_requests(&log).is_empty(),
+        "an answered sample was asked again"
+    );
+    sma.stop().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn two_viewers_share_one_cache_and_a_bad_frame_closes_only_its_viewer() {
     if !gpu_available() {
         return;
     }
     let scene = diffuse_wall();
-    let (renderer, log) = fake_renderer(scene.clone(), None).await;
+    let (renderer, log) = fake_renderer(scene.clone(), Fault::None).await;
     let sma = sma::server::start(&cli(vec![renderer], false), scene.clone())
         .await
         .unwrap();

@@ -168,7 +168,7 @@ mod tests {
         let deepest = edge
             .mesh
             .leaves()
-            .max_by_key(|&l| edge.mesh.node(l).depth)
+            .max_by_key(|&l| edge.mesh.depth(l))
             .unwrap();
         assert!(
             edge.distance_to_shadow(deepest) < 0.5,

@@ -173,9 +173,9 @@ impl SubdivisionMesh {
     /// the edge along a segment: coarser, equal or finer ones alike.
     pub(super) fn leaves_across(&self, id: NodeId, k: usize, out: &mut Vec<NodeId>) {
         let (mut node, mut edge, mut part) = (id, k, Interval::WHOLE);
-        while let Some(parent) = self.node(node).parent {
+        while let Some(parent) = self.node(node).parent() {
             let child = (node - self.node(parent).children().start) as usize;
-            let place = match self.node(parent).split {
+            let place = match self.node(parent).split() {
                 Split::Green { edge: s, .. } => green_parent_edge(s as usize, child, edge),
                 _ => red_parent_edge(child, edge),
             };
@@ -205,12 +205,12 @@ impl SubdivisionMesh {
     /// The leaves under `id` with an edge overlapping `part` of its edge `k`.
     fn leaves_along(&self, id: NodeId, k: usize, part: Interval, out: &mut Vec<NodeId>) {
         let node = self.node(id);
-        if node.split == Split::None {
+        if node.split() == Split::None {
             out.push(id);
             return;
         }
         let first = node.children().start;
-        for (child, edge, from, to) in children_along(node.split, k).into_iter().flatten() {
+        for (child, edge, from, to) in children_along(node.split(), k).into_iter().flatten() {
             if let Some(sub) = part.within(from, to) {
                 self.leaves_along(first + child as u32, edge, sub, out);
             }

@@ -43,10 +43,10 @@ impl SubdivisionMesh {
         ids.dedup();
         for parent in ids {
             let node = *self.node(parent);
-            let Split::Red { first_child } = node.split else {
+            let Split::Red { first_child } = node.split() else {
                 continue;
             };
-            if !node.alive
+            if !node.is_alive()
                 || !(first_child..first_child + 4).all(|c| self.is_leaf(c))
                 || (0..3).any(|k| self.half_edges_split(first_child, k))
             {
@@ -92,7 +92,7 @@ impl SubdivisionMesh {
                         } else {
                             // Parents on one edge list the same greens: undo each once.
                             for g in greens {
-                                if matches!(self.node(g).split, Split::Green { .. }) {
+                                if matches!(self.node(g).split(), Split::Green { .. }) {
                                     self.remove_children(g, &mut step);
                                 }
                             }
@@ -119,10 +119,10 @@ impl SubdivisionMesh {
         self.leaves_across(id, k, &mut across);
         let mut greens: Vec<NodeId> = across
             .into_iter()
-            .filter(|&leaf| self.node(leaf).kind == NodeKind::Green)
-            .filter_map(|leaf| self.node(leaf).parent)
+            .filter(|&leaf| self.node(leaf).kind() == NodeKind::Green)
+            .filter_map(|leaf| self.node(leaf).parent())
             .filter(|&p| {
-                matches!(self.node(p).split, Split::Green { edge, .. } if self.edge_key(p, edge as usize) == key)
+                matches!(self.node(p).split(), Split::Green { edge, .. } if self.edge_key(p, edge as usize) == key)
             })
             .collect();
         greens.sort_unstable();
@@ -210,7 +210,7 @@ mod tests {
         // Bases bisected green by an earlier closure of the call: select a green half instead.
         let greens: Vec<NodeId> = mesh
             .leaves()
-            .filter(|&l| mesh.node(l).kind == NodeKind::Green)
+            .filter(|&l| mesh.node(l).kind() == NodeKind::Green)
             .collect();
         mesh.refine(&greens, &|_| false);
         assert_eq!(

@@ -91,7 +91,7 @@ fn check(mesh: &SubdivisionMesh, scene: &Mesh) -> Result<(), TestCaseError> {
     let mut base_area = vec![0.0f64; mesh.base_count()];
     for &leaf in &leaves {
         let p = mesh.leaf_positions(leaf);
-        let base = mesh.node(leaf).base;
+        let base = mesh.base_of(leaf);
         base_area[base as usize] += f64::from(area(p));
         let bound = mesh.base_angle_bound(base);
         prop_assert!(
@@ -147,7 +147,9 @@ fn check(mesh: &SubdivisionMesh, scene: &Mesh) -> Result<(), TestCaseError> {
 fn coarsen_all(mesh: &mut SubdivisionMesh, scene: &Mesh) -> Result<(), TestCaseError> {
     loop {
         let parents: Vec<NodeId> = (0..mesh.node_count() as NodeId)
-            .filter(|&id| mesh.node(id).alive && matches!(mesh.node(id).split, Split::Red { .. }))
+            .filter(|&id| {
+                mesh.node(id).is_alive() && matches!(mesh.node(id).split(), Split::Red { .. })
+            })
             .collect();
         let mut shown: BTreeSet<NodeId> = mesh.leaves().collect();
         let steps = mesh.coarsen_many(&parents);
@@ -219,14 +221,14 @@ proptest! {
             check(&mesh, &scene)?;
             if coarsen {
                 let inner: Vec<NodeId> = (0..mesh.node_count() as NodeId)
-                    .filter(|&id| mesh.node(id).alive && matches!(mesh.node(id).split, Split::Red { .. }))
+                    .filter(|&id| mesh.node(id).is_alive() && matches!(mesh.node(id).split(), Split::Red { .. }))
                     .collect();
                 if !inner.is_empty() {
                     let parent = inner[coarse_pick.index(inner.len())];
                     let vertices = mesh.node(parent).vertices;
                     if mesh.coarsen(parent).is_some() {
                         prop_assert_eq!(mesh.node(parent).vertices, vertices);
-                        let green = matches!(mesh.node(parent).split, Split::Green { .. });
+                        let green = matches!(mesh.node(parent).split(), Split::Green { .. });
                         prop_assert!(mesh.is_leaf(parent) || green);
                     }
                     check(&mesh, &scene)?;

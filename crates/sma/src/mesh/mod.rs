@@ -118,23 +118,102 @@ pub enum Split {
     },
 }
 
+/// 20 bytes: nodes are most of the mesh's memory (issue 4: <= 100 bytes per leaf all included),
+/// so the hierarchy links carry the node's state in their spare bits (read it through the
+/// accessors), and the base triangle is found by climbing ([`SubdivisionMesh::base_of`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Node {
     /// Counter-clockwise like the base triangle; edge `k` runs from vertex `k` to `k + 1`.
     pub vertices: [VertexId; 3],
-    pub base: u32,
-    pub parent: Option<NodeId>,
-    /// Splits between the base triangle and this node (red or green).
-    pub depth: u8,
-    pub kind: NodeKind,
-    pub split: Split,
-    /// False once removed by coarsening or by undoing a green closure.
-    pub alive: bool,
+    /// Parent id, [`NO_PARENT`] for a base triangle; [`GREEN_CHILD`] set for a green child.
+    parent: u32,
+    /// First child id in the low [`CHILD_BITS`] bits, the state ([`LEAF`], [`RED`], ...) above.
+    child_state: u32,
 }
 
+const _: () = assert!(size_of::<Node>() == 20);
+
+/// Bit of `Node::parent` marking a child of a green split.
+const GREEN_CHILD: u32 = 1 << 31;
+const NO_PARENT: u32 = u32::MAX;
+/// Node ids fit in this many bits (536 million nodes, 12 GiB of them).
+const CHILD_BITS: u32 = 29;
+const CHILD_MASK: u32 = (1 << CHILD_BITS) - 1;
+
+/// What `Node::child_state` holds above the first child: a live leaf, split red, split green
+/// along edge `e` (`GREEN_ALONG + e`), or dead.
+const LEAF: u32 = 0;
+const RED: u32 = 1;
+const GREEN_ALONG: u32 = 2;
+const DEAD: u32 = 5;
+
 impl Node {
+    fn new(vertices: [VertexId; 3], parent: Option<NodeId>, kind: NodeKind) -> Node {
+        let parent = match (parent, kind) {
+            (None, _) => NO_PARENT,
+            (Some(p), NodeKind::Green) => p | GREEN_CHILD,
+            (Some(p), _) => p,
+        };
+        Node {
+            vertices,
+            parent,
+            child_state: LEAF << CHILD_BITS,
+        }
+    }
+
+    fn state(&self) -> u32 {
+        self.child_state >> CHILD_BITS
+    }
+
+    pub fn parent(&self) -> Option<NodeId> {
+        (self.parent != NO_PARENT).then_some(self.parent & !GREEN_CHILD)
+    }
+
+    pub fn kind(&self) -> NodeKind {
+        match self.parent {
+            NO_PARENT => NodeKind::Base,
+            p if p & GREEN_CHILD != 0 => NodeKind::Green,
+            _ => NodeKind::Red,
+        }
+    }
+
+    pub fn split(&self) -> Split {
+        let first_child = self.child_state & CHILD_MASK;
+        match self.state() {
+            RED => Split::Red { first_child },
+            s @ GREEN_ALONG..DEAD => Split::Green {
+                first_child,
+                edge: (s - GREEN_ALONG) as u8,
+            },
+            _ => Split::None,
+        }
+    }
+
+    /// False once removed by coarsening or by undoing a green closure.
+    pub fn is_alive(&self) -> bool {
+        self.state() != DEAD
+    }
+
+    fn is_leaf(&self) -> bool {
+        self.state() == LEAF
+    }
+
+    fn set_split(&mut self, split: Split) {
+        let (state, first_child) = match split {
+            Split::None => (LEAF, 0),
+            Split::Red { first_child } => (RED, first_child),
+            Split::Green { first_child, edge } => (GREEN_ALONG + u32::from(edge), first_child),
+        };
+        assert!(first_child <= CHILD_MASK, "more than 2^29 mesh nodes");
+        self.child_state = (state << CHILD_BITS) | first_child;
+    }
+
+    fn kill(&mut self) {
+        self.child_state = DEAD << CHILD_BITS;
+    }
+
     pub fn children(&self) -> std::ops::Range<NodeId> {
-        match self.split {
+        match self.split() {
             Split::None => 0..0,
             Split::Red { first_child } => first_child..first_child + 4,
             Split::Green { first_child, .. } => first_child..first_child + 2,
@@ -174,6 +253,8 @@ pub struct SubdivisionMesh {
     /// vertex, and its cached samples, again.
     seam_midpoints: HashMap<u64, VertexId, FastHash>,
     leaf_count: usize,
+    /// Triangle splits so far (see [`SubdivisionMesh::split_count`]).
+    splits: u64,
 }
 
 /// Flag in `vertex_point` of a vertex whose point may hold other vertices (a seam side, or a
@@ -210,16 +291,7 @@ impl SubdivisionMesh {
         let nodes: Vec<Node> = mesh
             .triangles
             .iter()
-            .enumerate()
-            .map(|(t, tri)| Node {
-                vertices: tri.vertices,
-                base: t as u32,
-                parent: None,
-                depth: 0,
-                kind: NodeKind::Base,
-                split: Split::None,
-                alive: true,
-            })
+            .map(|tri| Node::new(tri.vertices, None, NodeKind::Base))
             .collect();
         let degenerate: Vec<bool> = nodes
             .iter()
@@ -258,6 +330,7 @@ impl SubdivisionMesh {
             adjacency,
             edge_splits: HashMap::default(),
             seam_midpoints: HashMap::default(),
+            splits: 0,
         }
     }
 
@@ -280,8 +353,24 @@ impl SubdivisionMesh {
     }
 
     pub fn is_leaf(&self, id: NodeId) -> bool {
-        let n = &self.nodes[id as usize];
-        n.alive && n.split == Split::None
+        self.nodes[id as usize].is_leaf()
+    }
+
+    /// Node `id` and its ancestors up to its base triangle.
+    fn ancestry(&self, id: NodeId) -> impl Iterator<Item = NodeId> + '_ {
+        std::iter::successors(Some(id), |&n| self.node(n).parent())
+    }
+
+    /// Splits between the base triangle and node `id` (red or green).
+    pub fn depth(&self, id: NodeId) -> u32 {
+        self.ancestry(id).count() as u32 - 1
+    }
+
+    /// The base triangle node `id` lies in (its node id is its triangle index).
+    pub fn base_of(&self, id: NodeId) -> u32 {
+        self.ancestry(id)
+            .last()
+            .expect("a node is its own ancestry")
     }
 
     /// The current leaves under base triangle `base`, depth first.
@@ -290,7 +379,7 @@ impl SubdivisionMesh {
         let mut stack = vec![base];
         while let Some(id) = stack.pop() {
             let node = self.node(id);
-            match node.split {
+            match node.split() {
                 Split::None => leaves.push(id),
                 _ => stack.extend(node.children().rev()),
             }
@@ -305,6 +394,13 @@ impl SubdivisionMesh {
 
     pub fn leaf_count(&self) -> usize {
         self.leaf_count
+    }
+
+    /// Triangle splits since the mesh was made: one per triangle replaced by its children, red
+    /// (four) or green (two), selected or made by closure; the unit of the split rate of
+    /// BENCHMARKS.md (issue 4: >= 1 million per second).
+    pub fn split_count(&self) -> u64 {
+        self.splits
     }
 
     pub fn vertex(&self, v: VertexId) -> &MeshVertex {
@@ -365,8 +461,9 @@ impl SubdivisionMesh {
         self.edge_splits.get(&key).map_or(0, |e| e.splits)
     }
 
+    /// A degenerate base triangle is never split, so only a base node can be one.
     fn is_degenerate(&self, id: NodeId) -> bool {
-        self.degenerate[self.node(id).base as usize]
+        self.node(id).parent().is_none() && self.degenerate[id as usize]
     }
 
     fn longest_edge(&self, id: NodeId) -> f32 {

@@ -52,7 +52,7 @@ impl SubdivisionMesh {
                 continue;
             }
             let node = self.node(leaf);
-            let target = match (node.kind, node.parent) {
+            let target = match (node.kind(), node.parent()) {
                 (NodeKind::Green, Some(parent)) => parent,
                 _ => leaf,
             };
@@ -80,7 +80,7 @@ impl SubdivisionMesh {
             };
             let more = hanging.next().is_some();
             let node = self.node(id);
-            match (node.kind, node.parent) {
+            match (node.kind(), node.parent()) {
                 (NodeKind::Green, Some(parent)) => self.red_split(parent, step, queue),
                 _ if more => self.red_split(id, step, queue),
                 _ => self.green_split(id, first, step, queue),
@@ -96,7 +96,7 @@ impl SubdivisionMesh {
         step: &mut StepRecorder,
         queue: &mut Vec<NodeId>,
     ) {
-        if matches!(self.node(id).split, Split::Green { .. }) {
+        if matches!(self.node(id).split(), Split::Green { .. }) {
             self.remove_children(id, step);
         }
         let mids = [0, 1, 2].map(|k| self.split_edge(id, k, step));
@@ -106,7 +106,7 @@ impl SubdivisionMesh {
             &red_children(self.node(id).vertices, mids),
             step,
         );
-        self.nodes[id as usize].split = Split::Red { first_child: first };
+        self.nodes[id as usize].set_split(Split::Red { first_child: first });
         for k in 0..3 {
             self.leaves_across(id, k, queue);
         }
@@ -128,10 +128,10 @@ impl SubdivisionMesh {
             &green_children(self.node(id).vertices, s, m),
             step,
         );
-        self.nodes[id as usize].split = Split::Green {
+        self.nodes[id as usize].set_split(Split::Green {
             first_child: first,
             edge: s as u8,
-        };
+        });
         queue.extend([first, first + 1]);
     }
 
@@ -142,9 +142,9 @@ impl SubdivisionMesh {
         for child in node.children() {
             debug_assert!(self.is_leaf(child), "only leaves are removed");
             step.before_change(self, child);
-            self.nodes[child as usize].alive = false;
+            self.nodes[child as usize].kill();
         }
-        let cut: &[usize] = match node.split {
+        let cut: &[usize] = match node.split() {
             Split::Green { edge, .. } => &[edge as usize],
             _ => &[0, 1, 2],
         };
@@ -155,7 +155,7 @@ impl SubdivisionMesh {
             }
         }
         self.leaf_count = self.leaf_count + 1 - node.children().len();
-        self.nodes[id as usize].split = Split::None;
+        self.nodes[id as usize].set_split(Split::None);
     }
 
     fn push_children(
@@ -166,24 +166,13 @@ impl SubdivisionMesh {
         step: &mut StepRecorder,
     ) -> NodeId {
         step.before_change(self, parent);
-        let p = *self.node(parent);
         let first = self.nodes.len() as NodeId;
         for (i, &vertices) in children.iter().enumerate() {
             step.before_change(self, first + i as NodeId);
-            push_lean(
-                &mut self.nodes,
-                Node {
-                    vertices,
-                    base: p.base,
-                    parent: Some(parent),
-                    depth: p.depth.saturating_add(1),
-                    kind,
-                    split: Split::None,
-                    alive: true,
-                },
-            );
+            push_lean(&mut self.nodes, Node::new(vertices, Some(parent), kind));
         }
         self.leaf_count += children.len() - 1;
+        self.splits += 1;
         first
     }
 
@@ -243,7 +232,7 @@ impl SubdivisionMesh {
             let face = (b - a).cross(c - a).normalize_or(na);
             if face.dot(na) < 0.0 { -face } else { face }
         });
-        let base = self.node(id).base;
+        let base = self.base_of(id);
         MeshVertex {
             position,
             normal,
@@ -269,7 +258,7 @@ mod tests {
         assert_eq!(step.new_leaves.len(), 4 + 2);
         assert_eq!(step.new_vertices.len(), 3);
         assert_eq!(mesh.leaf_count(), 6);
-        assert!(matches!(mesh.node(1).split, Split::Green { .. }));
+        assert!(matches!(mesh.node(1).split(), Split::Green { .. }));
         let mid = mesh.vertex(step.new_vertices[1]);
         assert_eq!(mid.position, Vec3::new(1.0, 0.5, 0.0));
     }
@@ -280,14 +269,14 @@ mod tests {
         mesh.refine(&[0], &|_| false);
         let green = mesh.leaves_of_base(1)[0];
         let step = mesh.refine(&[green], &|_| false).remove(0);
-        assert!(matches!(mesh.node(1).split, Split::Red { .. }));
+        assert!(matches!(mesh.node(1).split(), Split::Red { .. }));
         assert_eq!(mesh.leaf_count(), 8);
         assert_eq!(step.replaced_leaves.len(), 2, "both greens go");
         assert_eq!(step.new_leaves.len(), 4);
         assert!(
             step.new_leaves
                 .iter()
-                .all(|&l| mesh.node(l).parent == Some(1))
+                .all(|&l| mesh.node(l).parent() == Some(1))
         );
     }
 
