@@ -42,12 +42,14 @@ pub struct LaunchArgs {
 
 /// A display is there when X11 or Wayland says so.
 fn has_display() -> bool {
-    ["DISPLAY", "WAYLAND_DISPLAY"].iter().any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
+    ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
 }
 
 /// A free loopback port, asked of the OS (the tiny window until the child binds it is harmless:
 /// the SMA and the viewer reconnect with backoff).
-fn free_loopback_addr() -> anyhow::Result<SocketAddr> {
+pub fn free_loopback_addr() -> anyhow::Result<SocketAddr> {
     Ok(TcpListener::bind("127.0.0.1:0")?.local_addr()?)
 }
 
@@ -70,24 +72,48 @@ pub fn run(args: LaunchArgs) -> anyhow::Result<()> {
 }
 
 async fn run_async(args: LaunchArgs) -> anyhow::Result<()> {
-    let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(2);
+    let cores = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(2);
     let threads = (cores / args.renderers.max(1)).max(1).to_string();
     let mut servers = Vec::new();
     let mut renderer_flags = Vec::new();
     for _ in 0..args.renderers.max(1) {
         let addr = free_loopback_addr()?.to_string();
-        let a = ["renderer", "serve", "--scene", &args.scene, "--listen", &addr, "--threads", &threads];
+        let a = [
+            "renderer",
+            "serve",
+            "--scene",
+            &args.scene,
+            "--listen",
+            &addr,
+            "--threads",
+            &threads,
+        ];
         servers.push(child(&strings(&a))?);
         renderer_flags.extend(["--renderer".to_string(), addr]);
     }
     let sma_addr = free_loopback_addr()?.to_string();
-    let mut sma = strings(&["sma", "--scene", &args.scene, "--listen", &sma_addr, "--criterion", &args.criterion]);
+    let mut sma = strings(&[
+        "sma",
+        "--scene",
+        &args.scene,
+        "--listen",
+        &sma_addr,
+        "--criterion",
+        &args.criterion,
+    ]);
     sma.extend(renderer_flags);
     servers.push(child(&sma)?);
 
     let headless = args.headless || !has_display();
     let mut viewer = strings(&["viewer", "--connect", &sma_addr]);
-    viewer.extend(strings(&["--width", &args.width.to_string(), "--height", &args.height.to_string()]));
+    viewer.extend(strings(&[
+        "--width",
+        &args.width.to_string(),
+        "--height",
+        &args.height.to_string(),
+    ]));
     if let Some(v) = &args.view {
         viewer.extend(strings(&["--view", v]));
     }
@@ -97,8 +123,17 @@ async fn run_async(args: LaunchArgs) -> anyhow::Result<()> {
     if headless {
         let out = args.out.clone().unwrap_or_else(default_out_dir);
         std::fs::create_dir_all(&out)?;
-        println!("no display: running headless; snapshots go to {}", out.display());
-        viewer.extend(strings(&["--headless", "--snapshot-every", "1", "--out", &out.to_string_lossy()]));
+        println!(
+            "no display: running headless; snapshots go to {}",
+            out.display()
+        );
+        viewer.extend(strings(&[
+            "--headless",
+            "--snapshot-every",
+            "1",
+            "--out",
+            &out.to_string_lossy(),
+        ]));
     }
     let mut viewer = child(&viewer)?;
 
@@ -125,7 +160,10 @@ async fn run_async(args: LaunchArgs) -> anyhow::Result<()> {
 
 /// Lets a child finish on its own (Ctrl-C reaches the whole process group), then kills it.
 async fn stop(child: &mut Child) {
-    if tokio::time::timeout(Duration::from_secs(3), child.wait()).await.is_err() {
+    if tokio::time::timeout(Duration::from_secs(3), child.wait())
+        .await
+        .is_err()
+    {
         let _ = child.kill().await;
     }
 }

@@ -10,7 +10,6 @@ use std::time::Duration;
 use glam::Vec3;
 use sma::probe::{self, Probe};
 use sma::visibility::Gpu;
-use tokio::io::{AsyncBufReadExt, BufReader};
 use tokio::process::{Child, Command};
 
 const W: u32 = 256;
@@ -18,18 +17,7 @@ const H: u32 = 192;
 const WAIT: Duration = Duration::from_secs(120);
 
 fn gpu() -> Option<Gpu> {
-    match Gpu::new() {
-        Ok(gpu) => Some(gpu),
-        Err(e) if std::env::var_os("WALKTHROUGH_REQUIRE_GPU").is_some() => {
-            panic!("WALKTHROUGH_REQUIRE_GPU is set but no adapter: {e}")
-        }
-        Err(e) => {
-            eprintln!(
-                "SKIPPED: no wgpu adapter ({e}); set WALKTHROUGH_REQUIRE_GPU to make this fail"
-            );
-            None
-        }
-    }
+    probe::gpu_or_skip(Gpu::new())
 }
 
 /// Starts `walkthrough <args>` and waits for the line ending in "listening on ADDR".
@@ -42,19 +30,9 @@ async fn start(args: &[&str]) -> (Child, String) {
         .kill_on_drop(true)
         .spawn()
         .expect("starting walkthrough");
-    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
-    let addr = tokio::time::timeout(WAIT, async {
-        while let Some(line) = lines.next_line().await.unwrap() {
-            if let Some((_, addr)) = line.split_once("listening on ") {
-                return addr.trim().to_string();
-            }
-        }
-        panic!("walkthrough {args:?} ended before listening");
-    })
-    .await
-    .expect("listening line");
-    // Keep draining stdout so the child never blocks on a full pipe.
-    tokio::spawn(async move { while let Ok(Some(_)) = lines.next_line().await {} });
+    let addr = probe::listening_addr(child.stdout.take().unwrap(), WAIT)
+        .await
+        .unwrap_or_else(|e| panic!("walkthrough {args:?}: {e:#}"));
     (child, addr)
 }
 

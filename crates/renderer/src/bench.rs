@@ -17,6 +17,7 @@ use protocol::renderer_link::{Quality, SampleKey, ShadeBatch, ShadePoint};
 use rayon::prelude::*;
 
 use crate::bvh::{BuildPreset, SceneBvh, bvh_triangles};
+use crate::point::front_point_hit_by;
 use crate::reference::camera_for;
 use crate::sampling::{cosine_hemisphere, luminance, stream, uniform_cone, uniform2};
 use crate::shade::shade_batch;
@@ -420,21 +421,8 @@ fn visible_points(world: &World, view: &str, n: usize) -> anyhow::Result<Vec<Sha
     for y in 0..h {
         for x in 0..w {
             let dir = cam.ray_direction(x as f32 + 0.5, y as f32 + 0.5);
-            let Some(hit) = world.bvh.closest_hit(cam.eye_vec(), dir, f32::INFINITY) else {
+            let Some(mut p) = front_point_hit_by(world, cam.eye_vec(), dir, Some(cam.eye)) else {
                 continue;
-            };
-            let q = cam.eye_vec() + dir * hit.t;
-            let [a, b, c] = world.scene.mesh.triangle_positions(hit.triangle as usize);
-            let bary = barycentrics(q, a, b, c);
-            let mut p = ShadePoint {
-                key: SampleKey {
-                    vertex: 0,
-                    side: Side::Front,
-                },
-                base_triangle: hit.triangle,
-                bary,
-                side: Side::Front,
-                eye: Some(cam.eye),
             };
             if crate::point::surface_of(world, &p).is_ok_and(|s| s.normal.dot(dir) > 0.0) {
                 p.side = Side::Back;
@@ -446,14 +434,6 @@ fn visible_points(world: &World, view: &str, n: usize) -> anyhow::Result<Vec<Sha
     // Spread the kept points over the image rather than taking its top rows.
     let step = (points.len() / n.max(1)).max(1);
     Ok(points.into_iter().step_by(step).take(n).collect())
-}
-
-fn barycentrics(q: Vec3, a: Vec3, b: Vec3, c: Vec3) -> [f32; 2] {
-    let (e1, e2, d) = (b - a, c - a, q - a);
-    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
-    let (d1, d2) = (d.dot(e1), d.dot(e2));
-    let det = (d11 * d22 - d12 * d12).max(f32::MIN_POSITIVE);
-    [(d22 * d1 - d12 * d2) / det, (d11 * d2 - d12 * d1) / det]
 }
 
 fn samples_per_second(scenes: &[(&World, &str)], cfg: &Config) -> anyhow::Result<String> {

@@ -10,7 +10,8 @@
 //! shaded instead.
 
 use glam::Vec3;
-use protocol::renderer_link::ShadePoint;
+use protocol::renderer_link::{SampleKey, ShadePoint};
+use protocol::{Side, Vec3f};
 
 use crate::counters::{RayCounts, RayKind};
 use crate::world::{Surface, World};
@@ -45,6 +46,38 @@ pub enum InvalidPoint {
     NoSuchTriangle,
     BadBarycentrics,
     DegenerateTriangle,
+}
+
+/// The front-side shading point where the ray from `origin` along `dir` first hits, `None` where
+/// it hits nothing. Its key names vertex 0: it stands for no mesh vertex (benchmarks, tests).
+pub fn front_point_hit_by(
+    world: &World,
+    origin: Vec3,
+    dir: Vec3,
+    eye: Option<Vec3f>,
+) -> Option<ShadePoint> {
+    let hit = world.bvh.closest_hit(origin, dir, f32::INFINITY)?;
+    let q = origin + dir * hit.t;
+    let [a, b, c] = world.scene.mesh.triangle_positions(hit.triangle as usize);
+    Some(ShadePoint {
+        key: SampleKey {
+            vertex: 0,
+            side: Side::Front,
+        },
+        base_triangle: hit.triangle,
+        bary: barycentrics(q, a, b, c),
+        side: Side::Front,
+        eye,
+    })
+}
+
+/// Barycentric weights of vertices 1 and 2 for `q` in the plane of (a, b, c).
+fn barycentrics(q: Vec3, a: Vec3, b: Vec3, c: Vec3) -> [f32; 2] {
+    let (e1, e2, d) = (b - a, c - a, q - a);
+    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let (d1, d2) = (d.dot(e1), d.dot(e2));
+    let det = (d11 * d22 - d12 * d12).max(f32::MIN_POSITIVE);
+    [(d22 * d1 - d12 * d2) / det, (d11 * d2 - d12 * d1) / det]
 }
 
 /// Position and side normal of `p` (before the hidden-point check).

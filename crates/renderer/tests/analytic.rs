@@ -117,15 +117,21 @@ fn point_under_an_occluder_gets_no_sun() {
     );
 }
 
+/// A closed box from the origin to `max` whose walls, of albedo `a`, all emit `le` toward the
+/// inside.
+fn furnace(max: Vec3, le: f32, a: f32) -> World {
+    let mut b = SceneBuilder::new(settings(None, Sky::None));
+    let m = b.material(Material::emitter("wall", Vec3::splat(a), Vec3::splat(le)));
+    cube(&mut b, Vec3::ZERO, max, true, m);
+    world(b)
+}
+
 /// A closed box whose walls, of albedo a, all emit Le toward the inside: the radiance inside is
 /// Le (1 + a + a^2 + ...) = Le / (1 - a) everywhere.
 #[test]
 fn white_furnace_converges_to_le_over_one_minus_a() {
     let (le, a) = (2.0f32, 0.5f32);
-    let mut b = SceneBuilder::new(settings(None, Sky::None));
-    let m = b.material(Material::emitter("wall", Vec3::splat(a), Vec3::splat(le)));
-    cube(&mut b, Vec3::ZERO, Vec3::new(2.0, 1.0, 1.5), true, m);
-    let w = world(b);
+    let w = furnace(Vec3::new(2.0, 1.0, 1.5), le, a);
     assert!(w.effects().area_lights && w.effects().interreflection);
     for (origin, dir) in [
         (Vec3::new(0.7, 0.5, 0.6), Vec3::NEG_Y),
@@ -166,10 +172,7 @@ fn white_furnace_converges_to_le_over_one_minus_a() {
 fn bounded_furnace_truncates_the_series() {
     // Bounces = 1: Le + a Le + a^2 Le (own emission, direct, one bounce's direct).
     let (le, a) = (1.0f32, 0.5f32);
-    let mut b = SceneBuilder::new(settings(None, Sky::None));
-    let m = b.material(Material::emitter("wall", Vec3::splat(a), Vec3::splat(le)));
-    cube(&mut b, Vec3::ZERO, Vec3::ONE, true, m);
-    let w = world(b);
+    let w = furnace(Vec3::ONE, le, a);
     let p = point_hit_by(&w, Vec3::splat(0.5), Vec3::NEG_Y);
     let samples = path_samples(&w, &p, 20_000, Some(1), 4);
     let (mean, se) = mean_and_standard_error(&samples);

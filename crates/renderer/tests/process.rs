@@ -1,16 +1,17 @@
 //! The `renderer serve` binary as a separate process: it announces its address, serves a batch,
 //! and shuts down cleanly on Ctrl-C (SIGINT).
 
+mod common;
+
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use protocol::connection::{connect_handshake, split_tcp};
-use protocol::frame::DEFAULT_MAX_FRAME;
+use common::{connect_as_sma, recv};
+use protocol::Side;
 use protocol::renderer_link::{
     FromRenderer, Quality, SampleKey, ShadeBatch, ShadePoint, ToRenderer,
 };
-use protocol::{Hello, Role, Side};
 
 #[tokio::test]
 async fn serve_answers_and_stops_on_ctrl_c() {
@@ -39,16 +40,7 @@ async fn serve_answers_and_stops_on_ctrl_c() {
         .to_string();
 
     let fingerprint = scene::load("cornell").unwrap().fingerprint;
-    let stream = tokio::net::TcpStream::connect(&addr).await.unwrap();
-    let (mut r, mut w) = split_tcp::<FromRenderer, ToRenderer>(stream, DEFAULT_MAX_FRAME);
-    connect_handshake(
-        &mut r,
-        &mut w,
-        Hello::new(Role::Sma, Some(fingerprint)),
-        Role::Renderer,
-    )
-    .await
-    .unwrap();
+    let (mut r, mut w) = connect_as_sma(&addr, fingerprint).await.unwrap();
     let point = ShadePoint {
         key: SampleKey {
             vertex: 0,
@@ -66,10 +58,7 @@ async fn serve_answers_and_stops_on_ctrl_c() {
         points: vec![point; 4],
     };
     w.send(&ToRenderer::ShadeBatch(batch)).await.unwrap();
-    let reply = tokio::time::timeout(Duration::from_secs(30), r.recv())
-        .await
-        .unwrap()
-        .unwrap();
+    let reply = recv(&mut r).await.unwrap();
     assert!(
         matches!(reply, FromRenderer::Radiance(ref rad) if rad.batch_id == 9 && rad.rgb.len() == 4)
     );

@@ -9,12 +9,12 @@ use std::time::Duration;
 
 use common::*;
 use glam::Vec3;
-use protocol::connection::{TcpReader, TcpWriter, connect_handshake, split_tcp};
+use protocol::connection::TcpReader;
 use protocol::frame::DEFAULT_MAX_FRAME;
 use protocol::renderer_link::{
     FromRenderer, Quality, ShadeBatch, ShadePoint, ToRenderer, point_flags,
 };
-use protocol::{Hello, MessageReader, MessageWriter, ProtocolError, Role};
+use protocol::{MessageReader, MessageWriter, ProtocolError};
 use renderer::service::Service;
 use renderer::{World, shade_batch};
 use scene::{SceneBuilder, Sky};
@@ -81,28 +81,6 @@ async fn start(world: Arc<World>) -> Server {
     }
 }
 
-async fn connect(
-    addr: std::net::SocketAddr,
-    fingerprint: [u8; 32],
-) -> Result<(TcpReader<FromRenderer>, TcpWriter<ToRenderer>), ProtocolError> {
-    let stream = TcpStream::connect(addr).await?;
-    let (mut r, mut w) = split_tcp::<FromRenderer, ToRenderer>(stream, DEFAULT_MAX_FRAME);
-    connect_handshake(
-        &mut r,
-        &mut w,
-        Hello::new(Role::Sma, Some(fingerprint)),
-        Role::Renderer,
-    )
-    .await?;
-    Ok((r, w))
-}
-
-async fn recv(r: &mut TcpReader<FromRenderer>) -> Result<FromRenderer, ProtocolError> {
-    tokio::time::timeout(Duration::from_secs(30), r.recv())
-        .await
-        .expect("reply within 30 s")
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn batches_match_the_in_process_estimator_and_bad_frames_are_answered() {
     let world = Arc::new(test_world());
@@ -110,7 +88,7 @@ async fn batches_match_the_in_process_estimator_and_bad_frames_are_answered() {
     let server = start(Arc::clone(&world)).await;
 
     // Several batches in flight at once on one link; replies come per batch, in any order.
-    let (mut r, mut w) = connect(server.addr, fp).await.unwrap();
+    let (mut r, mut w) = connect_as_sma(server.addr, fp).await.unwrap();
     let batches: Vec<ShadeBatch> = (0..4)
         .map(|i| batch(&world, 100 + i, 7 + i, 40 + 10 * i as usize))
         .collect();
@@ -156,7 +134,7 @@ async fn batches_match_the_in_process_estimator_and_bad_frames_are_answered() {
     ));
 
     // A second SMA on its own link is served at the same time.
-    let (mut r2, mut w2) = connect(server.addr, fp).await.unwrap();
+    let (mut r2, mut w2) = connect_as_sma(server.addr, fp).await.unwrap();
 
     drop(w);
     drop(r);
@@ -193,7 +171,7 @@ async fn batches_match_the_in_process_estimator_and_bad_frames_are_answered() {
     let mut other = fp;
     other[0] ^= 1;
     assert!(matches!(
-        connect(server.addr, other).await,
+        connect_as_sma(server.addr, other).await,
         Err(ProtocolError::Refused(_))
     ));
 
@@ -218,14 +196,7 @@ async fn connect_raw(
     let (rh, mut wh) = stream.into_split();
     let mut r = MessageReader::new(rh, DEFAULT_MAX_FRAME);
     let mut w = MessageWriter::<_, ToRenderer>::new(&mut wh, DEFAULT_MAX_FRAME);
-    connect_handshake(
-        &mut r,
-        &mut w,
-        Hello::new(Role::Sma, Some(fingerprint)),
-        Role::Renderer,
-    )
-    .await
-    .unwrap();
+    handshake_as_sma(&mut r, &mut w, fingerprint).await.unwrap();
     drop(w);
     (r, wh)
 }

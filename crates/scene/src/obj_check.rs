@@ -27,12 +27,7 @@ struct Defined {
 pub fn check_obj(file: &Path, text: &str) -> Result<ObjSummary, SceneError> {
     let mut summary = ObjSummary::default();
     let mut defined = Defined::default();
-    for (i, line) in text.lines().enumerate() {
-        let at = Line {
-            file,
-            number: i + 1,
-        };
-        let mut words = line.split_whitespace();
+    for (at, line, mut words) in numbered_lines(file, text) {
         match words.next() {
             Some("v") => {
                 at.finite_numbers(&mut words, 3, 3)?;
@@ -69,12 +64,7 @@ pub fn check_obj(file: &Path, text: &str) -> Result<ObjSummary, SceneError> {
 }
 
 pub fn check_mtl(file: &Path, text: &str) -> Result<(), SceneError> {
-    for (i, line) in text.lines().enumerate() {
-        let at = Line {
-            file,
-            number: i + 1,
-        };
-        let mut words = line.split_whitespace();
+    for (at, line, mut words) in numbered_lines(file, text) {
         match words.next() {
             Some("newmtl") => {
                 at.rest(line, "newmtl")?;
@@ -98,6 +88,20 @@ pub fn check_mtl(file: &Path, text: &str) -> Result<(), SceneError> {
         }
     }
     Ok(())
+}
+
+/// Each line of `text` with its place in `file` (numbered from 1) and its words.
+fn numbered_lines<'a>(
+    file: &'a Path,
+    text: &'a str,
+) -> impl Iterator<Item = (Line<'a>, &'a str, SplitWhitespace<'a>)> {
+    text.lines().enumerate().map(move |(i, line)| {
+        let at = Line {
+            file,
+            number: i + 1,
+        };
+        (at, line, line.split_whitespace())
+    })
 }
 
 struct Line<'a> {
@@ -237,78 +241,89 @@ mod tests {
         assert_eq!(s.material_libraries, vec!["a b.mtl".to_string()]);
     }
 
+    /// Each text is rejected by `error` with exactly its message.
+    fn assert_rejected(error: impl Fn(&str) -> String, cases: &[(&str, &str)]) {
+        for (text, message) in cases {
+            assert_eq!(error(text), *message, "{text:?}");
+        }
+    }
+
     #[test]
     fn rejects_bad_obj_lines_naming_the_line() {
-        assert_eq!(
-            obj_error("v 0 0 0\nv 1 nan 0\n"),
-            "t.obj:2: non-finite number (NaN or infinity)"
+        assert_rejected(
+            obj_error,
+            &[
+                (
+                    "v 0 0 0\nv 1 nan 0\n",
+                    "t.obj:2: non-finite number (NaN or infinity)",
+                ),
+                (
+                    "v 0 0 inf\n",
+                    "t.obj:1: non-finite number (NaN or infinity)",
+                ),
+                ("v 0 0\n", "t.obj:1: expected 3 numbers, found 2"),
+                ("v 0 0 0 0\n", "t.obj:1: vertex weight w is zero"),
+                ("v 0 x 0\n", "t.obj:1: 'x' is not a number"),
+                ("usemtl\n", "t.obj:1: usemtl needs a name"),
+                (
+                    "v 0 0 0 1 1 1 1\n",
+                    "t.obj:1: a vertex takes at most 6 numbers",
+                ),
+                ("vt 0\n", "t.obj:1: expected 2 numbers, found 1"),
+            ],
         );
-        assert_eq!(
-            obj_error("v 0 0 inf\n"),
-            "t.obj:1: non-finite number (NaN or infinity)"
-        );
-        assert_eq!(obj_error("v 0 0\n"), "t.obj:1: expected 3 numbers, found 2");
-        assert_eq!(obj_error("v 0 0 0 0\n"), "t.obj:1: vertex weight w is zero");
-        assert_eq!(obj_error("v 0 x 0\n"), "t.obj:1: 'x' is not a number");
-        assert_eq!(
-            obj_error(&format!("{TRIANGLE}f 1 2 4\n")),
-            "t.obj:4: vertex index 4 out of range (3 defined before this line)"
-        );
-        assert_eq!(
-            obj_error(&format!("{TRIANGLE}f 1 2 0\n")),
-            "t.obj:4: vertex index 0 out of range (3 defined before this line)"
-        );
-        assert_eq!(
-            obj_error(&format!("{TRIANGLE}f -4 2 3\n")),
-            "t.obj:4: vertex index -4 out of range (3 defined before this line)"
-        );
-        assert_eq!(
-            obj_error(&format!("{TRIANGLE}f 1//1 2//1 3//1\n")),
-            "t.obj:4: normal index 1 out of range (0 defined before this line)"
-        );
-        assert_eq!(
-            obj_error(&format!("{TRIANGLE}f 1 2\n")),
-            "t.obj:4: needs at least 3 corners, found 2"
-        );
-        assert_eq!(
-            obj_error(&format!("{TRIANGLE}vt 0 0\nvn 0 0 1\nf 1 2 3/1/1/1\n")),
-            "t.obj:6: face corner '3/1/1/1' has more than three indices"
-        );
-        assert_eq!(
-            obj_error(&format!("{TRIANGLE}f 1 2 q\n")),
-            "t.obj:4: 'q' is not a vertex index"
-        );
-        assert_eq!(obj_error("usemtl\n"), "t.obj:1: usemtl needs a name");
-        assert_eq!(
-            obj_error("v 0 0 0 1 1 1 1\n"),
-            "t.obj:1: a vertex takes at most 6 numbers"
-        );
-        assert_eq!(obj_error("vt 0\n"), "t.obj:1: expected 2 numbers, found 1");
-        assert_eq!(
-            obj_error(&format!("{TRIANGLE}l 1 9\n")),
-            "t.obj:4: vertex index 9 out of range (3 defined before this line)"
+        // Lines after the three vertices of TRIANGLE.
+        assert_rejected(
+            |lines| obj_error(&format!("{TRIANGLE}{lines}")),
+            &[
+                (
+                    "f 1 2 4\n",
+                    "t.obj:4: vertex index 4 out of range (3 defined before this line)",
+                ),
+                (
+                    "f 1 2 0\n",
+                    "t.obj:4: vertex index 0 out of range (3 defined before this line)",
+                ),
+                (
+                    "f -4 2 3\n",
+                    "t.obj:4: vertex index -4 out of range (3 defined before this line)",
+                ),
+                (
+                    "f 1//1 2//1 3//1\n",
+                    "t.obj:4: normal index 1 out of range (0 defined before this line)",
+                ),
+                ("f 1 2\n", "t.obj:4: needs at least 3 corners, found 2"),
+                (
+                    "vt 0 0\nvn 0 0 1\nf 1 2 3/1/1/1\n",
+                    "t.obj:6: face corner '3/1/1/1' has more than three indices",
+                ),
+                ("f 1 2 q\n", "t.obj:4: 'q' is not a vertex index"),
+                (
+                    "l 1 9\n",
+                    "t.obj:4: vertex index 9 out of range (3 defined before this line)",
+                ),
+            ],
         );
     }
 
     #[test]
     fn rejects_bad_mtl_lines_naming_the_line() {
-        assert_eq!(
-            mtl_error("newmtl a\nKd 0.5\n"),
-            "t.mtl:2: expected 3 numbers, found 1"
+        assert_rejected(
+            mtl_error,
+            &[
+                ("newmtl a\nKd 0.5\n", "t.mtl:2: expected 3 numbers, found 1"),
+                (
+                    "newmtl a\nKe 1 NaN 1\n",
+                    "t.mtl:2: non-finite number (NaN or infinity)",
+                ),
+                ("newmtl a\nKd 1 -1 1\n", "t.mtl:2: negative colour"),
+                (
+                    "newmtl a\nillum x\n",
+                    "t.mtl:2: illum needs an integer 0-255",
+                ),
+                ("newmtl\n", "t.mtl:1: newmtl needs a name"),
+            ],
         );
-        assert_eq!(
-            mtl_error("newmtl a\nKe 1 NaN 1\n"),
-            "t.mtl:2: non-finite number (NaN or infinity)"
-        );
-        assert_eq!(
-            mtl_error("newmtl a\nKd 1 -1 1\n"),
-            "t.mtl:2: negative colour"
-        );
-        assert_eq!(
-            mtl_error("newmtl a\nillum x\n"),
-            "t.mtl:2: illum needs an integer 0-255"
-        );
-        assert_eq!(mtl_error("newmtl\n"), "t.mtl:1: newmtl needs a name");
         assert!(
             check_mtl(
                 Path::new("t.mtl"),

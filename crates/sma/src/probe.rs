@@ -14,9 +14,11 @@ use protocol::viewer_link::{
     Camera, Epoch, SceneInfo, ShownTriangle, SmaToViewer, TriangleId, ViewerToSma,
 };
 use protocol::{Hello, Role, split_tcp};
+use tokio::io::{AsyncBufReadExt, BufReader};
 use tokio::net::TcpStream;
+use tokio::process::ChildStdout;
 
-use crate::visibility::{Gpu, IdPass, TriangleBuffer, scene_view_projection};
+use crate::visibility::{Gpu, GpuError, IdPass, TriangleBuffer, scene_view_projection};
 
 pub struct Probe {
     reader: TcpReader<SmaToViewer>,
@@ -246,6 +248,40 @@ pub fn table_triangles(probe: &Probe) -> Vec<[Vec3; 3]> {
 /// Scene bounds as sent in `SceneInfo`.
 pub fn bounds(info: &SceneInfo) -> (Vec3, Vec3) {
     (Vec3::from(info.bounds.min), Vec3::from(info.bounds.max))
+}
+
+/// The adapter of a test that needs one. Without one the test is skipped (`None`, said on
+/// stderr), or fails where `WALKTHROUGH_REQUIRE_GPU` is set.
+pub fn gpu_or_skip(gpu: Result<Gpu, GpuError>) -> Option<Gpu> {
+    match gpu {
+        Ok(gpu) => Some(gpu),
+        Err(e) if std::env::var_os("WALKTHROUGH_REQUIRE_GPU").is_some() => {
+            panic!("WALKTHROUGH_REQUIRE_GPU is set but no adapter: {e}")
+        }
+        Err(e) => {
+            eprintln!(
+                "SKIPPED: no wgpu adapter ({e}); set WALKTHROUGH_REQUIRE_GPU to make this fail"
+            );
+            None
+        }
+    }
+}
+
+/// The ADDR of the first "listening on ADDR" line a child process writes, within `timeout`. The
+/// rest of its output is drained, so that the child never blocks on a full pipe.
+pub async fn listening_addr(stdout: ChildStdout, timeout: Duration) -> anyhow::Result<String> {
+    let mut lines = BufReader::new(stdout).lines();
+    let addr = tokio::time::timeout(timeout, async {
+        while let Some(line) = lines.next_line().await? {
+            if let Some((_, addr)) = line.split_once("listening on ") {
+                return Ok(addr.trim().to_string());
+            }
+        }
+        bail!("ended before listening")
+    })
+    .await??;
+    tokio::spawn(async move { while let Ok(Some(_)) = lines.next_line().await {} });
+    Ok(addr)
 }
 
 #[cfg(test)]

@@ -11,11 +11,12 @@ use std::time::Duration;
 use glam::Vec3;
 use protocol::connection::accept_handshake;
 use protocol::renderer_link::{FromRenderer, Quality, Radiance, SampleKey, ShadePoint, ToRenderer};
-use protocol::viewer_link::ViewerToSma;
+use protocol::viewer_link::{Camera, ViewerToSma};
 use protocol::{Role, Side, split_tcp};
 use scene::{Material, Scene, SceneBuilder, SceneSettings, ViewpointSetting};
 use sma::cli::Cli;
 use sma::probe::{self, Probe};
+use sma::server::Running;
 use sma::visibility::Gpu;
 use tokio::net::TcpListener;
 
@@ -24,18 +25,7 @@ const H: u32 = 150;
 const WAIT: Duration = Duration::from_secs(60);
 
 fn gpu_available() -> bool {
-    match Gpu::new() {
-        Ok(_) => true,
-        Err(e) if std::env::var_os("WALKTHROUGH_REQUIRE_GPU").is_some() => {
-            panic!("WALKTHROUGH_REQUIRE_GPU is set but no adapter: {e}")
-        }
-        Err(e) => {
-            eprintln!(
-                "SKIPPED: no wgpu adapter ({e}); set WALKTHROUGH_REQUIRE_GPU to make this fail"
-            );
-            false
-        }
-    }
+    probe::gpu_or_skip(Gpu::new()).is_some()
 }
 
 fn viewpoint(name: &str, eye: [f32; 3], target: [f32; 3]) -> ViewpointSetting {
@@ -193,11 +183,34 @@ fn repeated_requests(log: &Log) -> Vec<(SampleKey, Quality)> {
         .collect()
 }
 
-fn scene_coverage(scene: &Scene, camera: &protocol::viewer_link::Camera) -> Vec<bool> {
+/// The SMA service started with `cli` on `scene`, and a probe viewer connected to it.
+async fn start_with_probe(cli: &Cli, scene: &Scene) -> (Running, Probe) {
+    let sma = sma::server::start(cli, scene.clone()).await.unwrap();
+    let probe = Probe::connect(&sma.addr.to_string()).await.unwrap();
+    (sma, probe)
+}
+
+/// Asks `probe` for viewpoint `name` and waits until that view is complete.
+async fn view_completely(probe: &mut Probe, name: &str) -> Camera {
+    let camera = probe.view(name, W, H).await.unwrap();
+    probe.complete(camera.seq, WAIT).await.unwrap();
+    camera
+}
+
+fn coverage(scene: &Scene, tris: &[[Vec3; 3]], camera: &Camera) -> Vec<bool> {
+    probe::coverage(&Gpu::new().unwrap(), tris, camera, scene.mesh.bounds()).unwrap()
+}
+
+fn scene_coverage(scene: &Scene, camera: &Camera) -> Vec<bool> {
     let tris: Vec<[Vec3; 3]> = (0..scene.mesh.triangles.len())
         .map(|t| scene.mesh.triangle_positions(t))
         .collect();
-    probe::coverage(&Gpu::new().unwrap(), &tris, camera, scene.mesh.bounds()).unwrap()
+    coverage(scene, &tris, camera)
+}
+
+/// What the triangles shown to `probe` cover from `camera`.
+fn shown_coverage(scene: &Scene, probe: &Probe, camera: &Camera) -> Vec<bool> {
+    coverage(scene, &probe::table_triangles(probe), camera)
 }
 
 fn differing(a: &[bool], b: &[bool]) -> usize {
@@ -211,23 +224,13 @@ async fn first_picture_then_refinement_stays_consistent_and_covers_the_visible_s
     }
     let scene = diffuse_wall();
     let (renderer, log) = fake_renderer(scene.clone(), Fault::None).await;
-    let sma = sma::server::start(&cli(vec![renderer], true), scene.clone())
-        .await
-        .unwrap();
-    let mut probe = Probe::connect(&sma.addr.to_string()).await.unwrap();
+    let (sma, mut probe) = start_with_probe(&cli(vec![renderer], true), &scene).await;
     probe.send(ViewerToSma::Pause).await.unwrap();
     let camera = probe.view("front", W, H).await.unwrap();
     let first = probe.complete(camera.seq, WAIT).await.unwrap();
     let base_coverage = scene_coverage(&scene, &camera);
-    let shown_coverage = probe::coverage(
-        &Gpu::new().unwrap(),
-        &probe::table_triangles(&probe),
-        &camera,
-        scene.mesh.bounds(),
-    )
-    .unwrap();
     assert_eq!(
-        differing(&base_coverage, &shown_coverage),
+        differing(&base_coverage, &shown_coverage(&scene, &probe, &camera)),
         0,
         "unrefined: shown = visible surface"
     );
@@ -266,14 +269,7 @@ async fn first_picture_then_refinement_stays_consistent_and_covers_the_visible_s
         probe.overlaps().is_empty(),
         "shown leaves overlap after refinement"
     );
-    let refined_coverage = probe::coverage(
-        &Gpu::new().unwrap(),
-        &probe::table_triangles(&probe),
-        &camera,
-        scene.mesh.bounds(),
-    )
-    .unwrap();
-    let diff = differing(&base_coverage, &refined_coverage);
+    let diff = differing(&base_coverage, &shown_coverage(&scene, &probe, &camera));
     // Subdivided edges are rasterised from midpoints rounded to f32: a few edge pixels may flip.
     assert!(
         diff <= (W * H) as usize / 1000,
@@ -286,8 +282,7 @@ async fn first_picture_then_refinement_stays_consistent_and_covers_the_visible_s
     );
 
     // A camera change mid-refinement is answered (and the table stays consistent).
-    let moved = probe.view("side", W, H).await.unwrap();
-    probe.complete(moved.seq, WAIT).await.unwrap();
+    view_completely(&mut probe, "side").await;
     assert!(probe.overlaps().is_empty());
     sma.stop().await.unwrap();
 }
@@ -299,10 +294,7 @@ async fn walking_around_a_wall_shows_its_other_side() {
     }
     let scene = diffuse_wall();
     let (renderer, _) = fake_renderer(scene.clone(), Fault::None).await;
-    let sma = sma::server::start(&cli(vec![renderer], false), scene.clone())
-        .await
-        .unwrap();
-    let mut probe = Probe::connect(&sma.addr.to_string()).await.unwrap();
+    let (sma, mut probe) = start_with_probe(&cli(vec![renderer], false), &scene).await;
     let wall_sides = |probe: &Probe| -> Vec<(Side, f32)> {
         probe
             .table
@@ -312,12 +304,10 @@ async fn walking_around_a_wall_shows_its_other_side() {
             .map(|t| (sma::visible::split_shown_id(t.id).1, t.radiance[0][0]))
             .collect()
     };
-    let front = probe.view("front", W, H).await.unwrap();
-    probe.complete(front.seq, WAIT).await.unwrap();
+    view_completely(&mut probe, "front").await;
     let seen = wall_sides(&probe);
     assert!(!seen.is_empty());
-    let back = probe.view("back", W, H).await.unwrap();
-    probe.complete(back.seq, WAIT).await.unwrap();
+    view_completely(&mut probe, "back").await;
     let other = wall_sides(&probe);
     assert!(!other.is_empty());
     let sides: Vec<Side> = seen.iter().chain(&other).map(|s| s.0).collect();
@@ -351,13 +341,9 @@ async fn mirror_samples_are_retaken_after_the_eye_moves_and_diffuse_ones_never()
             diffuse_wall()
         };
         let (renderer, log) = fake_renderer(scene.clone(), Fault::None).await;
-        let sma = sma::server::start(&cli(vec![renderer], false), scene.clone())
-            .await
-            .unwrap();
-        let mut probe = Probe::connect(&sma.addr.to_string()).await.unwrap();
+        let (sma, mut probe) = start_with_probe(&cli(vec![renderer], false), &scene).await;
         for view in ["front", "side", "front"] {
-            let cam = probe.view(view, W, H).await.unwrap();
-            probe.complete(cam.seq, WAIT).await.unwrap();
+            view_completely(&mut probe, view).await;
         }
         let repeated = repeated_requests(&log);
         if mirror {
@@ -396,17 +382,9 @@ async fn a_renderer_killed_mid_batch_loses_no_request() {
     let (healthy, _) = fake_renderer(scene.clone(), Fault::None).await;
     let mut cli = cli(vec![dying, healthy], false);
     cli.batch_points = 2; // many small batches, so the dying one holds some
-    let sma = sma::server::start(&cli, scene.clone()).await.unwrap();
-    let mut probe = Probe::connect(&sma.addr.to_string()).await.unwrap();
-    let cam = probe.view("front", W, H).await.unwrap();
-    probe.complete(cam.seq, WAIT).await.unwrap();
-    let shown = probe::coverage(
-        &Gpu::new().unwrap(),
-        &probe::table_triangles(&probe),
-        &cam,
-        scene.mesh.bounds(),
-    )
-    .unwrap();
+    let (sma, mut probe) = start_with_probe(&cli, &scene).await;
+    let cam = view_completely(&mut probe, "front").await;
+    let shown = shown_coverage(&scene, &probe, &cam);
     assert_eq!(differing(&scene_coverage(&scene, &cam), &shown), 0);
     sma.stop().await.unwrap();
 }
@@ -420,18 +398,10 @@ async fn a_dropped_renderer_link_reconnects_and_its_batch_is_reissued() {
     let (flaky, log) = fake_renderer(scene.clone(), Fault::Drop(2)).await;
     let mut cli = cli(vec![flaky], false);
     cli.batch_points = 2;
-    let sma = sma::server::start(&cli, scene.clone()).await.unwrap();
-    let mut probe = Probe::connect(&sma.addr.to_string()).await.unwrap();
-    let cam = probe.view("front", W, H).await.unwrap();
+    let (sma, mut probe) = start_with_probe(&cli, &scene).await;
     // Only the one renderer: completing needs the reconnection and the re-issued batch.
-    probe.complete(cam.seq, WAIT).await.unwrap();
-    let shown = probe::coverage(
-        &Gpu::new().unwrap(),
-        &probe::table_triangles(&probe),
-        &cam,
-        scene.mesh.bounds(),
-    )
-    .unwrap();
+    let cam = view_completely(&mut probe, "front").await;
+    let shown = shown_coverage(&scene, &probe, &cam);
     assert_eq!(differing(&scene_coverage(&scene, &cam), &shown), 0);
     assert!(
         repeated_requests(&log).is_empty(),
@@ -447,11 +417,8 @@ async fn two_viewers_share_one_cache_and_a_bad_frame_closes_only_its_viewer() {
     }
     let scene = diffuse_wall();
     let (renderer, log) = fake_renderer(scene.clone(), Fault::None).await;
-    let sma = sma::server::start(&cli(vec![renderer], false), scene.clone())
-        .await
-        .unwrap();
+    let (sma, mut a) = start_with_probe(&cli(vec![renderer], false), &scene).await;
     let addr = sma.addr.to_string();
-    let mut a = Probe::connect(&addr).await.unwrap();
     let mut b = Probe::connect(&addr).await.unwrap();
     let ca = a.view("front", W, H).await.unwrap();
     let cb = b.view("side", W, H).await.unwrap();
@@ -476,7 +443,7 @@ async fn two_viewers_share_one_cache_and_a_bad_frame_closes_only_its_viewer() {
 
     // A viewer sending garbage gets an Error and is closed; the other goes on.
     let mut bad = Probe::connect(&addr).await.unwrap();
-    bad.send(ViewerToSma::Camera(protocol::viewer_link::Camera {
+    bad.send(ViewerToSma::Camera(Camera {
         width: 0,
         ..ca.clone()
     }))
@@ -484,8 +451,7 @@ async fn two_viewers_share_one_cache_and_a_bad_frame_closes_only_its_viewer() {
     .unwrap();
     let err = bad.next_epoch().await.unwrap_err().to_string();
     assert!(err.contains("error"), "{err}");
-    let moved = a.view("side", W, H).await.unwrap();
-    a.complete(moved.seq, WAIT).await.unwrap();
+    view_completely(&mut a, "side").await;
 
     // SetCriterion, Pause and Resume are acknowledged.
     a.send(ViewerToSma::SetCriterion { name: "rnd".into() })

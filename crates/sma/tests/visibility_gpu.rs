@@ -6,24 +6,14 @@
 use glam::Vec3;
 use protocol::types::Viewpoint;
 use protocol::viewer_link::Camera;
+use sma::probe::gpu_or_skip;
 use sma::visibility::{Gpu, IdPass, LuminancePass, TriangleBuffer, id_pass::reversed_z};
 
 const W: u32 = 160;
 const H: u32 = 120;
 
 fn gpu(primitive_index: bool) -> Option<Gpu> {
-    match Gpu::with_primitive_index(primitive_index) {
-        Ok(gpu) => Some(gpu),
-        Err(e) if std::env::var_os("WALKTHROUGH_REQUIRE_GPU").is_some() => {
-            panic!("WALKTHROUGH_REQUIRE_GPU is set but no adapter: {e}")
-        }
-        Err(e) => {
-            eprintln!(
-                "SKIPPED: no wgpu adapter ({e}); set WALKTHROUGH_REQUIRE_GPU to make this fail"
-            );
-            None
-        }
-    }
+    gpu_or_skip(Gpu::with_primitive_index(primitive_index))
 }
 
 fn quad(min: Vec3, u: Vec3, v: Vec3) -> [[Vec3; 3]; 2] {

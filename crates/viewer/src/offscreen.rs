@@ -85,17 +85,7 @@ impl Offscreen {
         depth: (f32, f32),
         settings: &DrawSettings,
     ) -> anyhow::Result<()> {
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        self.record(
-            gpu,
-            &mut encoder,
-            &self.display,
-            triangles,
-            camera,
-            depth,
-            settings,
-        );
-        gpu.queue.submit([encoder.finish()]);
+        self.draw_into(gpu, &[&self.display], triangles, camera, depth, settings);
         gpu.wait_idle()
     }
 
@@ -109,26 +99,14 @@ impl Offscreen {
         depth: (f32, f32),
         settings: &DrawSettings,
     ) -> anyhow::Result<Snapshot> {
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        self.record(
+        self.draw_into(
             gpu,
-            &mut encoder,
-            &self.display,
+            &[&self.display, &self.linear],
             triangles,
             camera,
             depth,
             settings,
         );
-        self.record(
-            gpu,
-            &mut encoder,
-            &self.linear,
-            triangles,
-            camera,
-            depth,
-            settings,
-        );
-        gpu.queue.submit([encoder.finish()]);
         let display = self.read(gpu, &self.display)?;
         let linear = self.read(gpu, &self.linear)?;
         let display = image::RgbaImage::from_raw(self.width, self.height, display)
@@ -142,12 +120,11 @@ impl Offscreen {
         })
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn record(
+    /// Draws into each of `targets`, at the targets' size, and submits the work.
+    fn draw_into(
         &self,
         gpu: &Gpu,
-        encoder: &mut wgpu::CommandEncoder,
-        target: &Target,
+        targets: &[&Target],
         triangles: &GpuTriangles,
         camera: &Camera,
         depth: (f32, f32),
@@ -158,16 +135,20 @@ impl Offscreen {
             height: self.height,
             ..camera.clone()
         };
-        target.drawer.draw(
-            &gpu.queue,
-            encoder,
-            &target.view,
-            &self.depth,
-            triangles,
-            &camera,
-            depth,
-            settings,
-        );
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        for target in targets {
+            target.drawer.draw(
+                &gpu.queue,
+                &mut encoder,
+                &target.view,
+                &self.depth,
+                triangles,
+                &camera,
+                depth,
+                settings,
+            );
+        }
+        gpu.queue.submit([encoder.finish()]);
     }
 
     /// Copies a target into a mappable buffer and returns its rows without padding.

@@ -3,12 +3,14 @@
 //! them on three machines. Every child is killed when the run is dropped, on every exit path.
 
 use std::fs::File;
-use std::net::{SocketAddr, TcpListener};
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
+
+use crate::launch::free_loopback_addr;
 
 /// How long a child may take to bind its port (scene load, BVH build, wgpu start on Mesa).
 const START_TIMEOUT: Duration = Duration::from_secs(120);
@@ -116,7 +118,7 @@ impl System {
         let mut system = System {
             exe: config.exe.clone(),
             logs: logs.to_path_buf(),
-            sma_addr: free_port()?,
+            sma_addr: free_loopback_addr()?,
             servers: vec![],
         };
         let mut sma_args = strings(&[
@@ -136,7 +138,7 @@ impl System {
             sma_args.push("--no-refine".into());
         }
         for _ in 0..config.renderers.max(1) {
-            let addr = free_port()?;
+            let addr = free_loopback_addr()?;
             let args = strings(&[
                 "renderer",
                 "serve",
@@ -249,11 +251,6 @@ fn viewer_args(c: &ViewerConfig, sma: SocketAddr, out: &Path) -> Vec<String> {
         args.push("--snapshot-when-idle".into());
     }
     args
-}
-
-/// A free loopback port, asked of the OS.
-fn free_port() -> anyhow::Result<SocketAddr> {
-    Ok(TcpListener::bind("127.0.0.1:0")?.local_addr()?)
 }
 
 /// Whether some process listens on `addr`'s port, read from the kernel's socket tables: a probe

@@ -165,27 +165,30 @@ pub fn time_to_reach(run: &[&Measurement], level: f64) -> Option<f64> {
         .min_by(f64::total_cmp)
 }
 
+/// A periodic snapshot with made-up counts, for tests.
+#[cfg(test)]
+pub fn test_measurement(run: &str, time_s: f64, samples: u64, flip: f64) -> Measurement {
+    Measurement {
+        run: run.into(),
+        schedule: Schedule::Time,
+        time_s,
+        samples,
+        shown: 10,
+        inserted: 12,
+        removed: 2,
+        outstanding: 0,
+        error: ImageError {
+            flip,
+            rmse: flip / 2.0,
+        },
+        exr: None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
+    use super::test_measurement as m;
     use super::*;
-
-    fn m(run: &str, time_s: f64, samples: u64, flip: f64) -> Measurement {
-        Measurement {
-            run: run.into(),
-            schedule: Schedule::Time,
-            time_s,
-            samples,
-            shown: 10,
-            inserted: 12,
-            removed: 2,
-            outstanding: 0,
-            error: ImageError {
-                flip,
-                rmse: flip / 2.0,
-            },
-            exr: None,
-        }
-    }
 
     #[test]
     fn csv_round_trip() {

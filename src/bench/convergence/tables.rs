@@ -102,21 +102,12 @@ pub fn thousands(n: u64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench::convergence::record::Schedule;
-    use crate::bench::metrics::ImageError;
+    use crate::bench::convergence::record::{Schedule, test_measurement};
 
     fn m(run: &str, time_s: f64, samples: u64, flip: f64) -> Measurement {
         Measurement {
-            run: run.into(),
-            schedule: Schedule::Time,
-            time_s,
-            samples,
             shown: 2511,
-            inserted: 12863,
-            removed: 0,
-            outstanding: 0,
-            error: ImageError { flip, rmse: 0.1 },
-            exr: None,
+            ..test_measurement(run, time_s, samples, flip)
         }
     }
 

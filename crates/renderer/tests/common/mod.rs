@@ -1,13 +1,19 @@
 //! Small scenes built in code for the renderer's tests, and helpers to name points on them.
 #![allow(dead_code)] // each test binary uses its own subset
 
+use std::time::Duration;
+
 use glam::Vec3;
-use protocol::Side;
-use protocol::renderer_link::{SampleKey, ShadePoint};
+use protocol::connection::{TcpReader, TcpWriter, connect_handshake, split_tcp};
+use protocol::frame::DEFAULT_MAX_FRAME;
+use protocol::renderer_link::{FromRenderer, ShadePoint, ToRenderer};
+use protocol::{Fingerprint, Hello, MessageReader, MessageWriter, ProtocolError, Role, Side};
 use renderer::World;
-use renderer::point::surface_of;
+use renderer::point::{front_point_hit_by, surface_of};
 use scene::settings::QualitySetting;
 use scene::{Material, SceneBuilder, SceneSettings, Sky, Sun};
+use tokio::io::{AsyncRead, AsyncWrite};
+use tokio::net::{TcpStream, ToSocketAddrs};
 
 pub fn settings(sun: Option<Sun>, sky: Sky) -> SceneSettings {
     SceneSettings {
@@ -105,33 +111,8 @@ pub fn with_side_facing(world: &World, mut p: ShadePoint, facing: Vec3) -> Shade
 /// The shading point where the ray from `origin` along `dir` first hits, on the side facing the
 /// ray's origin.
 pub fn point_hit_by(world: &World, origin: Vec3, dir: Vec3) -> ShadePoint {
-    let hit = world
-        .bvh
-        .closest_hit(origin, dir, f32::INFINITY)
-        .expect("ray hits the scene");
-    let q = origin + dir * hit.t;
-    let [a, b, c] = world.scene.mesh.triangle_positions(hit.triangle as usize);
-    let bary = barycentrics(q, a, b, c);
-    let p = ShadePoint {
-        key: SampleKey {
-            vertex: 0,
-            side: Side::Front,
-        },
-        base_triangle: hit.triangle,
-        bary,
-        side: Side::Front,
-        eye: None,
-    };
+    let p = front_point_hit_by(world, origin, dir, None).expect("ray hits the scene");
     with_side_facing(world, p, -dir)
-}
-
-/// Barycentric weights of vertices 1 and 2 for `q` in the plane of (a, b, c).
-pub fn barycentrics(q: Vec3, a: Vec3, b: Vec3, c: Vec3) -> [f32; 2] {
-    let (e1, e2, d) = (b - a, c - a, q - a);
-    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
-    let (d1, d2) = (d.dot(e1), d.dot(e2));
-    let det = d11 * d22 - d12 * d12;
-    [(d22 * d1 - d12 * d2) / det, (d11 * d2 - d12 * d1) / det]
 }
 
 /// Mean and standard error of per-path samples of one channel.
@@ -140,4 +121,41 @@ pub fn mean_and_standard_error(samples: &[f64]) -> (f64, f64) {
     let mean = samples.iter().sum::<f64>() / n;
     let var = samples.iter().map(|s| (s - mean).powi(2)).sum::<f64>() / (n - 1.0);
     (mean, (var / n).sqrt())
+}
+
+/// The SMA's side of the handshake with a renderer serving the scene of `fingerprint`.
+pub async fn handshake_as_sma<R, W>(
+    r: &mut MessageReader<R, FromRenderer>,
+    w: &mut MessageWriter<W, ToRenderer>,
+    fingerprint: Fingerprint,
+) -> Result<Option<Fingerprint>, ProtocolError>
+where
+    R: AsyncRead + Unpin,
+    W: AsyncWrite + Unpin,
+{
+    connect_handshake(
+        r,
+        w,
+        Hello::new(Role::Sma, Some(fingerprint)),
+        Role::Renderer,
+    )
+    .await
+}
+
+/// A link to the renderer at `addr`, as an SMA of the scene of `fingerprint`.
+pub async fn connect_as_sma(
+    addr: impl ToSocketAddrs,
+    fingerprint: Fingerprint,
+) -> Result<(TcpReader<FromRenderer>, TcpWriter<ToRenderer>), ProtocolError> {
+    let stream = TcpStream::connect(addr).await?;
+    let (mut r, mut w) = split_tcp::<FromRenderer, ToRenderer>(stream, DEFAULT_MAX_FRAME);
+    handshake_as_sma(&mut r, &mut w, fingerprint).await?;
+    Ok((r, w))
+}
+
+/// The renderer's next message, within 30 s.
+pub async fn recv(r: &mut TcpReader<FromRenderer>) -> Result<FromRenderer, ProtocolError> {
+    tokio::time::timeout(Duration::from_secs(30), r.recv())
+        .await
+        .expect("reply within 30 s")
 }

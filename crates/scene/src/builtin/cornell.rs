@@ -12,9 +12,20 @@ use crate::model::Material;
 use crate::settings::{QualitySetting, SceneSettings, Sky, ViewpointSetting};
 
 /// Millimetres of the data page to metres.
-fn mm(x: f32, y: f32, z: f32) -> Vec3 {
-    vec3(x, y, z) * 1e-3
+fn mm(p: [f32; 3]) -> Vec3 {
+    Vec3::from(p) * 1e-3
 }
+
+/// The data page's floor, light, ceiling, back, left and right walls, in mm.
+#[rustfmt::skip]
+const WALLS: [[[f32; 3]; 4]; 6] = [
+    [[552.8, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 559.2], [549.6, 0.0, 559.2]],
+    [[343.0, 548.0, 227.0], [343.0, 548.0, 332.0], [213.0, 548.0, 332.0], [213.0, 548.0, 227.0]],
+    [[556.0, 548.8, 0.0], [556.0, 548.8, 559.2], [0.0, 548.8, 559.2], [0.0, 548.8, 0.0]],
+    [[549.6, 0.0, 559.2], [0.0, 0.0, 559.2], [0.0, 548.8, 559.2], [556.0, 548.8, 559.2]],
+    [[0.0, 0.0, 559.2], [0.0, 0.0, 0.0], [0.0, 548.8, 0.0], [0.0, 548.8, 559.2]],
+    [[552.8, 0.0, 0.0], [549.6, 0.0, 559.2], [556.0, 548.8, 559.2], [556.0, 548.8, 0.0]],
+];
 
 pub fn cornell() -> SceneBuilder {
     let mut b = SceneBuilder::new(settings());
@@ -26,64 +37,11 @@ pub fn cornell() -> SceneBuilder {
         Vec3::splat(0.78),
         vec3(17.0, 12.0, 4.0),
     ));
-    let walls = [
-        (
-            [
-                mm(552.8, 0.0, 0.0),
-                mm(0.0, 0.0, 0.0),
-                mm(0.0, 0.0, 559.2),
-                mm(549.6, 0.0, 559.2),
-            ],
-            white,
-        ),
-        (
-            [
-                mm(343.0, 548.0, 227.0),
-                mm(343.0, 548.0, 332.0),
-                mm(213.0, 548.0, 332.0),
-                mm(213.0, 548.0, 227.0),
-            ],
-            light,
-        ),
-        (
-            [
-                mm(556.0, 548.8, 0.0),
-                mm(556.0, 548.8, 559.2),
-                mm(0.0, 548.8, 559.2),
-                mm(0.0, 548.8, 0.0),
-            ],
-            white,
-        ),
-        (
-            [
-                mm(549.6, 0.0, 559.2),
-                mm(0.0, 0.0, 559.2),
-                mm(0.0, 548.8, 559.2),
-                mm(556.0, 548.8, 559.2),
-            ],
-            white,
-        ),
-        (
-            [
-                mm(0.0, 0.0, 559.2),
-                mm(0.0, 0.0, 0.0),
-                mm(0.0, 548.8, 0.0),
-                mm(0.0, 548.8, 559.2),
-            ],
-            green,
-        ),
-        (
-            [
-                mm(552.8, 0.0, 0.0),
-                mm(549.6, 0.0, 559.2),
-                mm(556.0, 548.8, 559.2),
-                mm(556.0, 548.8, 0.0),
-            ],
-            red,
-        ),
-    ];
-    for (corners, material) in walls {
-        quad(&mut b, corners, material);
+    for (corners, material) in WALLS
+        .into_iter()
+        .zip([white, light, white, white, green, red])
+    {
+        quad(&mut b, corners.map(mm), material);
     }
     block(
         &mut b,

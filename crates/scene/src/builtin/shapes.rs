@@ -45,7 +45,7 @@ pub fn prism(b: &mut SceneBuilder, footprint: &[(f32, f32)], y0: f32, y1: f32, m
 
 /// An axis-aligned box; `with_bottom` false leaves out the face on the ground.
 pub fn cuboid(b: &mut SceneBuilder, min: Vec3, max: Vec3, with_bottom: bool, material: u32) {
-    let corner = |x: bool, y: bool, z: bool| {
+    let corner = |[x, y, z]: [bool; 3]| {
         vec3(
             if x { max.x } else { min.x },
             if y { max.y } else { min.y },
@@ -54,47 +54,17 @@ pub fn cuboid(b: &mut SceneBuilder, min: Vec3, max: Vec3, with_bottom: bool, mat
     };
     let (f, t) = (false, true);
     let mut faces = vec![
-        [
-            corner(f, t, f),
-            corner(f, t, t),
-            corner(t, t, t),
-            corner(t, t, f),
-        ], // top (+y)
-        [
-            corner(f, f, t),
-            corner(t, f, t),
-            corner(t, t, t),
-            corner(f, t, t),
-        ], // +z
-        [
-            corner(t, f, f),
-            corner(f, f, f),
-            corner(f, t, f),
-            corner(t, t, f),
-        ], // -z
-        [
-            corner(t, f, t),
-            corner(t, f, f),
-            corner(t, t, f),
-            corner(t, t, t),
-        ], // +x
-        [
-            corner(f, f, f),
-            corner(f, f, t),
-            corner(f, t, t),
-            corner(f, t, f),
-        ], // -x
+        [[f, t, f], [f, t, t], [t, t, t], [t, t, f]], // top (+y)
+        [[f, f, t], [t, f, t], [t, t, t], [f, t, t]], // +z
+        [[t, f, f], [f, f, f], [f, t, f], [t, t, f]], // -z
+        [[t, f, t], [t, f, f], [t, t, f], [t, t, t]], // +x
+        [[f, f, f], [f, f, t], [f, t, t], [f, t, f]], // -x
     ];
     if with_bottom {
-        faces.push([
-            corner(f, f, f),
-            corner(t, f, f),
-            corner(t, f, t),
-            corner(f, f, t),
-        ]);
+        faces.push([[f, f, f], [t, f, f], [t, f, t], [f, f, t]]);
     }
     for face in faces {
-        quad(b, face, material);
+        quad(b, face.map(corner), material);
     }
 }
 
@@ -135,26 +105,15 @@ pub fn cylinder(
 pub fn gable_roof(b: &mut SceneBuilder, min: Vec3, max: Vec3, ridge_y: f32, roof: u32, gable: u32) {
     let mid = 0.5 * (min.x + max.x);
     let (y, (z0, z1)) = (min.y, (min.z, max.z));
-    quad(
-        b,
-        [
-            vec3(max.x, y, z1),
-            vec3(max.x, y, z0),
-            vec3(mid, ridge_y, z0),
-            vec3(mid, ridge_y, z1),
-        ],
-        roof,
-    );
-    quad(
-        b,
-        [
-            vec3(min.x, y, z0),
-            vec3(min.x, y, z1),
-            vec3(mid, ridge_y, z1),
-            vec3(mid, ridge_y, z0),
-        ],
-        roof,
-    );
+    for (x, [za, zb]) in [(max.x, [z1, z0]), (min.x, [z0, z1])] {
+        let eave_to_ridge = [
+            vec3(x, y, za),
+            vec3(x, y, zb),
+            vec3(mid, ridge_y, zb),
+            vec3(mid, ridge_y, za),
+        ];
+        quad(b, eave_to_ridge, roof);
+    }
     for (z, [l, r]) in [(z1, [min.x, max.x]), (z0, [max.x, min.x])] {
         let v = [vec3(l, y, z), vec3(r, y, z), vec3(mid, ridge_y, z)].map(|p| b.vertex(p));
         b.triangle(v, gable);

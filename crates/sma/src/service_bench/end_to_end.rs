@@ -10,12 +10,12 @@ use std::fmt::Write;
 use std::process::Stdio;
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, bail};
+use anyhow::Context;
 use tokio::io::{AsyncBufReadExt, BufReader};
 use tokio::process::{Child, Command};
 use tokio::sync::mpsc;
 
-use crate::probe::Probe;
+use crate::probe::{Probe, listening_addr};
 
 const WIDTH: u32 = 1024;
 const HEIGHT: u32 = 768;
@@ -61,7 +61,6 @@ async fn start(exe: &std::path::Path, args: &[&str]) -> anyhow::Result<(Process,
         .kill_on_drop(true)
         .spawn()
         .with_context(|| format!("starting {args:?}"))?;
-    let mut out = BufReader::new(child.stdout.take().context("stdout")?).lines();
     let mut err = BufReader::new(child.stderr.take().context("stderr")?).lines();
     let (tx, stderr) = mpsc::unbounded_channel();
     tokio::spawn(async move {
@@ -69,16 +68,9 @@ async fn start(exe: &std::path::Path, args: &[&str]) -> anyhow::Result<(Process,
             let _ = tx.send(line);
         }
     });
-    let addr = tokio::time::timeout(WAIT, async {
-        while let Some(line) = out.next_line().await? {
-            if let Some((_, addr)) = line.split_once("listening on ") {
-                return Ok(addr.trim().to_string());
-            }
-        }
-        bail!("{args:?} ended before listening")
-    })
-    .await??;
-    tokio::spawn(async move { while let Ok(Some(_)) = out.next_line().await {} });
+    let addr = listening_addr(child.stdout.take().context("stdout")?, WAIT)
+        .await
+        .with_context(|| format!("{args:?}"))?;
     Ok((
         Process {
             _child: child,

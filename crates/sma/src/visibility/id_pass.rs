@@ -100,13 +100,59 @@ impl IdImage {
     }
 }
 
-/// The ID pipeline and its reusable target.
-pub struct IdPass {
+/// A pipeline drawing into an R32Uint target with reversed Z, and that target, reused while the
+/// image size stays the same.
+pub(super) struct R32UintPass {
     uniform: MatrixUniform,
     pipeline: wgpu::RenderPipeline,
+    target: Option<OffscreenTarget>,
+}
+
+impl R32UintPass {
+    pub fn new(gpu: &Gpu, shader: &str, layout: wgpu::VertexBufferLayout<'_>) -> Self {
+        let uniform = MatrixUniform::new(gpu);
+        let pipeline = uniform.pipeline(gpu, shader, layout, wgpu::TextureFormat::R32Uint);
+        R32UintPass {
+            uniform,
+            pipeline,
+            target: None,
+        }
+    }
+
+    /// Draws `vertex_count` vertices of `vertices` seen through `view_proj` (a
+    /// `Camera::view_projection`) and reads the image back.
+    pub fn draw_and_read(
+        &mut self,
+        gpu: &Gpu,
+        vertices: Option<&wgpu::Buffer>,
+        vertex_count: u32,
+        view_proj: Mat4,
+        width: u32,
+        height: u32,
+    ) -> Result<Vec<u32>, GpuError> {
+        self.uniform.set(gpu, reversed_z(view_proj));
+        let target = fitted_target(
+            &mut self.target,
+            gpu,
+            wgpu::TextureFormat::R32Uint,
+            width,
+            height,
+        );
+        target.draw_and_read::<u32>(
+            gpu,
+            &self.pipeline,
+            &self.uniform.bind_group,
+            vertices,
+            vertex_count,
+        )
+    }
+}
+
+/// The ID pipeline and its reusable target.
+pub struct IdPass {
+    pass: R32UintPass,
     /// The fallback path: each vertex carries its triangle's index.
     vertex_ids: bool,
-    target: Option<OffscreenTarget>,
 }
 
 const POSITION_ATTRS: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![0 => Float32x3];
@@ -115,7 +161,6 @@ const POSITION_ID_ATTRS: [wgpu::VertexAttribute; 2] =
 
 impl IdPass {
     pub fn new(gpu: &Gpu) -> Self {
-        let uniform = MatrixUniform::new(gpu);
         let vertex_ids = !gpu.primitive_index;
         let (shader, stride, attributes): (_, u64, &[wgpu::VertexAttribute]) = if vertex_ids {
             (SHADER_VERTEX_ID, 16, &POSITION_ID_ATTRS)
@@ -127,12 +172,9 @@ impl IdPass {
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes,
         };
-        let pipeline = uniform.pipeline(gpu, shader, layout, wgpu::TextureFormat::R32Uint);
         IdPass {
-            uniform,
-            pipeline,
+            pass: R32UintPass::new(gpu, shader, layout),
             vertex_ids,
-            target: None,
         }
     }
 
@@ -161,27 +203,20 @@ impl IdPass {
         width: u32,
         height: u32,
     ) -> Result<IdImage, GpuError> {
-        self.uniform.set(gpu, reversed_z(view_proj));
-        let target = fitted_target(
-            &mut self.target,
+        let ids = self.pass.draw_and_read(
             gpu,
-            wgpu::TextureFormat::R32Uint,
-            width,
-            height,
-        );
-        let ids = target.draw_and_read::<u32>(
-            gpu,
-            &self.pipeline,
-            &self.uniform.bind_group,
             triangles.buffer.as_ref(),
             triangles.count * 3,
+            view_proj,
+            width,
+            height,
         )?;
         Ok(IdImage { width, height, ids })
     }
 }
 
 /// The target in `slot`, recreated when the image size changed.
-pub fn fitted_target<'a>(
+fn fitted_target<'a>(
     slot: &'a mut Option<OffscreenTarget>,
     gpu: &Gpu,
     format: wgpu::TextureFormat,

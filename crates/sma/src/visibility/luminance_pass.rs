@@ -5,8 +5,8 @@
 
 use glam::{Mat4, Vec3};
 
-use super::gpu::{Gpu, GpuError, MatrixUniform, OffscreenTarget};
-use super::id_pass::{fitted_target, reversed_z};
+use super::gpu::{Gpu, GpuError};
+use super::id_pass::R32UintPass;
 
 const SHADER: &str = r#"
 @group(0) @binding(0) var<uniform> view_proj: mat4x4<f32>;
@@ -22,26 +22,20 @@ struct Out { @builtin(position) pos: vec4<f32>, @location(0) lum: f32 };
 const ATTRS: [wgpu::VertexAttribute; 2] = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32];
 
 pub struct LuminancePass {
-    uniform: MatrixUniform,
-    pipeline: wgpu::RenderPipeline,
+    pass: R32UintPass,
     vertices: Option<wgpu::Buffer>,
-    target: Option<OffscreenTarget>,
 }
 
 impl LuminancePass {
     pub fn new(gpu: &Gpu) -> Self {
-        let uniform = MatrixUniform::new(gpu);
         let layout = wgpu::VertexBufferLayout {
             array_stride: 16,
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &ATTRS,
         };
-        let pipeline = uniform.pipeline(gpu, SHADER, layout, wgpu::TextureFormat::R32Uint);
         LuminancePass {
-            uniform,
-            pipeline,
+            pass: R32UintPass::new(gpu, SHADER, layout),
             vertices: None,
-            target: None,
         }
     }
 
@@ -61,20 +55,13 @@ impl LuminancePass {
             }
         }
         gpu.upload_into(&mut self.vertices, bytemuck::cast_slice(&words));
-        self.uniform.set(gpu, reversed_z(view_proj));
-        let target = fitted_target(
-            &mut self.target,
+        let bits = self.pass.draw_and_read(
             gpu,
-            wgpu::TextureFormat::R32Uint,
-            width,
-            height,
-        );
-        let bits = target.draw_and_read::<u32>(
-            gpu,
-            &self.pipeline,
-            &self.uniform.bind_group,
             self.vertices.as_ref(),
             triangles.len() as u32 * 3,
+            view_proj,
+            width,
+            height,
         )?;
         Ok(bits.into_iter().map(f32::from_bits).collect())
     }
