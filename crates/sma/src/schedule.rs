@@ -311,6 +311,9 @@ impl Schedule {
                     self.cache.insert(point.key, sample);
                 }
                 let n = batch.points.len() as u64;
+                // New samples are new input for every criterion: one that had found nothing may
+                // find something now.
+                self.viewers.values_mut().for_each(|v| v.exhausted = false);
                 self.samples += n;
                 self.samples_since_pass += n;
                 self.resync = true;
@@ -450,6 +453,7 @@ impl Schedule {
             let l_white = self.cache.l_white(&self.mesh, &view.visible);
             if viewer.last_l_white != Some(l_white) && l_white > 0.0 {
                 viewer.last_l_white = Some(l_white);
+                tracing::debug!(l_white, "tone map");
                 messages.push(SmaToViewer::ToneMap { l_white });
             }
             // Truthful: zero only when nothing is asked for and every wanted triangle is shown.
@@ -535,6 +539,10 @@ impl Schedule {
             .min()
     }
 
+    /// Empty criterion calls in a row after which a viewer's refinement counts as exhausted (enough
+    /// for `nld-os` to step S_ref from its start down to S_min with the default settings).
+    const EMPTY_CALLS_BEFORE_EXHAUSTED: usize = 32;
+
     /// One refinement round for one viewer (DESIGN.md §3 step 6, §6).
     fn refine_round(&mut self, id: ViewerId) -> anyhow::Result<()> {
         self.refine_turn += 1;
@@ -550,7 +558,18 @@ impl Schedule {
                 .unwrap_or_else(|| self.cache.l_white(&self.mesh, &view.visible)),
             image: image.as_ref(),
         };
-        let selected = viewer.criterion.select(&input, self.config.max_selections);
+        // A criterion may answer an empty call and still have more to give: `nld-os` lowers
+        // S_ref one step after a pass that selects nothing (§4.3.4). Only a run of empty calls
+        // means it has nothing left for this view.
+        let selected = (0..Self::EMPTY_CALLS_BEFORE_EXHAUSTED)
+            .map(|_| viewer.criterion.select(&input, self.config.max_selections))
+            .find(|s| !s.is_empty())
+            .unwrap_or_default();
+        if selected.is_empty() {
+            viewer.exhausted = true;
+            tracing::debug!(viewer = id, "criterion found nothing more to refine");
+            return Ok(());
+        }
         let pixels: HashMap<NodeId, u32> = view
             .visible
             .leaves
@@ -561,11 +580,12 @@ impl Schedule {
         let too_small = |leaf: NodeId| pixels.get(&leaf).is_none_or(|&p| p < min_pixels);
         let steps = self.mesh.refine(&selected, &too_small);
         if steps.is_empty() {
-            viewer.exhausted = true;
+            // Every selected leaf was too small; criteria offer a leaf once per view, so the
+            // next round moves on to others.
             tracing::debug!(
                 viewer = id,
                 selected = selected.len(),
-                "criterion found nothing more to refine"
+                "selected leaves too small"
             );
             return Ok(());
         }

@@ -211,10 +211,14 @@ impl System {
                 return Err(dead.failure("died during the run"));
             }
             if Instant::now() > deadline {
-                return Err(viewer.failure(&format!(
-                    "overran its time limit of {:?}",
-                    config.time_limit
-                )));
+                let overran = format!("overran its time limit of {:?}", config.time_limit);
+                // The servers' logs say why the viewer waited (e.g. samples never answered).
+                let servers: Vec<String> = self
+                    .servers
+                    .iter()
+                    .map(|p| p.failure("was running").to_string())
+                    .collect();
+                return Err(viewer.failure(&overran).context(servers.join("\n")));
             }
             std::thread::sleep(Duration::from_millis(50));
         }

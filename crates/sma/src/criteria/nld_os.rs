@@ -19,7 +19,6 @@ pub struct NldOs {
     cursor: usize,
     found_in_pass: bool,
     waiting_in_pass: bool,
-    done: bool,
     /// Leaves returned since `reset`.
     offered: HashSet<NodeId, FastHash>,
 }
@@ -40,7 +39,6 @@ impl NldOs {
             cursor: 0,
             found_in_pass: false,
             waiting_in_pass: false,
-            done: false,
             offered: HashSet::default(),
         }
     }
@@ -59,7 +57,8 @@ impl NldOs {
             self.s_ref = (self.s_ref - self.settings.s_ref_step).max(self.settings.s_min);
             PassEnd::Again
         } else {
-            self.done = true;
+            // Not final: samples and leaves that arrive later (children of a refinement, a
+            // better sample) are looked at by the next call.
             PassEnd::Done
         };
         self.cursor = 0;
@@ -83,7 +82,7 @@ impl Criterion for NldOs {
         let mut out = Vec::new();
         // Two pass ends per call at most: one pass over everything, whatever the levels.
         let mut pass_ends = 0;
-        while out.len() < max && !self.done {
+        while out.len() < max {
             let Some(v) = leaves.get(self.cursor) else {
                 pass_ends += 1;
                 if self.end_pass() != PassEnd::Again || pass_ends > 2 {
