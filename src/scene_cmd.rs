@@ -23,12 +23,19 @@ pub enum SceneCommand {
 
 pub fn run(cmd: SceneCommand) -> anyhow::Result<()> {
     match cmd {
-        SceneCommand::Info { scene, width, height } => {
+        SceneCommand::Info {
+            scene,
+            width,
+            height,
+        } => {
             let loaded = scene::load(&scene)?;
             print!("{}", scene::info::describe(&loaded));
             for vp in &loaded.settings.viewpoints {
                 let n = scene::visible_base_triangles(&loaded, vp, width, height);
-                println!("viewpoint {:<6} visible base triangles at {width}x{height}: {n}", vp.name);
+                println!(
+                    "viewpoint {:<6} visible base triangles at {width}x{height}: {n}",
+                    vp.name
+                );
             }
             Ok(())
         }

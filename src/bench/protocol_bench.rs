@@ -28,7 +28,9 @@ fn insert_batch(first_id: u64) -> SmaToViewer {
 
 /// Triangles per second through encode + decode on the calling thread.
 fn codec_rate(batches: usize) -> anyhow::Result<f64> {
-    let msgs: Vec<SmaToViewer> = (0..batches).map(|b| insert_batch((b * BATCH) as u64)).collect();
+    let msgs: Vec<SmaToViewer> = (0..batches)
+        .map(|b| insert_batch((b * BATCH) as u64))
+        .collect();
     let t = Instant::now();
     let mut decoded = 0usize;
     for m in &msgs {
@@ -62,13 +64,17 @@ pub fn loopback_sink(listen: &str) -> anyhow::Result<()> {
 
 /// Triangles per second from this process to a sink process over loopback.
 fn loopback_rate(batches: usize) -> anyhow::Result<f64> {
-    let addr = std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?.to_string();
+    let addr = std::net::TcpListener::bind("127.0.0.1:0")?
+        .local_addr()?
+        .to_string();
     let exe = std::env::current_exe()?;
     let mut sink = std::process::Command::new(exe)
         .args(["bench", "loopback-sink", "--listen", &addr])
         .spawn()
         .context("starting the loopback sink")?;
-    let msgs: Vec<SmaToViewer> = (0..batches).map(|b| insert_batch((b * BATCH) as u64)).collect();
+    let msgs: Vec<SmaToViewer> = (0..batches)
+        .map(|b| insert_batch((b * BATCH) as u64))
+        .collect();
     let rate = tokio::runtime::Runtime::new()?.block_on(async {
         let stream = connect_with_retry(&addr).await?;
         let (mut rx, mut tx) = split_tcp::<ViewerToSma, SmaToViewer>(stream, DEFAULT_MAX_FRAME);
@@ -77,7 +83,11 @@ fn loopback_rate(batches: usize) -> anyhow::Result<f64> {
             tx.send(m).await?;
         }
         let shown = (batches * BATCH) as u64;
-        tx.send(&SmaToViewer::Epoch(Epoch { shown, ..Epoch::default() })).await?;
+        tx.send(&SmaToViewer::Epoch(Epoch {
+            shown,
+            ..Epoch::default()
+        }))
+        .await?;
         rx.recv().await?;
         anyhow::Ok(shown as f64 / t.elapsed().as_secs_f64())
     });
@@ -97,8 +107,16 @@ async fn connect_with_retry(addr: &str) -> anyhow::Result<tokio::net::TcpStream>
 
 pub fn section(quick: bool) -> anyhow::Result<String> {
     let (runs, batches) = if quick { (3, 5) } else { (7, 50) };
-    let codec = median((0..runs).map(|_| codec_rate(batches)).collect::<anyhow::Result<Vec<_>>>()?);
-    let tcp = median((0..runs).map(|_| loopback_rate(batches)).collect::<anyhow::Result<Vec<_>>>()?);
+    let codec = median(
+        (0..runs)
+            .map(|_| codec_rate(batches))
+            .collect::<anyhow::Result<Vec<_>>>()?,
+    );
+    let tcp = median(
+        (0..runs)
+            .map(|_| loopback_rate(batches))
+            .collect::<anyhow::Result<Vec<_>>>()?,
+    );
     let bytes = encode(&insert_batch(0))?.len() as f64 / BATCH as f64;
     Ok(format!(
         "## Protocol (issue 2)\n\n\

@@ -28,7 +28,11 @@ pub fn write(out: &Path, quick: bool, only: &[String]) -> anyhow::Result<()> {
         }
         eprintln!("bench: {name}…");
         let text = section(quick).unwrap_or_else(|e| format!("## {name}\n\nNot measured: {e:#}\n"));
-        let stamp = if quick { "\n_Quick smoke run: rough figures._\n" } else { "" };
+        let stamp = if quick {
+            "\n_Quick smoke run: rough figures._\n"
+        } else {
+            ""
+        };
         std::fs::write(section_path(name), format!("{text}{stamp}"))?;
     }
     assemble(out)
@@ -47,7 +51,10 @@ pub fn assemble(out: &Path) -> anyhow::Result<()> {
          Machine of the last assembly: {}.\nEvery figure is a median over several runs, measured side by side in one run.\n\n",
         super::machine::describe()
     );
-    let names = SECTIONS.iter().map(|s| s.0).chain(EXTERNAL_SECTIONS.iter().copied());
+    let names = SECTIONS
+        .iter()
+        .map(|s| s.0)
+        .chain(EXTERNAL_SECTIONS.iter().copied());
     for name in names {
         match std::fs::read_to_string(section_path(name)) {
             Ok(text) => doc.push_str(&text),
