@@ -4,7 +4,7 @@
 use anyhow::{Context, anyhow};
 use protocol::viewer_link::{Camera, ShownTriangle};
 
-use crate::draw::{DrawSettings, Drawer, Output, depth_range, depth_texture};
+use crate::draw::{DrawSettings, Drawer, Output, depth_range, depth_texture, texture_2d};
 use crate::gpu::Gpu;
 use crate::table::TriangleTable;
 use crate::update::TableOp;
@@ -46,20 +46,13 @@ pub struct Offscreen {
 impl Offscreen {
     pub fn new(gpu: &Gpu, width: u32, height: u32) -> Offscreen {
         let target = |format: wgpu::TextureFormat, output| {
-            let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("offscreen colour"),
-                size: wgpu::Extent3d {
-                    width,
-                    height,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
+            let texture = texture_2d(
+                &gpu.device,
+                "offscreen colour",
+                (width, height),
                 format,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-                view_formats: &[],
-            });
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            );
             Target {
                 view: texture.create_view(&Default::default()),
                 texture,
