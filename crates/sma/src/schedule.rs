@@ -4,10 +4,12 @@
 //!
 //! 1. visibility for viewers whose camera changed (or whose leaves changed), two levels;
 //! 2. refinement groups whose visible new leaves are all shaded are committed;
-//! 3. the request queue is re-planned when the visible sets or the cache changed;
-//! 4. each viewer is brought up to date (`Remove`/`Insert`/`Update`, `ToneMap`, `Epoch`);
-//! 5. batches go to the pool while it has room;
-//! 6. only then, when no camera is waiting, the queue is short and a viewer's camera rests, one
+//! 3. the request queue is re-planned when the visible sets or the cache changed, and batches
+//!    go to the pool while it has room (a queue that empties because answers satisfied it is
+//!    re-planned at once);
+//! 4. each viewer is brought up to date (`Remove`/`Insert`/`Update`, `ToneMap`, `Epoch`), the
+//!    epoch counting what is truly outstanding after step 3;
+//! 5. only then, when no camera is waiting, the queue is short and a viewer's camera rests, one
 //!    refinement round of at most R selections runs; its passes come at the next turn, after any
 //!    camera that arrived meanwhile. A camera change so interrupts refinement at once.
 //!
@@ -336,13 +338,10 @@ impl Schedule {
         }
         self.run_passes()?;
         self.commit_ready_groups();
-        if self.replan || (self.requests.queued() == 0 && self.resync) {
-            self.replan_requests();
-        }
+        self.feed_renderers();
         if self.resync {
             self.sync_viewers();
         }
-        self.submit_batches();
         if let Some(id) = self.refinement_candidate() {
             self.refine_round(id)?;
         }
@@ -480,6 +479,22 @@ impl Schedule {
             viewer.send(SmaToViewer::Epoch(epoch));
         }
         self.resync = false;
+    }
+
+    /// Re-plans when asked to, or when the queue ran dry while new input came, and keeps the
+    /// renderers fed. Submitting drops queued needs that answers have satisfied meanwhile; a
+    /// queue emptied that way is re-planned at once, before the viewers are told what is
+    /// outstanding, so an epoch never reports needs that no longer exist (nor misses new ones).
+    fn feed_renderers(&mut self) {
+        let planned = self.replan || (self.requests.queued() == 0 && self.resync);
+        if planned {
+            self.replan_requests();
+        }
+        self.submit_batches();
+        if !planned && self.resync && self.requests.queued() == 0 {
+            self.replan_requests();
+            self.submit_batches();
+        }
     }
 
     fn submit_batches(&mut self) {

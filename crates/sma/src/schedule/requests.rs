@@ -155,6 +155,7 @@ impl Requests {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cache::CachedSample;
     use protocol::Side;
 
     fn need(vertex: u32, quality: Quality, urgency: Urgency, priority: f32) -> Need {
@@ -201,5 +202,34 @@ mod tests {
         r.finished(&b);
         assert_eq!(r.in_flight_keys(), 0);
         assert_eq!(r.batches_in_flight(), 0);
+    }
+
+    #[test]
+    fn needs_satisfied_while_queued_leave_nothing_outstanding_once_submission_passes() {
+        // The schedule counts `outstanding` after submitting: a queue whose needs were all
+        // answered meanwhile must drain to zero then, or an epoch would never report completion.
+        let mut cache = ShadingCache::new(1 << 20);
+        let mut r = Requests::new(7);
+        r.replan(vec![
+            need(1, Quality::DIRECT, Urgency::Missing, 1.0),
+            need(2, Quality::DIRECT, Urgency::Missing, 1.0),
+        ]);
+        for vertex in [1, 2] {
+            let key = SampleKey {
+                vertex,
+                side: Side::Front,
+            };
+            let sample = CachedSample {
+                rgb: [1.0; 3],
+                quality: Quality::INTERACTIVE,
+                view_dependent: false,
+                eye: None,
+                last_seen: 0,
+            };
+            cache.insert(key, sample);
+        }
+        assert_eq!(r.outstanding(), 2);
+        assert!(r.next_batch(8, &cache).is_none());
+        assert_eq!(r.outstanding(), 0);
     }
 }
