@@ -74,6 +74,11 @@ pub struct Cli {
     /// Seconds between stats lines.
     #[arg(long, default_value_t = 2.0)]
     pub stats_secs: f32,
+    /// Subdivision of a base triangle no viewer has seen for this many visibility passes is
+    /// collapsed (0: never). Passes come with each camera change and every K samples, so this
+    /// is some seconds of walking away, or minutes of standing elsewhere.
+    #[arg(long, default_value_t = 300)]
+    pub coarsen_after_passes: u64,
     /// Shading cache budget, MiB.
     #[arg(long, default_value_t = 1024)]
     pub cache_mib: usize,
@@ -156,6 +161,7 @@ impl Cli {
             view_angle_deg: self.view_angle_deg,
             stats_every: Duration::from_secs_f32(self.stats_secs.max(0.1)),
             cache_budget_bytes: self.cache_mib << 20,
+            coarsen_after_passes: self.coarsen_after_passes,
             seed: self.seed,
         }
     }

@@ -16,6 +16,7 @@
 //! It runs on its own thread: the visibility passes block for milliseconds (software
 //! rasterizer), and must not stall the tasks serving viewers and renderers.
 
+mod coarsening;
 mod display;
 mod pending;
 mod plan;
@@ -38,6 +39,7 @@ use crate::nld::luminance;
 use crate::pool::{PoolEvent, PoolHandle};
 use crate::viewer_link::{ViewerEvent, ViewerId};
 use crate::visibility::{Gpu, LeafView, LuminancePass, Visibility};
+use coarsening::Coarsening;
 use display::Display;
 use pending::PendingRefinement;
 use plan::{Aging, NeedsInput, Qualities};
@@ -66,6 +68,9 @@ pub struct ScheduleConfig {
     pub view_angle_deg: f32,
     pub stats_every: Duration,
     pub cache_budget_bytes: usize,
+    /// Visibility passes a base triangle must be out of every view before its subdivision is
+    /// collapsed; 0: never.
+    pub coarsen_after_passes: u64,
     pub seed: u64,
 }
 
@@ -105,6 +110,7 @@ pub struct Schedule {
     visibility: Visibility,
     luminance: LuminancePass,
     pending: PendingRefinement,
+    coarsening: Coarsening,
     requests: Requests,
     pool: PoolHandle,
     renderers: usize,
@@ -147,7 +153,9 @@ impl Schedule {
         };
         let luminance = LuminancePass::new(&gpu);
         let visibility = Visibility::new(gpu, &mesh, scene.mesh.bounds());
+        let coarsening = Coarsening::new(mesh.base_count(), config.coarsen_after_passes);
         Ok(Schedule {
+            coarsening,
             cache: ShadingCache::new(config.cache_budget_bytes),
             requests: Requests::new(config.seed),
             config,
@@ -349,35 +357,58 @@ impl Schedule {
     }
 
     fn run_passes(&mut self) -> anyhow::Result<()> {
-        let due: Vec<ViewerId> = self
-            .viewers
-            .iter()
-            .filter(|(_, v)| v.needs_pass)
-            .map(|(&id, _)| id)
-            .collect();
-        if due.is_empty() {
+        if !self.viewers.values().any(|v| v.needs_pass) {
             return Ok(());
         }
         self.frame += 1;
-        for id in due {
-            let viewer = self.viewers.get_mut(&id).expect("listed above");
+        self.coarsen_stale();
+        for viewer in self.viewers.values_mut().filter(|v| v.needs_pass) {
             viewer.needs_pass = false;
-            let Some(camera) = viewer.camera.clone() else {
+            let Some(camera) = &viewer.camera else {
                 continue;
             };
             let view = self
                 .visibility
-                .leaf_view(&self.mesh, &camera)
+                .leaf_view(&self.mesh, camera)
                 .context("visibility pass")?;
+            viewer.view = Some(view);
+        }
+        // Every viewer's view counts as seen now, not only those just re-run: while one viewer
+        // walks, what another one rests on is neither evicted nor coarsened.
+        for view in self.viewers.values().filter_map(|v| v.view.as_ref()) {
             self.cache
                 .touch_visible(&self.mesh, &view.visible, self.frame);
-            viewer.view = Some(view);
+            self.coarsening.seen(&self.mesh, &view.visible, self.frame);
         }
         self.samples_since_pass = 0;
         self.cache.evict(self.frame, &|_| false);
         self.replan = true;
         self.resync = true;
         Ok(())
+    }
+
+    /// Collapses subdivision out of every view for long (DESIGN.md §4, thesis §6) before the
+    /// passes, so they see the coarser mesh; steps wait in the pending groups like refinement
+    /// steps until what they expose is shaded. Not while refinement steps wait, whose leaves
+    /// they could remove.
+    fn coarsen_stale(&mut self) {
+        if !self.pending.is_empty() {
+            return;
+        }
+        let steps = self.coarsening.collapse_stale(&mut self.mesh, self.frame);
+        if steps.is_empty() {
+            return;
+        }
+        tracing::debug!(
+            steps = steps.len(),
+            leaves = self.mesh.leaf_count(),
+            refined_bases = self.coarsening.refined_bases(),
+            "coarsened what no viewer has seen lately"
+        );
+        self.pending.add(steps);
+        for viewer in self.viewers.values_mut() {
+            viewer.needs_pass |= viewer.camera.is_some();
+        }
     }
 
     /// Commits every pending group none of whose visible new leaves lacks a sample.
@@ -593,6 +624,11 @@ impl Schedule {
             .collect();
         let min_pixels = self.config.min_split_pixels;
         let too_small = |leaf: NodeId| pixels.get(&leaf).is_none_or(|&p| p < min_pixels);
+        // A resumable criterion may still hold a leaf that coarsening has removed since.
+        let selected: Vec<NodeId> = selected
+            .into_iter()
+            .filter(|&l| self.mesh.is_leaf(l))
+            .collect();
         let steps = self.mesh.refine(&selected, &too_small);
         if steps.is_empty() {
             // Every selected leaf was too small; criteria offer a leaf once per view, so the
@@ -610,6 +646,7 @@ impl Schedule {
             steps = steps.len(),
             "refinement round"
         );
+        self.coarsening.refined(&self.mesh, &steps);
         self.pending.add(steps);
         for viewer in self.viewers.values_mut() {
             viewer.needs_pass |= viewer.camera.is_some();

@@ -39,7 +39,8 @@ fn viewpoint(name: &str, eye: [f32; 3], target: [f32; 3]) -> ViewpointSetting {
 }
 
 /// A floor and a free-standing wall (x in -1..1, y in 0..2, z = 0), seen from the front, from
-/// the back, and from the front a little to the side. `wall` is its material.
+/// the back, from the front a little to the side, and from in front looking away from it (nothing
+/// in view). `wall` is its material.
 fn wall_scene(wall: Material) -> Scene {
     let settings = SceneSettings {
         name: "wall".into(),
@@ -53,6 +54,7 @@ fn wall_scene(wall: Material) -> Scene {
             viewpoint("front", [0.3, 1.2, 4.0], [0.0, 0.8, 0.0]),
             viewpoint("side", [1.5, 1.2, 3.8], [0.0, 0.8, 0.0]),
             viewpoint("back", [-0.3, 1.2, -4.0], [0.0, 0.8, 0.0]),
+            viewpoint("away", [0.3, 1.2, 4.0], [0.3, 1.2, 9.0]),
         ],
     };
     let mut b = SceneBuilder::new(settings);
@@ -370,6 +372,40 @@ async fn mirror_samples_are_retaken_after_the_eye_moves_and_diffuse_ones_never()
         }
         sma.stop().await.unwrap();
     }
+}
+
+/// Refines the wall from the front, pauses, looks away for four passes, looks back: the
+/// number of triangles then shown.
+async fn shown_after_looking_away(coarsen_after_passes: u64) -> usize {
+    let scene = diffuse_wall();
+    let (renderer, _) = fake_renderer(scene.clone(), Fault::None).await;
+    let mut cli = cli(vec![renderer], true);
+    cli.coarsen_after_passes = coarsen_after_passes;
+    let (sma, mut probe) = start_with_probe(&cli, &scene).await;
+    probe.view("front", W, H).await.unwrap();
+    let refined = probe.until(WAIT, |e| e.shown >= 12 && e.outstanding == 0);
+    refined.await.unwrap();
+    probe.send(ViewerToSma::Pause).await.unwrap();
+    for _ in 0..4 {
+        let away = probe.view("away", W, H).await.unwrap();
+        let epoch = probe.complete(away.seq, WAIT).await.unwrap();
+        assert_eq!(epoch.shown, 0, "something is in view looking away");
+    }
+    view_completely(&mut probe, "front").await;
+    let shown = probe.table.len();
+    sma.stop().await.unwrap();
+    shown
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn subdivision_out_of_view_long_enough_is_coarsened_back_to_the_base_mesh() {
+    if !gpu_available() {
+        return;
+    }
+    // The wall and the floor: two base triangles each, all four in view from the front.
+    assert_eq!(shown_after_looking_away(3).await, 4);
+    // Control: without coarsening the refinement is still there when the viewer looks back.
+    assert!(shown_after_looking_away(0).await >= 12);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
