@@ -3,7 +3,12 @@
 //! budget with eviction of what has long been out of view.
 //!
 //! Storage is dense: a slot per (vertex, side) indexing a packed sample array, so the per-leaf
-//! lookups of NLD_OS are two array reads, not hashing (issue 4 asks 10 M leaves/s).
+//! lookups of NLD_OS are two array reads, not hashing (issue 4 asks 10 M leaves/s). A sample is
+//! packed into 20 bytes (issue 4: <= 100 bytes per leaf, mesh and cache included): its quality is
+//! an index into a small table of the qualities seen, and the eye, which only view-dependent
+//! samples need, lives in a side table.
+
+use std::collections::HashMap;
 
 use glam::Vec3;
 use protocol::Side;
@@ -13,23 +18,59 @@ use crate::mesh::{NodeId, SubdivisionMesh};
 use crate::nld::luminance;
 use crate::visible::VisibleSet;
 
+/// A sample as callers build and read it; stored packed (`PackedSample`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CachedSample {
     pub rgb: [f32; 3],
     pub quality: Quality,
     /// Glossy or mirror: valid for `eye` only; ages as the eye moves (DESIGN.md §5).
     pub view_dependent: bool,
+    /// The eye a view-dependent sample was shaded for. Only view-dependent samples keep it: the
+    /// cache reads back `None` for the others, whose radiance holds for every eye.
     pub eye: Option<Vec3>,
-    /// Frame or epoch counter of the caller when the sample was last visible.
+    /// Frame or epoch counter of the caller when the sample was last visible. Stored as a `u32`,
+    /// saturating: see `Stamp`.
     pub last_seen: u64,
 }
+
+/// `last_seen` as stored. The scheduler passes its count of visibility passes (frames), not a
+/// clock: at 1,000 passes a second `u32` lasts 49 days of walkthrough. Beyond it every time
+/// saturates to `u32::MAX`, which only makes eviction treat all later frames as one.
+type Stamp = u32;
+
+fn stamp(time: u64) -> Stamp {
+    Stamp::try_from(time).unwrap_or(Stamp::MAX)
+}
+
+/// What the sample array holds per sample; the eye is in `ShadingCache::eyes`.
+#[derive(Clone, Copy, Debug)]
+struct PackedSample {
+    rgb: [f32; 3],
+    last_seen: Stamp,
+    /// Index into `ShadingCache::qualities`.
+    quality: u8,
+    view_dependent: bool,
+}
+
+const _: () = assert!(size_of::<PackedSample>() == 20);
+
+/// At most this many distinct qualities are interned (`PackedSample::quality` is a `u8`). The
+/// scheduler asks for a handful (first and full, DESIGN.md §7); past the limit a new quality is
+/// stored as the best interned one that is not better (see `ShadingCache::quality_index`).
+const MAX_QUALITIES: usize = u8::MAX as usize + 1;
+
+/// Bytes charged per entry of the eye side table: key and eye, one control byte, and as much
+/// again for the hash table's free buckets (it is at most 7/8 full and grows by doubling).
+/// Charged per entry rather than by capacity, so that evicting samples lowers the charge.
+const EYE_ENTRY_BYTES: usize = 2 * (size_of::<(u32, Vec3)>() + 1);
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CacheInsert {
     New,
     /// Replaced a worse sample, or a view-dependent one taken from another eye.
     Upgraded,
-    /// Not better than what is cached, or not finite.
+    /// Not better than what is cached, not finite, or of a quality the full quality table has
+    /// nothing at or below for.
     Ignored,
 }
 
@@ -44,10 +85,15 @@ pub struct ShadingCache {
     budget_bytes: usize,
     /// `slots[2 vertex + side]`: index into `samples`, or `NO_SLOT`.
     slots: Vec<u32>,
-    samples: Vec<CachedSample>,
+    samples: Vec<PackedSample>,
     /// The slot of each sample, to re-point it when a removal moves the sample: four bytes
     /// rather than a stored `SampleKey`'s eight (issue 4: <= 100 bytes per leaf all included).
     owners: Vec<u32>,
+    /// The distinct qualities of the samples, indexed by `PackedSample::quality`; never shrinks.
+    qualities: Vec<Quality>,
+    /// The eye of each view-dependent sample that has one, by slot: slots stay put when a removal
+    /// moves samples, so the table is never re-keyed.
+    eyes: HashMap<u32, Vec3>,
 }
 
 fn slot_index(key: SampleKey) -> usize {
@@ -72,14 +118,72 @@ impl ShadingCache {
             slots: Vec::new(),
             samples: Vec::new(),
             owners: Vec::new(),
+            qualities: Vec::new(),
+            eyes: HashMap::new(),
         }
     }
 
-    pub fn get(&self, key: SampleKey) -> Option<&CachedSample> {
-        match self.slots.get(slot_index(key)) {
+    pub fn get(&self, key: SampleKey) -> Option<CachedSample> {
+        let slot = slot_index(key);
+        self.packed(slot).map(|p| self.unpack(slot, p))
+    }
+
+    /// The stored sample of a slot: what the per-leaf hot paths read, without unpacking.
+    fn packed(&self, slot: usize) -> Option<&PackedSample> {
+        match self.slots.get(slot) {
             Some(&s) if s != NO_SLOT => Some(&self.samples[s as usize]),
             _ => None,
         }
+    }
+
+    fn unpack(&self, slot: usize, p: &PackedSample) -> CachedSample {
+        CachedSample {
+            rgb: p.rgb,
+            quality: self.qualities[usize::from(p.quality)],
+            view_dependent: p.view_dependent,
+            // Diffuse samples, nearly all of them, skip the hash lookup.
+            eye: p
+                .view_dependent
+                .then(|| self.eyes.get(&(slot as u32)).copied())
+                .flatten(),
+            last_seen: u64::from(p.last_seen),
+        }
+    }
+
+    /// Packs `sample` for `slot`, updating the slot's eye entry; `None`, changing nothing, when
+    /// its quality cannot be interned.
+    fn pack(&mut self, slot: usize, sample: &CachedSample) -> Option<PackedSample> {
+        let quality = self.quality_index(sample.quality)?;
+        match sample.eye.filter(|_| sample.view_dependent) {
+            Some(eye) => self.eyes.insert(slot as u32, eye),
+            None => self.eyes.remove(&(slot as u32)),
+        };
+        Some(PackedSample {
+            rgb: sample.rgb,
+            last_seen: stamp(sample.last_seen),
+            quality,
+            view_dependent: sample.view_dependent,
+        })
+    }
+
+    /// The index of `quality` in the quality table, added if new. Once the table is full, the
+    /// best interned quality that is not better: a sample then never claims more work than it
+    /// had, so at worst it is asked for again (DESIGN.md §5). `None` if every interned
+    /// quality is better.
+    fn quality_index(&mut self, quality: Quality) -> Option<u8> {
+        if let Some(i) = self.qualities.iter().position(|&q| q == quality) {
+            return Some(i as u8);
+        }
+        if self.qualities.len() < MAX_QUALITIES {
+            self.qualities.push(quality);
+            return Some((self.qualities.len() - 1) as u8);
+        }
+        self.qualities
+            .iter()
+            .enumerate()
+            .filter(|(_, q)| q.rank() <= quality.rank())
+            .max_by_key(|(_, q)| q.rank())
+            .map(|(i, _)| i as u8)
     }
 
     /// Stores a sample unless a cached one is at least as good (`Quality::rank`); a
@@ -88,31 +192,44 @@ impl ShadingCache {
         if !sample.rgb.iter().all(|c| c.is_finite()) {
             return CacheInsert::Ignored;
         }
-        let index = slot_index(key);
-        if index >= self.slots.len() {
-            self.slots.resize(index + 1, NO_SLOT);
+        let slot = slot_index(key);
+        if slot >= self.slots.len() {
+            self.slots.resize(slot + 1, NO_SLOT);
         }
-        match self.slots[index] {
-            NO_SLOT => {
-                self.slots[index] = self.samples.len() as u32;
-                self.samples.push(sample);
-                self.owners.push(index as u32);
-                CacheInsert::New
-            }
-            s => {
-                let old = &mut self.samples[s as usize];
-                let new_eye = sample.view_dependent && sample.eye != old.eye;
-                if sample.quality.rank() <= old.quality.rank() && !new_eye {
-                    return CacheInsert::Ignored;
-                }
-                let last_seen = old.last_seen.max(sample.last_seen);
-                *old = CachedSample {
-                    last_seen,
-                    ..sample
-                };
-                CacheInsert::Upgraded
-            }
+        match self.slots[slot] {
+            NO_SLOT => self.insert_new(slot, &sample),
+            s => self.replace(slot, s as usize, sample),
         }
+    }
+
+    fn insert_new(&mut self, slot: usize, sample: &CachedSample) -> CacheInsert {
+        let Some(packed) = self.pack(slot, sample) else {
+            return CacheInsert::Ignored;
+        };
+        self.slots[slot] = self.samples.len() as u32;
+        self.samples.push(packed);
+        self.owners.push(slot as u32);
+        CacheInsert::New
+    }
+
+    fn replace(&mut self, slot: usize, s: usize, sample: CachedSample) -> CacheInsert {
+        let old = self.unpack(slot, &self.samples[s]);
+        let new_eye = sample.view_dependent && sample.eye != old.eye;
+        if sample.quality.rank() <= old.quality.rank() && !new_eye {
+            return CacheInsert::Ignored;
+        }
+        let last_seen = old.last_seen.max(sample.last_seen);
+        let Some(packed) = self.pack(
+            slot,
+            &CachedSample {
+                last_seen,
+                ..sample
+            },
+        ) else {
+            return CacheInsert::Ignored;
+        };
+        self.samples[s] = packed;
+        CacheInsert::Upgraded
     }
 
     /// The radiance of a leaf's three vertices on `side`, if all are cached.
@@ -125,7 +242,7 @@ impl ShadingCache {
         let [a, b, c] = mesh
             .node(leaf)
             .vertices
-            .map(|vertex| self.get(SampleKey { vertex, side }));
+            .map(|vertex| self.packed(slot_index(SampleKey { vertex, side })));
         Some([a?.rgb, b?.rgb, c?.rgb])
     }
 
@@ -140,7 +257,7 @@ impl ShadingCache {
             .vertices
             .into_iter()
             .map(move |vertex| SampleKey { vertex, side })
-            .filter(|&key| self.get(key).is_none())
+            .filter(|&key| self.packed(slot_index(key)).is_none())
     }
 
     pub fn touch(&mut self, key: SampleKey, now: u64) {
@@ -148,7 +265,7 @@ impl ShadingCache {
             && s != NO_SLOT
         {
             let seen = &mut self.samples[s as usize].last_seen;
-            *seen = (*seen).max(now);
+            *seen = (*seen).max(stamp(now));
         }
     }
 
@@ -174,29 +291,31 @@ impl ShadingCache {
             return 0;
         }
         let target = (self.budget_bytes as f64 * EVICT_TO_FRACTION) as usize;
-        let mut candidates: Vec<(u64, SampleKey)> = self
+        let now = stamp(now);
+        let mut candidates: Vec<(Stamp, u32)> = self
             .samples
             .iter()
-            .zip(self.owners.iter().map(|&slot| slot_key(slot)))
-            .filter(|&(s, key)| s.last_seen < now && !keep(key))
-            .map(|(s, key)| (s.last_seen, key))
+            .zip(&self.owners)
+            .filter(|&(s, &slot)| s.last_seen < now && !keep(slot_key(slot)))
+            .map(|(s, &slot)| (s.last_seen, slot))
             .collect();
-        candidates.sort_unstable_by_key(|&(seen, key)| (seen, slot_index(key)));
+        candidates.sort_unstable();
         let mut removed = 0;
-        for (_, key) in candidates {
+        for (_, slot) in candidates {
             if self.bytes() <= target {
                 break;
             }
-            self.remove(key);
+            self.remove(slot as usize);
             removed += 1;
         }
         removed
     }
 
-    fn remove(&mut self, key: SampleKey) {
-        let s = std::mem::replace(&mut self.slots[slot_index(key)], NO_SLOT) as usize;
+    fn remove(&mut self, slot: usize) {
+        let s = std::mem::replace(&mut self.slots[slot], NO_SLOT) as usize;
         self.samples.swap_remove(s);
         self.owners.swap_remove(s);
+        self.eyes.remove(&(slot as u32));
         if let Some(&moved) = self.owners.get(s) {
             self.slots[moved as usize] = s as u32;
         }
@@ -210,10 +329,13 @@ impl ShadingCache {
         self.samples.is_empty()
     }
 
-    /// Bytes charged against the budget: the slot table plus the packed samples.
+    /// Bytes charged against the budget: the slot table, the packed samples and their owners,
+    /// the eye side table and the quality table.
     pub fn bytes(&self) -> usize {
         self.slots.len() * size_of::<u32>()
-            + self.samples.len() * (size_of::<CachedSample>() + size_of::<u32>())
+            + self.samples.len() * (size_of::<PackedSample>() + size_of::<u32>())
+            + self.eyes.len() * EYE_ENTRY_BYTES
+            + self.qualities.len() * size_of::<Quality>()
     }
 
     pub fn budget_bytes(&self) -> usize {
@@ -240,7 +362,7 @@ impl ShadingCache {
                     side: v.side,
                 })
             })
-            .filter_map(|key| self.get(key))
+            .filter_map(|key| self.packed(slot_index(key)))
             .map(|s| luminance(s.rgb))
             .fold(0.0, f32::max)
     }
@@ -376,5 +498,82 @@ mod tests {
             );
         }
         assert!(cache.len() > 300);
+    }
+
+    fn glossy(eye: Vec3, seen: u64) -> CachedSample {
+        CachedSample {
+            view_dependent: true,
+            eye: Some(eye),
+            ..sample(1.0, Quality::DIRECT, seen)
+        }
+    }
+
+    /// Eyes are keyed by slot, so removals that move other samples leave them in place, and an
+    /// evicted or diffuse-replaced sample's eye is dropped (and no longer charged).
+    #[test]
+    fn eyes_follow_their_samples_through_eviction() {
+        let mut cache = ShadingCache::new(1);
+        cache.insert(key(0), glossy(Vec3::Y, 1));
+        for v in 1..10 {
+            cache.insert(key(v), sample(1.0, Quality::DIRECT, 1));
+        }
+        // Last in the array: each removal before it moves it to the freed index.
+        cache.insert(key(10), glossy(Vec3::X, 6));
+        cache.insert(key(11), glossy(Vec3::Z, 1));
+        cache.insert(key(11), sample(1.0, Quality::INTERACTIVE, 1));
+        assert_eq!(cache.get(key(11)).unwrap().eye, None);
+        assert_eq!(cache.eyes.len(), 2);
+
+        // Everything not seen at 6 goes: the budget of one byte is never met.
+        assert_eq!(cache.evict(6, &|_| false), 11);
+        assert_eq!(cache.len(), 1);
+        let survivor = cache.get(key(10)).unwrap();
+        assert_eq!((survivor.eye, survivor.last_seen), (Some(Vec3::X), 6));
+        assert_eq!(cache.eyes.len(), 1);
+
+        let before = cache.bytes();
+        assert_eq!(cache.evict(7, &|_| false), 1);
+        assert!(cache.get(key(10)).is_none() && cache.eyes.is_empty());
+        assert_eq!(
+            before - cache.bytes(),
+            size_of::<PackedSample>() + size_of::<u32>() + EYE_ENTRY_BYTES
+        );
+    }
+
+    /// Frame counts past `u32::MAX` saturate: no panic, and a sample seen "now" is still spared.
+    #[test]
+    fn last_seen_beyond_u32_saturates() {
+        let mut cache = ShadingCache::new(1);
+        cache.insert(key(0), sample(1.0, Quality::DIRECT, u64::MAX));
+        assert_eq!(cache.get(key(0)).unwrap().last_seen, u64::from(u32::MAX));
+        cache.insert(key(1), sample(1.0, Quality::DIRECT, 5));
+        cache.touch(key(1), u64::from(u32::MAX) + 1);
+        assert_eq!(cache.get(key(1)).unwrap().last_seen, u64::from(u32::MAX));
+        assert_eq!(cache.evict(u64::MAX, &|_| false), 0);
+        assert_eq!(cache.len(), 2);
+    }
+
+    /// Past 256 distinct qualities a new one is stored as the best interned one not above it,
+    /// and a sample below them all is ignored.
+    #[test]
+    fn a_full_quality_table_rounds_down() {
+        let mut cache = ShadingCache::new(usize::MAX);
+        let direct = |paths| Quality {
+            paths,
+            bounces: Some(0),
+        };
+        for paths in 1..=MAX_QUALITIES as u32 {
+            assert_eq!(
+                cache.insert(key(paths), sample(1.0, direct(paths), 0)),
+                CacheInsert::New
+            );
+        }
+        cache.insert(key(0), sample(1.0, direct(1000), 0));
+        assert_eq!(cache.get(key(0)).unwrap().quality, direct(256));
+        assert_eq!(
+            cache.insert(key(9999), sample(1.0, direct(0), 0)),
+            CacheInsert::Ignored
+        );
+        assert_eq!(cache.qualities.len(), MAX_QUALITIES);
     }
 }
