@@ -6,7 +6,9 @@
 //! lookups of NLD_OS are two array reads, not hashing (issue 4 asks 10 M leaves/s). A sample is
 //! packed into 20 bytes (issue 4: <= 100 bytes per leaf, mesh and cache included): its quality is
 //! an index into a small table of the qualities seen, and the eye, which only view-dependent
-//! samples need, lives in a side table.
+//! samples need, lives in a side table. A view-dependent sample keeps a few eyes there, each
+//! with its radiance: viewers looking at one mirror from different places each read the one
+//! nearest their eye, instead of retaking each other's forever (several viewers: thesis §2.2).
 
 use std::collections::HashMap;
 
@@ -42,7 +44,18 @@ fn stamp(time: u64) -> Stamp {
     Stamp::try_from(time).unwrap_or(Stamp::MAX)
 }
 
-/// What the sample array holds per sample; the eye is in `ShadingCache::eyes`.
+/// `sample` packed with its interned `quality`, seen no earlier than `seen`.
+fn pack(sample: &CachedSample, quality: u8, seen: Stamp) -> PackedSample {
+    PackedSample {
+        rgb: sample.rgb,
+        last_seen: seen.max(stamp(sample.last_seen)),
+        quality,
+        view_dependent: sample.view_dependent,
+    }
+}
+
+/// What the sample array holds per sample: for a view-dependent one, its latest eye's values
+/// (the eyes are in `ShadingCache::eyes`).
 #[derive(Clone, Copy, Debug)]
 struct PackedSample {
     rgb: [f32; 3],
@@ -59,10 +72,25 @@ const _: () = assert!(size_of::<PackedSample>() == 20);
 /// stored as the best interned one that is not better (see `ShadingCache::quality_index`).
 const MAX_QUALITIES: usize = u8::MAX as usize + 1;
 
-/// Bytes charged per entry of the eye side table: key and eye, one control byte, and as much
-/// again for the hash table's free buckets (it is at most 7/8 full and grows by doubling).
-/// Charged per entry rather than by capacity, so that evicting samples lowers the charge.
-const EYE_ENTRY_BYTES: usize = 2 * (size_of::<(u32, Vec3)>() + 1);
+/// One eye's radiance of a view-dependent sample.
+#[derive(Clone, Copy, Debug)]
+struct EyeVariant {
+    eye: Vec3,
+    rgb: [f32; 3],
+    /// Index into `ShadingCache::qualities`.
+    quality: u8,
+}
+
+/// Eyes kept per view-dependent sample: one per viewer looking at the surface, for a few
+/// viewers. A new eye beyond them replaces the nearest kept one, most likely the same viewer's
+/// previous position.
+const MAX_EYES: usize = 4;
+
+/// Bytes charged per entry of the eye side table beyond its variants: key and list header,
+/// one control byte, and as much again for the hash table's free buckets (it is at most 7/8
+/// full and grows by doubling). Charged per entry rather than by capacity, so that evicting
+/// samples lowers the charge.
+const EYE_ENTRY_BYTES: usize = 2 * (size_of::<(u32, Vec<EyeVariant>)>() + 1);
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CacheInsert {
@@ -91,9 +119,11 @@ pub struct ShadingCache {
     owners: Vec<u32>,
     /// The distinct qualities of the samples, indexed by `PackedSample::quality`; never shrinks.
     qualities: Vec<Quality>,
-    /// The eye of each view-dependent sample that has one, by slot: slots stay put when a removal
-    /// moves samples, so the table is never re-keyed.
-    eyes: HashMap<u32, Vec3>,
+    /// The eyes of each view-dependent sample that has one, by slot, latest last: slots stay
+    /// put when a removal moves samples, so the table is never re-keyed.
+    eyes: HashMap<u32, Vec<EyeVariant>>,
+    /// Variants in `eyes`, for `bytes`.
+    eye_variants: usize,
 }
 
 fn slot_index(key: SampleKey) -> usize {
@@ -120,6 +150,7 @@ impl ShadingCache {
             owners: Vec::new(),
             qualities: Vec::new(),
             eyes: HashMap::new(),
+            eye_variants: 0,
         }
     }
 
@@ -144,26 +175,63 @@ impl ShadingCache {
             // Diffuse samples, nearly all of them, skip the hash lookup.
             eye: p
                 .view_dependent
-                .then(|| self.eyes.get(&(slot as u32)).copied())
+                .then(|| self.eyes.get(&(slot as u32))?.last().map(|v| v.eye))
                 .flatten(),
             last_seen: u64::from(p.last_seen),
         }
     }
 
-    /// Packs `sample` for `slot`, updating the slot's eye entry; `None`, changing nothing, when
-    /// its quality cannot be interned.
-    fn pack(&mut self, slot: usize, sample: &CachedSample) -> Option<PackedSample> {
-        let quality = self.quality_index(sample.quality)?;
-        match sample.eye.filter(|_| sample.view_dependent) {
-            Some(eye) => self.eyes.insert(slot as u32, eye),
-            None => self.eyes.remove(&(slot as u32)),
-        };
-        Some(PackedSample {
-            rgb: sample.rgb,
-            last_seen: stamp(sample.last_seen),
-            quality,
-            view_dependent: sample.view_dependent,
+    /// The sample as seen from `eye`: for a view-dependent one, the kept eye nearest to it;
+    /// otherwise (or without an eye) what [`Self::get`] returns.
+    pub fn get_seen_from(&self, key: SampleKey, eye: Option<Vec3>) -> Option<CachedSample> {
+        let slot = slot_index(key);
+        let p = self.packed(slot)?;
+        let nearest = eye
+            .filter(|_| p.view_dependent)
+            .and_then(|eye| self.nearest_eye(slot, eye));
+        Some(match nearest {
+            Some(v) => CachedSample {
+                rgb: v.rgb,
+                quality: self.qualities[usize::from(v.quality)],
+                view_dependent: true,
+                eye: Some(v.eye),
+                last_seen: u64::from(p.last_seen),
+            },
+            None => self.unpack(slot, p),
         })
+    }
+
+    fn nearest_eye(&self, slot: usize, eye: Vec3) -> Option<&EyeVariant> {
+        self.eyes.get(&(slot as u32))?.iter().min_by(|a, b| {
+            a.eye
+                .distance_squared(eye)
+                .total_cmp(&b.eye.distance_squared(eye))
+        })
+    }
+
+    /// Adds an eye's variant to a slot, as its latest; beyond [`MAX_EYES`] the kept eye nearest
+    /// the new one goes.
+    fn add_eye(&mut self, slot: usize, variant: EyeVariant) {
+        let variants = self.eyes.entry(slot as u32).or_default();
+        variants.push(variant);
+        self.eye_variants += 1;
+        if variants.len() > MAX_EYES {
+            let last = variants.len() - 1;
+            let nearest = (0..last)
+                .min_by(|&a, &b| {
+                    let d = |i: usize| variants[i].eye.distance_squared(variant.eye);
+                    d(a).total_cmp(&d(b))
+                })
+                .expect("more than one variant");
+            variants.remove(nearest);
+            self.eye_variants -= 1;
+        }
+    }
+
+    fn drop_eyes(&mut self, slot: usize) {
+        if let Some(variants) = self.eyes.remove(&(slot as u32)) {
+            self.eye_variants -= variants.len();
+        }
     }
 
     /// The index of `quality` in the quality table, added if new. Once the table is full, the
@@ -186,50 +254,74 @@ impl ShadingCache {
             .map(|(i, _)| i as u8)
     }
 
-    /// Stores a sample unless a cached one is at least as good (`Quality::rank`); a
-    /// view-dependent sample from another eye always replaces the cached one.
+    /// Stores a sample unless a cached one is at least as good (`Quality::rank`). A
+    /// view-dependent sample is kept per eye: one from a new eye is added beside the others,
+    /// one from a kept eye replaces it only if better.
     pub fn insert(&mut self, key: SampleKey, sample: CachedSample) -> CacheInsert {
         if !sample.rgb.iter().all(|c| c.is_finite()) {
             return CacheInsert::Ignored;
         }
+        let Some(quality) = self.quality_index(sample.quality) else {
+            return CacheInsert::Ignored;
+        };
         let slot = slot_index(key);
         if slot >= self.slots.len() {
             self.slots.resize(slot + 1, NO_SLOT);
         }
-        match self.slots[slot] {
-            NO_SLOT => self.insert_new(slot, &sample),
-            s => self.replace(slot, s as usize, sample),
+        let eye = sample.eye.filter(|_| sample.view_dependent);
+        let outcome = match self.slots[slot] {
+            NO_SLOT => {
+                self.slots[slot] = self.samples.len() as u32;
+                self.samples.push(pack(&sample, quality, 0));
+                self.owners.push(slot as u32);
+                CacheInsert::New
+            }
+            s => {
+                let old = self.samples[s as usize];
+                if !self.replaces(slot, &old, &sample, eye) {
+                    return CacheInsert::Ignored;
+                }
+                self.samples[s as usize] = pack(&sample, quality, old.last_seen);
+                CacheInsert::Upgraded
+            }
+        };
+        match eye {
+            Some(eye) => {
+                let rgb = sample.rgb;
+                self.add_eye(slot, EyeVariant { eye, rgb, quality });
+            }
+            None => self.drop_eyes(slot),
         }
+        outcome
     }
 
-    fn insert_new(&mut self, slot: usize, sample: &CachedSample) -> CacheInsert {
-        let Some(packed) = self.pack(slot, sample) else {
-            return CacheInsert::Ignored;
+    /// Whether `sample` replaces the cached `old` of `slot` (taking out the variant of its eye,
+    /// which the caller adds back as the latest).
+    fn replaces(
+        &mut self,
+        slot: usize,
+        old: &PackedSample,
+        sample: &CachedSample,
+        eye: Option<Vec3>,
+    ) -> bool {
+        let rank = sample.quality.rank();
+        let better = |q: u8| rank > self.qualities[usize::from(q)].rank();
+        let Some(eye) = eye else {
+            return better(old.quality);
         };
-        self.slots[slot] = self.samples.len() as u32;
-        self.samples.push(packed);
-        self.owners.push(slot as u32);
-        CacheInsert::New
-    }
-
-    fn replace(&mut self, slot: usize, s: usize, sample: CachedSample) -> CacheInsert {
-        let old = self.unpack(slot, &self.samples[s]);
-        let new_eye = sample.view_dependent && sample.eye != old.eye;
-        if sample.quality.rank() <= old.quality.rank() && !new_eye {
-            return CacheInsert::Ignored;
+        let kept = self.eyes.get(&(slot as u32)).and_then(|variants| {
+            let i = variants.iter().position(|v| v.eye == eye)?;
+            Some((i, variants[i].quality))
+        });
+        match kept {
+            None => true,
+            Some((_, q)) if !better(q) => false,
+            Some((i, _)) => {
+                self.eyes.get_mut(&(slot as u32)).expect("found").remove(i);
+                self.eye_variants -= 1;
+                true
+            }
         }
-        let last_seen = old.last_seen.max(sample.last_seen);
-        let Some(packed) = self.pack(
-            slot,
-            &CachedSample {
-                last_seen,
-                ..sample
-            },
-        ) else {
-            return CacheInsert::Ignored;
-        };
-        self.samples[s] = packed;
-        CacheInsert::Upgraded
     }
 
     /// The radiance of a leaf's three vertices on `side`, if all are cached.
@@ -243,6 +335,22 @@ impl ShadingCache {
             .node(leaf)
             .vertices
             .map(|vertex| self.packed(slot_index(SampleKey { vertex, side })));
+        Some([a?.rgb, b?.rgb, c?.rgb])
+    }
+
+    /// [`Self::leaf_radiance`] as seen from `eye`: view-dependent vertices give the radiance of
+    /// their kept eye nearest to it.
+    pub fn leaf_radiance_from(
+        &self,
+        mesh: &SubdivisionMesh,
+        leaf: NodeId,
+        side: Side,
+        eye: Vec3,
+    ) -> Option<[[f32; 3]; 3]> {
+        let [a, b, c] = mesh
+            .node(leaf)
+            .vertices
+            .map(|vertex| self.get_seen_from(SampleKey { vertex, side }, Some(eye)));
         Some([a?.rgb, b?.rgb, c?.rgb])
     }
 
@@ -315,7 +423,7 @@ impl ShadingCache {
         let s = std::mem::replace(&mut self.slots[slot], NO_SLOT) as usize;
         self.samples.swap_remove(s);
         self.owners.swap_remove(s);
-        self.eyes.remove(&(slot as u32));
+        self.drop_eyes(slot);
         if let Some(&moved) = self.owners.get(s) {
             self.slots[moved as usize] = s as u32;
         }
@@ -335,6 +443,7 @@ impl ShadingCache {
         self.slots.len() * size_of::<u32>()
             + self.samples.len() * (size_of::<PackedSample>() + size_of::<u32>())
             + self.eyes.len() * EYE_ENTRY_BYTES
+            + self.eye_variants * size_of::<EyeVariant>()
             + self.qualities.len() * size_of::<Quality>()
     }
 
@@ -536,8 +645,61 @@ mod tests {
         assert!(cache.get(key(10)).is_none() && cache.eyes.is_empty());
         assert_eq!(
             before - cache.bytes(),
-            size_of::<PackedSample>() + size_of::<u32>() + EYE_ENTRY_BYTES
+            size_of::<PackedSample>()
+                + size_of::<u32>()
+                + EYE_ENTRY_BYTES
+                + size_of::<EyeVariant>()
         );
+    }
+
+    /// Each eye keeps its own radiance; a reader gets the kept eye nearest to it; a fifth eye
+    /// replaces the kept one nearest to it; a kept eye is replaced only by a better sample.
+    #[test]
+    fn view_dependent_samples_keep_one_radiance_per_eye() {
+        let mut cache = ShadingCache::new(1 << 20);
+        let at = |x: f32| Vec3::new(x, 0.0, 0.0);
+        let shaded = |x: f32, quality| CachedSample {
+            rgb: [x; 3],
+            quality,
+            ..glossy(at(x), 1)
+        };
+        for x in [0.0, 10.0, 20.0, 30.0] {
+            assert_ne!(
+                cache.insert(key(1), shaded(x, Quality::DIRECT)),
+                CacheInsert::Ignored
+            );
+        }
+        let seen = |cache: &ShadingCache, x| cache.get_seen_from(key(1), Some(at(x))).unwrap();
+        assert_eq!(seen(&cache, 9.0).rgb, [10.0; 3]);
+        assert_eq!(seen(&cache, 9.0).eye, Some(at(10.0)));
+        assert_eq!(cache.get(key(1)).unwrap().rgb, [30.0; 3], "the latest");
+        // A fifth eye at 12 replaces the one at 10; the others stay.
+        cache.insert(key(1), shaded(12.0, Quality::DIRECT));
+        assert_eq!(seen(&cache, 9.0).rgb, [12.0; 3]);
+        assert_eq!(seen(&cache, 1.0).rgb, [0.0; 3]);
+        assert_eq!(cache.eye_variants, MAX_EYES);
+        // The same eye again: ignored unless better.
+        let again = CachedSample {
+            rgb: [5.0; 3],
+            ..shaded(20.0, Quality::DIRECT)
+        };
+        assert_eq!(cache.insert(key(1), again), CacheInsert::Ignored);
+        let better = CachedSample {
+            quality: Quality::INTERACTIVE,
+            ..again
+        };
+        assert_eq!(cache.insert(key(1), better), CacheInsert::Upgraded);
+        assert_eq!(seen(&cache, 21.0).rgb, [5.0; 3]);
+        assert_eq!(cache.eye_variants, MAX_EYES);
+        // A diffuse reading (no eye) and a diffuse sample: the latest, then no eyes at all.
+        assert_eq!(cache.get_seen_from(key(1), None).unwrap().rgb, [5.0; 3]);
+        let best = Quality {
+            paths: 2 * Quality::INTERACTIVE.paths,
+            ..Quality::INTERACTIVE
+        };
+        cache.insert(key(1), sample(7.0, best, 1));
+        assert_eq!(seen(&cache, 9.0).rgb, [7.0; 3]);
+        assert!(cache.eyes.is_empty() && cache.eye_variants == 0);
     }
 
     /// Frame counts past `u32::MAX` saturate: no panic, and a sample seen "now" is still spared.

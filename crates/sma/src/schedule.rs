@@ -477,9 +477,10 @@ impl Schedule {
                 continue;
             };
             viewer.targets = plan::targets(view, &self.pending, &self.mesh, camera.eye_vec());
-            let mut messages = viewer
-                .display
-                .sync(&viewer.targets, &self.mesh, &self.cache);
+            let mut messages =
+                viewer
+                    .display
+                    .sync(&viewer.targets, &self.mesh, &self.cache, camera.eye_vec());
             let l_white = self.cache.l_white(&self.mesh, &view.visible);
             if viewer.last_l_white != Some(l_white) && l_white > 0.0 {
                 viewer.last_l_white = Some(l_white);

@@ -85,15 +85,21 @@ fn diffuse_wall() -> Scene {
 }
 
 /// What the fake renderer returns: a sharp "shadow" edge at x = 0.3 (something to refine), the
-/// back side darker, the cheap quality dimmer, so each of those shows in the radiance.
+/// back side darker, the cheap quality dimmer, and a view-dependent point brighter the further
+/// its eye is off x = 0, so each of those shows in the radiance.
 fn fake_radiance(scene: &Scene, point: &ShadePoint, quality: Quality) -> [f32; 3] {
     let [a, b, c] = scene.mesh.triangle_positions(point.base_triangle as usize);
     let [u, v] = point.bary;
     let p = a * (1.0 - u - v) + b * u + c * v;
+    radiance_at(p, point.side, quality, point.eye.map(Vec3::from))
+}
+
+fn radiance_at(p: Vec3, side: Side, quality: Quality, eye: Option<Vec3>) -> [f32; 3] {
     let lit = if p.x > 0.3 { 1.0 } else { 0.1 };
-    let side = if point.side == Side::Back { 0.5 } else { 1.0 };
+    let side = if side == Side::Back { 0.5 } else { 1.0 };
     let q = if quality == Quality::DIRECT { 0.8 } else { 1.0 };
-    [lit * side * q; 3]
+    let gloss = eye.map_or(1.0, |e| 1.0 + 0.1 * e.x.abs());
+    [lit * side * q * gloss; 3]
 }
 
 type Log = Arc<Mutex<Vec<(SampleKey, Quality, Option<[f32; 3]>)>>>;
@@ -372,6 +378,41 @@ async fn mirror_samples_are_retaken_after_the_eye_moves_and_diffuse_ones_never()
         }
         sma.stop().await.unwrap();
     }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn two_viewers_at_one_mirror_each_see_it_from_their_own_eye() {
+    if !gpu_available() {
+        return;
+    }
+    let scene = wall_scene(Material::mirror("mirror", Vec3::ZERO, Vec3::splat(0.9)));
+    let (renderer, _) = fake_renderer(scene.clone(), Fault::None).await;
+    let (sma, mut a) = start_with_probe(&cli(vec![renderer], false), &scene).await;
+    let mut b = Probe::connect(&sma.addr.to_string()).await.unwrap();
+    let ca = a.view("front", W, H).await.unwrap();
+    let cb = b.view("side", W, H).await.unwrap();
+    // With one eye per mirror sample, each viewer's samples replaced the other's and neither
+    // view ever completed.
+    a.complete(ca.seq, WAIT).await.unwrap();
+    b.complete(cb.seq, WAIT).await.unwrap();
+    for (probe, camera) in [(&a, &ca), (&b, &cb)] {
+        let mirror: Vec<_> = (probe.table.values())
+            .filter(|t| t.positions.iter().all(|p| p[2] == 0.0))
+            .collect();
+        assert!(!mirror.is_empty(), "the mirror wall is in view");
+        for t in mirror {
+            for (p, rgb) in t.positions.iter().zip(t.radiance) {
+                let p = Vec3::from(*p);
+                let want =
+                    radiance_at(p, Side::Front, Quality::INTERACTIVE, Some(camera.eye_vec()));
+                assert!(
+                    (rgb[0] - want[0]).abs() < 1e-6,
+                    "{rgb:?} at {p}, want {want:?}"
+                );
+            }
+        }
+    }
+    sma.stop().await.unwrap();
 }
 
 /// Refines the wall from the front, pauses, looks away for four passes, looks back: the

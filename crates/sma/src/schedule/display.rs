@@ -4,6 +4,7 @@
 
 use std::collections::{HashMap, HashSet};
 
+use glam::Vec3;
 use protocol::Side;
 use protocol::viewer_link::{Recolour, ShownTriangle, SmaToViewer, TriangleId};
 
@@ -31,12 +32,14 @@ impl Display {
     }
 
     /// Brings the viewer to `targets` (each node with the side it is seen from), as far as the
-    /// cache allows. A shown triangle whose samples were evicted stays as it is.
+    /// cache allows, view-dependent samples as seen from `eye`. A shown triangle whose samples
+    /// were evicted stays as it is.
     pub fn sync(
         &mut self,
         targets: &[(NodeId, Side)],
         mesh: &SubdivisionMesh,
         cache: &ShadingCache,
+        eye: Vec3,
     ) -> Vec<SmaToViewer> {
         let wanted: HashSet<TriangleId> = targets.iter().map(|&(n, s)| shown_id(n, s)).collect();
         let removed: Vec<TriangleId> = self
@@ -52,7 +55,7 @@ impl Display {
         self.unshown = 0;
         for &(node, side) in targets {
             let id = shown_id(node, side);
-            let Some(radiance) = cache.leaf_radiance(mesh, node, side) else {
+            let Some(radiance) = cache.leaf_radiance_from(mesh, node, side, eye) else {
                 self.unshown += usize::from(!self.shown.contains_key(&id));
                 continue;
             };

@@ -137,7 +137,7 @@ fn need_key(
             new_eye,
         });
     };
-    match input.cache.get(key) {
+    match input.cache.get_seen_from(key, Some(input.eye)) {
         None if refining => push(full, Urgency::Refinement, false),
         None => {
             push(input.qualities.first, Urgency::Missing, false);

@@ -5,6 +5,7 @@
 
 use std::collections::{HashMap, VecDeque};
 
+use glam::Vec3;
 use protocol::renderer_link::{Quality, SampleKey, ShadeBatch, ShadePoint};
 
 use crate::cache::ShadingCache;
@@ -131,9 +132,9 @@ impl Requests {
     }
 
     fn satisfied(&self, need: &Need, cache: &ShadingCache) -> bool {
-        let cached = cache.get(need.point.key).is_some_and(|s| {
-            s.quality.rank() >= need.quality.rank()
-                && (!need.new_eye || s.eye.map(|e| e.to_array()) == need.point.eye)
+        let eye = need.point.eye.map(Vec3::from);
+        let cached = cache.get_seen_from(need.point.key, eye).is_some_and(|s| {
+            s.quality.rank() >= need.quality.rank() && (!need.new_eye || s.eye == eye)
         });
         cached || self.in_flight_at(need.point.key, need.quality)
     }
