@@ -156,10 +156,11 @@ pub fn at_samples<'a>(run: &[&'a Measurement], n: u64) -> Option<&'a Measurement
         .find(|m| m.samples >= n)
 }
 
-/// The first periodic snapshot time at which the mean FLIP is at or below `level`.
+/// The first snapshot time, periodic or at a sample count, at which the mean FLIP is at or
+/// below `level`: the sample-count snapshots fall between the seconds, so a level reached in
+/// the first second is timed more finely than to the second.
 pub fn time_to_reach(run: &[&Measurement], level: f64) -> Option<f64> {
-    scheduled(run, Schedule::Time)
-        .into_iter()
+    run.iter()
         .filter(|m| m.error.flip <= level)
         .map(|m| m.time_s)
         .min_by(f64::total_cmp)
@@ -223,7 +224,9 @@ mod tests {
         assert!(at_time(&run, 3.0).is_none());
         assert_eq!(at_samples(&run, 800).unwrap().time_s, 1.1);
         assert_eq!(at_samples(&run, 1500).unwrap().time_s, 2.2);
+        assert_eq!(time_to_reach(&run, 0.2), Some(1.1));
         assert_eq!(time_to_reach(&run, 0.1), Some(2.0));
-        assert_eq!(time_to_reach(&run, 0.05), None);
+        assert_eq!(time_to_reach(&run, 0.05), Some(2.2));
+        assert_eq!(time_to_reach(&run, 0.01), None);
     }
 }
