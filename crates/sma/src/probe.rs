@@ -230,7 +230,7 @@ pub fn coverage(
 ) -> anyhow::Result<Vec<bool>> {
     let mut pass = IdPass::new(gpu);
     let mut buffer = TriangleBuffer::default();
-    pass.upload(gpu, triangles, &mut buffer);
+    buffer.upload(gpu, triangles);
     let view_proj = scene_view_projection(camera, bounds);
     let image = pass.render(gpu, &buffer, view_proj, camera.width, camera.height)?;
     Ok(image.ids.iter().map(|&id| id != 0).collect())

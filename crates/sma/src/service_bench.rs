@@ -69,7 +69,8 @@ fn bench_camera() -> Camera {
     Camera::from_viewpoint(&vp, 0, WIDTH, HEIGHT)
 }
 
-/// Median ms of render + readback + per-triangle coverage, per size; then a least-squares line.
+/// Median ms of render + readback + per-triangle coverage, per size (and of the coverage alone,
+/// the CPU's share); then a least-squares line.
 fn write_pass_cost(md: &mut String, gpu: &Gpu, runs: usize, quick: bool) -> anyhow::Result<()> {
     // 0: clear, copy and readback alone, the floor under the fitted fixed cost.
     let sizes: &[usize] = if quick {
@@ -86,25 +87,27 @@ fn write_pass_cost(md: &mut String, gpu: &Gpu, runs: usize, quick: bool) -> anyh
     )?;
     writeln!(
         md,
-        "| submitted triangles | median ms ({runs} runs) | visible triangles |\n|---:|---:|---:|"
+        "| submitted triangles | median ms ({runs} runs) | of which pixel counts (CPU) | visible triangles |\n|---:|---:|---:|---:|"
     )?;
     let mut points = Vec::new();
     for &n in sizes {
-        let tris = random_triangles(n, n as u64);
         let mut buffer = TriangleBuffer::default();
-        pass.upload(gpu, &tris, &mut buffer);
-        let mut times = Vec::new();
+        buffer.upload(gpu, &random_triangles(n, n as u64));
+        let (mut times, mut counting) = (Vec::new(), Vec::new());
         let mut visible = 0;
         for _ in 0..runs + 1 {
             let t = Instant::now();
             let image = pass.render(gpu, &buffer, view_proj, WIDTH, HEIGHT)?;
+            let rendered = t.elapsed();
             visible = image.coverage(n).iter().filter(|c| c.pixels > 0).count();
-            times.push(t.elapsed().as_secs_f64() * 1e3);
+            let total = t.elapsed();
+            times.push(total.as_secs_f64() * 1e3);
+            counting.push((total - rendered).as_secs_f64() * 1e3);
         }
-        times.remove(0); // the first run compiles pipelines and faults pages in
-        let ms = median(times);
+        // The first run compiles pipelines and faults pages in.
+        let (ms, counting_ms) = (median(times.split_off(1)), median(counting.split_off(1)));
         points.push((n as f64, ms));
-        writeln!(md, "| {n} | {ms:.1} | {visible} |")?;
+        writeln!(md, "| {n} | {ms:.1} | {counting_ms:.1} | {visible} |")?;
     }
     let (fixed, slope) = fit_line(&points[1..]);
     writeln!(

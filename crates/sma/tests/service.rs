@@ -141,7 +141,16 @@ async fn fake_renderer(scene: Scene, fault: Fault) -> (String, Log) {
                 batches += 1;
                 match fault {
                     Fault::Die(n) if n == batches => return, // listener and link dropped
-                    Fault::Drop(n) if n == batches => break, // link dropped, listener kept
+                    Fault::Drop(n) if n == batches => {
+                        // Link dropped, listener kept. Closed gracefully: a socket closed with
+                        // unread batches in it resets the connection, and the reset can discard
+                        // replies already sent (the SMA then rightly asks for them again, which
+                        // would read as a repeat here). So: FIN after the replies, then read
+                        // until the SMA closes its end.
+                        drop(writer);
+                        while reader.recv().await.is_ok() {}
+                        break;
+                    }
                     _ => {}
                 }
                 task_log

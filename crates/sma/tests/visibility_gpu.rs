@@ -93,7 +93,7 @@ fn check_path(primitive_index: bool) {
     let cam = camera();
     let mut pass = IdPass::new(&gpu);
     let mut buffer = TriangleBuffer::default();
-    pass.upload(&gpu, &tris, &mut buffer);
+    buffer.upload(&gpu, &tris);
     let image = pass
         .render(&gpu, &buffer, cam.view_projection(0.01, 100.0), W, H)
         .unwrap();
@@ -142,7 +142,7 @@ fn id_pass_matches_cpu_ray_cast_with_primitive_index() {
 }
 
 #[test]
-fn id_pass_matches_cpu_ray_cast_with_vertex_ids() {
+fn id_pass_matches_cpu_ray_cast_with_vertex_index() {
     check_path(false);
 }
 

@@ -23,19 +23,29 @@ pub struct Gpu {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub adapter: wgpu::AdapterInfo,
-    /// `@builtin(primitive_index)` is available (WGSL `enable primitive_index;`).
+    /// The ID pass uses `@builtin(primitive_index)` (WGSL `enable primitive_index;`), else the
+    /// vertex index.
     pub primitive_index: bool,
 }
 
 impl Gpu {
     /// The first adapter wgpu prefers (a real GPU when there is one), honouring `WGPU_BACKEND`.
+    /// Triangle ids come from `@builtin(primitive_index)` on a GPU that offers it, from the vertex
+    /// index on a software adapter (Mesa's lavapipe or llvmpipe): llvmpipe supplies
+    /// `primitive_index` through an extra primitive-assembly stage that made the 1M-triangle pass
+    /// 15–20% slower (DESIGN.md §3 step 2). A software adapter also tunes the process's allocator
+    /// (`keep_pass_memory`).
     pub fn new() -> Result<Gpu, GpuError> {
-        Self::with_primitive_index(true)
+        Self::open(None)
     }
 
-    /// As [`Gpu::new`], but `allow_primitive_index = false` forces the per-vertex id fallback
-    /// (so tests can check both paths on one adapter).
-    pub fn with_primitive_index(allow_primitive_index: bool) -> Result<Gpu, GpuError> {
+    /// As [`Gpu::new`], but `primitive_index` says whether to use `@builtin(primitive_index)`
+    /// where the adapter offers it (so tests can check both id paths on one adapter).
+    pub fn with_primitive_index(primitive_index: bool) -> Result<Gpu, GpuError> {
+        Self::open(Some(primitive_index))
+    }
+
+    fn open(primitive_index: Option<bool>) -> Result<Gpu, GpuError> {
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle().with_env());
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
@@ -43,8 +53,13 @@ impl Gpu {
             ..Default::default()
         }))
         .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
-        let primitive_index =
-            allow_primitive_index && adapter.features().contains(wgpu::Features::PRIMITIVE_INDEX);
+        let info = adapter.get_info();
+        let software = info.device_type == wgpu::DeviceType::Cpu;
+        if software {
+            keep_pass_memory();
+        }
+        let primitive_index = primitive_index.unwrap_or(!software)
+            && adapter.features().contains(wgpu::Features::PRIMITIVE_INDEX);
         let required_features = if primitive_index {
             wgpu::Features::PRIMITIVE_INDEX
         } else {
@@ -62,22 +77,23 @@ impl Gpu {
         Ok(Gpu {
             device,
             queue,
-            adapter: adapter.get_info(),
+            adapter: info,
             primitive_index,
         })
     }
 
-    /// "llvmpipe (LLVM 15.0.6, 256 bits) / Vulkan / Cpu", for logs and benchmark tables.
+    /// "llvmpipe (LLVM 15.0.6, 256 bits) / Vulkan / Cpu, ids from vertex_index", for logs and
+    /// benchmark tables.
     pub fn describe(&self) -> String {
         format!(
-            "{} / {:?} / {:?}{}",
+            "{} / {:?} / {:?}, ids from {}",
             self.adapter.name,
             self.adapter.backend,
             self.adapter.device_type,
             if self.primitive_index {
-                ""
+                "primitive_index"
             } else {
-                " (per-vertex id fallback)"
+                "vertex_index"
             }
         )
     }
@@ -108,17 +124,36 @@ impl Gpu {
     }
 }
 
+/// Mesa bins each pass's triangles in memory its draw thread mallocs and frees again at the end of
+/// the pass; with glibc's default thresholds that memory goes back to the kernel every pass
+/// (`madvise(MADV_DONTNEED)` of ~22 MB at 100k triangles) and the next pass faults it all in
+/// again: about a third of a 100k-triangle ID pass (DESIGN.md §3 step 2). Pinning the thresholds
+/// at the highest values glibc's own sliding rule reaches (mmap 32 MiB, trim twice that) keeps it
+/// between passes. Process-wide, for every allocation.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+fn keep_pass_memory() {
+    // SAFETY: mallopt only sets allocator parameters, under the allocator's own lock.
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, 64 << 20);
+    }
+}
+
+#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+fn keep_pass_memory() {}
+
 /// Depth format of every pass. Reversed Z (cleared to 0, `Greater` wins) keeps float depth
 /// precise far from the eye, so distant coplanar-ish surfaces do not fight in the ID buffer.
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 /// A colour target of one 4-byte texel format, a depth buffer and a readback buffer, all of one
-/// image size.
+/// image size, with their views made once rather than every pass.
 pub struct OffscreenTarget {
     pub width: u32,
     pub height: u32,
     color: wgpu::Texture,
-    depth: wgpu::Texture,
+    color_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
     readback: wgpu::Buffer,
     padded_row: u32,
 }
@@ -162,8 +197,9 @@ impl OffscreenTarget {
         OffscreenTarget {
             width,
             height,
+            color_view: color.create_view(&wgpu::TextureViewDescriptor::default()),
+            depth_view: depth.create_view(&wgpu::TextureViewDescriptor::default()),
             color,
-            depth,
             readback,
             padded_row,
         }
@@ -180,18 +216,12 @@ impl OffscreenTarget {
         vertices: Option<&wgpu::Buffer>,
         vertex_count: u32,
     ) -> Result<Vec<T>, GpuError> {
-        let color_view = self
-            .color
-            .create_view(&wgpu::TextureViewDescriptor::default());
-        let depth_view = self
-            .depth
-            .create_view(&wgpu::TextureViewDescriptor::default());
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("offscreen pass"),
                 color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &color_view,
+                    view: &self.color_view,
                     depth_slice: None,
                     resolve_target: None,
                     ops: wgpu::Operations {
@@ -200,7 +230,7 @@ impl OffscreenTarget {
                     },
                 })],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &depth_view,
+                    view: &self.depth_view,
                     depth_ops: Some(wgpu::Operations {
                         load: wgpu::LoadOp::Clear(0.0),
                         store: wgpu::StoreOp::Discard,

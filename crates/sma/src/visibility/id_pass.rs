@@ -1,6 +1,8 @@
 //! The ID pass (DESIGN.md §3 steps 2–3): triangles drawn into an R32Uint target with a depth
 //! test; each pixel holds `index + 1` of the triangle it sees (0: nothing). The index comes from
-//! `@builtin(primitive_index)` where the adapter offers it, else from a flat per-vertex attribute.
+//! `@builtin(primitive_index)` where [`Gpu`] chose it, else from the vertex index: triangles are
+//! drawn unindexed, three vertices each, so vertex `v` belongs to triangle `v / 3`. Either way a
+//! vertex is its position alone (12 bytes).
 
 use glam::{Mat4, Vec3};
 
@@ -17,11 +19,11 @@ enable primitive_index;
 }
 "#;
 
-const SHADER_VERTEX_ID: &str = r#"
+const SHADER_VERTEX_INDEX: &str = r#"
 @group(0) @binding(0) var<uniform> view_proj: mat4x4<f32>;
 struct Out { @builtin(position) pos: vec4<f32>, @location(0) @interpolate(flat) id: u32 };
-@vertex fn vs_main(@location(0) p: vec3<f32>, @location(1) id: u32) -> Out {
-    return Out(view_proj * vec4<f32>(p, 1.0), id + 1u);
+@vertex fn vs_main(@location(0) p: vec3<f32>, @builtin(vertex_index) v: u32) -> Out {
+    return Out(view_proj * vec4<f32>(p, 1.0), v / 3u + 1u);
 }
 @fragment fn fs_main(v: Out) -> @location(0) u32 {
     return v.id;
@@ -47,6 +49,13 @@ pub struct TriangleBuffer {
 }
 
 impl TriangleBuffer {
+    /// Uploads triangles; triangle `i` of `triangles` gets id `i + 1` in the image.
+    pub fn upload(&mut self, gpu: &Gpu, triangles: &[[Vec3; 3]]) {
+        let positions: Vec<[f32; 3]> = triangles.iter().flatten().map(|p| p.to_array()).collect();
+        gpu.upload_into(&mut self.buffer, bytemuck::cast_slice(&positions));
+        self.count = triangles.len() as u32;
+    }
+
     pub fn len(&self) -> usize {
         self.count as usize
     }
@@ -86,14 +95,17 @@ pub struct IdImage {
 }
 
 impl IdImage {
-    /// Coverage of each of `triangles` submitted triangles (index = submission order).
+    /// Coverage of each of `triangles` submitted triangles (index = submission order). Row by
+    /// row, so pixel coordinates need no division.
     pub fn coverage(&self, triangles: usize) -> Vec<Coverage> {
         let mut cov = vec![Coverage::default(); triangles];
-        for (i, &id) in self.ids.iter().enumerate() {
-            if let Some(c) = id.checked_sub(1).and_then(|t| cov.get_mut(t as usize)) {
-                c.pixels += 1;
-                c.sum_x += (i as u32 % self.width) as u64;
-                c.sum_y += (i as u32 / self.width) as u64;
+        for (y, row) in self.ids.chunks_exact(self.width as usize).enumerate() {
+            for (x, &id) in row.iter().enumerate() {
+                if let Some(c) = id.checked_sub(1).and_then(|t| cov.get_mut(t as usize)) {
+                    c.pixels += 1;
+                    c.sum_x += x as u64;
+                    c.sum_y += y as u64;
+                }
             }
         }
         cov
@@ -151,47 +163,25 @@ impl R32UintPass {
 /// The ID pipeline and its reusable target.
 pub struct IdPass {
     pass: R32UintPass,
-    /// The fallback path: each vertex carries its triangle's index.
-    vertex_ids: bool,
 }
 
 const POSITION_ATTRS: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![0 => Float32x3];
-const POSITION_ID_ATTRS: [wgpu::VertexAttribute; 2] =
-    wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32];
 
 impl IdPass {
     pub fn new(gpu: &Gpu) -> Self {
-        let vertex_ids = !gpu.primitive_index;
-        let (shader, stride, attributes): (_, u64, &[wgpu::VertexAttribute]) = if vertex_ids {
-            (SHADER_VERTEX_ID, 16, &POSITION_ID_ATTRS)
+        let shader = if gpu.primitive_index {
+            SHADER_PRIMITIVE_INDEX
         } else {
-            (SHADER_PRIMITIVE_INDEX, 12, &POSITION_ATTRS)
+            SHADER_VERTEX_INDEX
         };
         let layout = wgpu::VertexBufferLayout {
-            array_stride: stride,
+            array_stride: 12,
             step_mode: wgpu::VertexStepMode::Vertex,
-            attributes,
+            attributes: &POSITION_ATTRS,
         };
         IdPass {
             pass: R32UintPass::new(gpu, shader, layout),
-            vertex_ids,
         }
-    }
-
-    /// Uploads triangles; triangle `i` of `triangles` gets id `i + 1` in the image.
-    pub fn upload(&self, gpu: &Gpu, triangles: &[[Vec3; 3]], into: &mut TriangleBuffer) {
-        let words_per_vertex = if self.vertex_ids { 4 } else { 3 };
-        let mut words: Vec<u32> = Vec::with_capacity(triangles.len() * 3 * words_per_vertex);
-        for (i, tri) in triangles.iter().enumerate() {
-            for p in tri {
-                words.extend(p.to_array().map(f32::to_bits));
-                if self.vertex_ids {
-                    words.push(i as u32);
-                }
-            }
-        }
-        gpu.upload_into(&mut into.buffer, bytemuck::cast_slice(&words));
-        into.count = triangles.len() as u32;
     }
 
     /// Draws `triangles` seen through `view_proj` (a `Camera::view_projection`) and reads back.

@@ -42,7 +42,7 @@ impl Visibility {
         let base_triangles: Vec<[Vec3; 3]> = (0..mesh.base_count() as NodeId)
             .map(|b| mesh.leaf_positions(b))
             .collect();
-        pass.upload(&gpu, &base_triangles, &mut base);
+        base.upload(&gpu, &base_triangles);
         Visibility {
             gpu,
             pass,
@@ -78,7 +78,7 @@ impl Visibility {
             .collect();
         let submitted: Vec<NodeId> = bases.iter().flat_map(|&b| mesh.leaves_of_base(b)).collect();
         let positions: Vec<[Vec3; 3]> = submitted.iter().map(|&l| mesh.leaf_positions(l)).collect();
-        self.pass.upload(&self.gpu, &positions, &mut self.leaves);
+        self.leaves.upload(&self.gpu, &positions);
         let level2 = self.pass.render(&self.gpu, &self.leaves, view_proj, w, h)?;
         let coverage = level2.coverage(submitted.len());
         let eye = camera.eye_vec();
