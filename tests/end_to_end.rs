@@ -225,6 +225,7 @@ fn run(
         refine,
         seed: 1,
         renderers: 1,
+        sma_flags: Vec::new(),
     };
     let mut system = System::start(&config, &dir).unwrap_or_else(|e| panic!("{name}: {e:#}"));
     let probe = Probe::connect(system.sma_addr());

@@ -46,9 +46,13 @@ pub struct Cli {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
 
-    /// R: leaves a criterion may select per refinement round (§4.3.5); small keeps a camera change
-    /// answered within one round.
-    #[arg(long, default_value_t = 64)]
+    /// R: leaves a criterion may select per refinement round (§4.3.5). A round waits for its
+    /// samples and a visibility pass, so small rounds leave the renderers idle: in 10-s runs
+    /// (`bench convergence --sma-flags=--max-selections,…`) NLD_OS on bracara VT reached mean
+    /// FLIP 0.095 / 0.082 / 0.067 at 1 s with R = 64 / 256 / 1024, and RND on Sponza S1 0.132 /
+    /// 0.119 / 0.117 at 10 s; but with 1024 RND ran out of leaves to offer on VT after 5 s (0.072
+    /// against 0.057 with 256). A camera change is not held up: it re-plans the queue at once.
+    #[arg(long, default_value_t = 256)]
     pub max_selections: usize,
     /// No leaf covering fewer pixels is split (one sample per few pixels is the useful limit).
     #[arg(long, default_value_t = 6)]
@@ -98,13 +102,13 @@ pub struct Cli {
     /// A leaf covering more than this fraction of the image is always selected (§4.3.5).
     #[arg(long, default_value_t = criterion_defaults().large_triangle_fraction)]
     pub large_triangle_fraction: f32,
-    /// RND: a pass ends after this fraction of the pixels (§4.3.1).
+    /// RND: a pass ends after picks of this fraction of the pixels (§4.3.1).
     #[arg(long, default_value_t = criterion_defaults().rnd_fraction)]
     pub rnd_fraction: f32,
-    /// NLD_IS: a pass ends after this fraction of the pixels (§4.3.3).
+    /// NLD_IS: at most this fraction of the pixels is selected per camera (§4.3.3).
     #[arg(long, default_value_t = criterion_defaults().nld_is_fraction)]
     pub nld_is_fraction: f32,
-    /// Criteria other than RND select no leaf covering fewer pixels (§4.3.3: 6).
+    /// No criterion selects a leaf covering fewer pixels (§4.3.3: 6).
     #[arg(long, default_value_t = criterion_defaults().min_leaf_pixels)]
     pub min_leaf_pixels: u32,
     /// NLD_PX: weight of size alone in a leaf's priority (eq. 3.4's ε).

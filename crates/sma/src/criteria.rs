@@ -78,7 +78,7 @@ pub struct CriterionSettings {
     /// NLD_IS: a pass ends after this fraction of width × height leaves has been selected
     /// (§4.3.3).
     pub nld_is_fraction: f32,
-    /// All but RND: no selection of a leaf covering fewer pixels (§4.3.3: 6).
+    /// No selection of a leaf covering fewer pixels (§4.3.3: 6).
     pub min_leaf_pixels: u32,
     /// NLD_PX: ε of eq. 3.4, the weight of a leaf's size alone in its priority
     /// `(ε + (1 - ε) S) × pixels`; it ranks large flat leaves (fig. 4.10) against shading edges.
@@ -90,8 +90,10 @@ pub struct CriterionSettings {
 /// luminance error after 300 / 600 / 1,200 samples, R = 16; figures in BENCHMARKS.md):
 /// - `s_ref_start` 0.5, `s_ref_step` 0.1: the error did not move (0.0150 / 0.0091 / 0.0031)
 ///   over start 0.3–0.8 and step 0.05–0.2; the middle values are kept.
-/// - `s_min` 0.05: 0.005, 0.02 and 0.05 gave the same error, 0.1 a worse one at 1,200 (0.0032);
-///   the largest that costs nothing stops refinement soonest.
+/// - `s_min` 0.02: 0.005, 0.02 and 0.05 gave the same error here, 0.1 a worse one at 1,200
+///   (0.0032). End to end (`bench convergence --sma-flags=--s-min,…`, 10-s runs, R = 256)
+///   NLD_OS stopped at 35k samples with 0.05 on Sponza S1 (mean FLIP 0.131 at 10 s) and went on
+///   with 0.02 (49k samples, 0.123); bracara VT was alike (0.063 and 0.064).
 /// - `large_triangle_fraction` 0.002: 0.0031 at 1,200 against 0.0034 at 0.005 and 0.0042 at
 ///   0.02 (the disc inside a square is found only when big leaves are split regardless of S);
 ///   0.005 is better early for NLD_OS (0.0087 / 0.0044 against 0.0150 / 0.0091), since it
@@ -106,7 +108,7 @@ impl Default for CriterionSettings {
         CriterionSettings {
             s_ref_start: 0.5,
             s_ref_step: 0.1,
-            s_min: 0.05,
+            s_min: 0.02,
             large_triangle_fraction: 0.002,
             rnd_fraction: 0.1,
             nld_is_fraction: 0.1,

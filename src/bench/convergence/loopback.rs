@@ -26,6 +26,8 @@ pub struct SystemConfig {
     pub refine: bool,
     pub seed: u64,
     pub renderers: usize,
+    /// More `walkthrough sma` flags, e.g. `--max-selections 256` for a parameter sweep.
+    pub sma_flags: Vec<String>,
 }
 
 /// What the headless viewer records (its `--snapshot-*` flags).
@@ -137,6 +139,7 @@ impl System {
         if !config.refine {
             sma_args.push("--no-refine".into());
         }
+        sma_args.extend(config.sma_flags.iter().cloned());
         for _ in 0..config.renderers.max(1) {
             let addr = free_loopback_addr()?;
             let args = strings(&[

@@ -88,6 +88,10 @@ pub struct ConvergenceArgs {
     /// Seed of the SMA's criteria and renderers.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Flags passed on to every `walkthrough sma` (to measure a setting against its default),
+    /// e.g. `--sma-flags=--max-selections,256`.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub sma_flags: Vec<String>,
     /// Do not write docs/bench/convergence.md nor BENCHMARKS.md.
     #[arg(long, conflicts_with = "report_only")]
     pub no_report: bool,
@@ -273,6 +277,7 @@ fn planned_runs(
         refine,
         seed: args.seed,
         renderers: args.renderers,
+        sma_flags: args.sma_flags.clone(),
     };
     let viewer = |every_seconds: Option<f64>, at_samples: Vec<u64>, when_idle: bool| ViewerConfig {
         view: spec.view.clone(),

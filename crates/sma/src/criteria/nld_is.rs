@@ -2,9 +2,11 @@
 //! quadrants recursively, breadth first (coarse regions before fine ones); for each quadrant cut
 //! into four, the child with the largest S over its four corners (eq. 4.5) has the leaf under its
 //! centre selected if that leaf covers at least `min_leaf_pixels`; every child is still descended,
-//! so no region is skipped. A pass ends at 1-pixel quadrants or after `nld_is_fraction` × width ×
-//! height selections. A call that reaches R selections resumes there next time, on whatever image
-//! it is then given.
+//! so no region is skipped. A pass ends at 1-pixel quadrants. A call that reaches R selections
+//! resumes there next time, on whatever image it is then given; a pass that selected something
+//! is followed by another on the image of that time (refinement has changed it), one that
+//! selected nothing ends the criterion's work for the camera. At most `nld_is_fraction` × width ×
+//! height leaves are selected per camera.
 
 use std::collections::{HashMap, HashSet, VecDeque};
 
@@ -62,7 +64,12 @@ pub struct NldIs {
     fraction: f32,
     min_leaf_pixels: u32,
     queue: VecDeque<Quad>,
-    started: bool,
+    /// Whether another pass may start: at first, and after a pass that selected something.
+    pass_due: bool,
+    /// A pass is under way (its quadrants are in `queue`).
+    in_pass: bool,
+    /// The pass under way has selected something.
+    found: bool,
     selected: HashSet<NodeId, FastHash>,
 }
 
@@ -72,7 +79,9 @@ impl NldIs {
             fraction: settings.nld_is_fraction,
             min_leaf_pixels: settings.min_leaf_pixels,
             queue: VecDeque::new(),
-            started: false,
+            pass_due: true,
+            in_pass: false,
+            found: false,
             selected: HashSet::default(),
         }
     }
@@ -94,15 +103,6 @@ impl Criterion for NldIs {
         if image.width == 0 || image.height == 0 {
             return Vec::new();
         }
-        if !self.started {
-            self.started = true;
-            self.queue.push_back(Quad {
-                x: 0,
-                y: 0,
-                w: image.width,
-                h: image.height,
-            });
-        }
         let pixels: HashMap<NodeId, u32, FastHash> = input
             .visible
             .leaves
@@ -112,13 +112,16 @@ impl Criterion for NldIs {
         let budget =
             (f64::from(self.fraction) * f64::from(image.width) * f64::from(image.height)) as usize;
         let mut out = Vec::new();
-        while out.len() < max {
-            if self.selected.len() >= budget {
-                self.queue.clear();
+        // One new pass per call at most: the next one should see the image refined meanwhile.
+        let mut may_start = true;
+        while out.len() < max && self.selected.len() < budget {
+            if self.queue.is_empty() {
+                if !may_start || !self.start_pass(image) {
+                    break;
+                }
+                may_start = false;
             }
-            let Some(quad) = self.queue.pop_front() else {
-                break;
-            };
+            let quad = self.queue.pop_front().expect("a pass is under way");
             // The image may have shrunk since the quad was queued.
             if quad.x + quad.w > image.width || quad.y + quad.h > image.height {
                 continue;
@@ -142,6 +145,7 @@ impl Criterion for NldIs {
                     .get(&leaf)
                     .is_some_and(|&p| p >= self.min_leaf_pixels);
                 if big_enough && input.mesh.is_leaf(leaf) && self.selected.insert(leaf) {
+                    self.found = true;
                     out.push(leaf);
                 }
             }
@@ -152,8 +156,33 @@ impl Criterion for NldIs {
 
     fn reset(&mut self) {
         self.queue.clear();
-        self.started = false;
+        self.pass_due = true;
+        self.in_pass = false;
+        self.found = false;
         self.selected.clear();
+    }
+}
+
+impl NldIs {
+    /// With the queue empty: ends the pass under way, if any (another is due only if it
+    /// selected something), and starts the next over the whole image if one is due.
+    fn start_pass(&mut self, image: &LuminanceImage) -> bool {
+        if self.in_pass {
+            self.in_pass = false;
+            self.pass_due = self.found;
+        }
+        if !self.pass_due {
+            return false;
+        }
+        self.in_pass = true;
+        self.found = false;
+        self.queue.push_back(Quad {
+            x: 0,
+            y: 0,
+            w: image.width,
+            h: image.height,
+        });
+        true
     }
 }
 
@@ -178,6 +207,26 @@ mod tests {
             picked.iter().all(|&l| edge.distance_to_shadow(l) < 3.0),
             "only leaves near the shadow edge"
         );
+    }
+
+    /// A pass that selected something is followed by one over the refined image, which finds
+    /// the new leaves along the edge; a pass that selects nothing ends the work for the camera.
+    #[test]
+    fn passes_go_on_while_they_find_something() {
+        let mut edge = Synthetic::new(4, 64, Shading::ShadowEdge);
+        let mut is = NldIs::new(&CriterionSettings::default());
+        let first = is.select(&edge.input(), usize::MAX);
+        assert!(!first.is_empty());
+        edge.refine_and_shade(&first);
+        let second = is.select(&edge.input(), usize::MAX);
+        assert!(!second.is_empty(), "the refined image has more to give");
+        assert!(second.iter().all(|l| !first.contains(l)));
+        // Without refinement in between the next pass finds nothing, and none follows it.
+        assert!(is.select(&edge.input(), usize::MAX).is_empty());
+        assert!(is.select(&edge.input(), usize::MAX).is_empty());
+        assert!(is.queue.is_empty() && !is.pass_due);
+        is.reset();
+        assert!(!is.select(&edge.input(), usize::MAX).is_empty());
     }
 
     #[test]

@@ -2,6 +2,10 @@
 //! ends after `rnd_fraction` × width × height picks. A uniform pixel is drawn from the visible
 //! set's pixel counts (a pixel beyond their sum is background and still counts as a pick), which
 //! is the same distribution as reading a random pixel of the ID buffer, without the image.
+//!
+//! A leaf is offered once per camera, and only if it covers `min_leaf_pixels`; a pass that
+//! offered something is followed by another (at most one new pass per call, so it sees the mesh
+//! refined meanwhile), one that offered nothing ends the criterion's work for the camera.
 
 use std::collections::HashSet;
 
@@ -16,7 +20,12 @@ pub struct Rnd {
     seed: u64,
     rng: Pcg64Mcg,
     fraction: f32,
+    min_leaf_pixels: u32,
+    /// Picks of the pass under way.
     picks: u64,
+    /// The pass under way offered a leaf.
+    found: bool,
+    offered: HashSet<NodeId, FastHash>,
 }
 
 impl Rnd {
@@ -25,7 +34,10 @@ impl Rnd {
             seed,
             rng: Pcg64Mcg::seed_from_u64(seed),
             fraction: settings.rnd_fraction,
+            min_leaf_pixels: settings.min_leaf_pixels,
             picks: 0,
+            found: false,
+            offered: HashSet::default(),
         }
     }
 }
@@ -53,16 +65,24 @@ impl Criterion for Rnd {
             .image_pixels()
             .max(cumulative.last().copied().unwrap_or(0));
         let budget = (f64::from(self.fraction) * visible.image_pixels() as f64) as u64;
-        let mut chosen = HashSet::<NodeId, FastHash>::default();
+        let mut may_start = true;
         let mut out = Vec::new();
-        while out.len() < max && self.picks < budget && image > 0 {
+        while out.len() < max && image > 0 {
+            if self.picks >= budget {
+                if !(may_start && self.found) {
+                    break;
+                }
+                (self.picks, self.found, may_start) = (0, false, false);
+            }
             self.picks += 1;
             let pixel = self.rng.random_range(0..image);
             let i = cumulative.partition_point(|&c| c <= pixel);
             if let Some(v) = visible.leaves.get(i)
+                && v.pixels >= self.min_leaf_pixels
                 && input.mesh.is_leaf(v.leaf)
-                && chosen.insert(v.leaf)
+                && self.offered.insert(v.leaf)
             {
+                self.found = true;
                 out.push(v.leaf);
             }
         }
@@ -72,6 +92,8 @@ impl Criterion for Rnd {
     fn reset(&mut self) {
         self.rng = Pcg64Mcg::seed_from_u64(self.seed);
         self.picks = 0;
+        self.found = false;
+        self.offered.clear();
     }
 }
 
@@ -81,8 +103,8 @@ mod tests {
     use crate::bench::synthetic::{Shading, Synthetic};
 
     #[test]
-    fn picks_follow_pixels_stop_after_the_fraction_and_repeat_after_reset() {
-        let scene = Synthetic::new(4, 64, Shading::Flat);
+    fn passes_go_on_while_they_offer_new_leaves_and_repeat_after_reset() {
+        let mut scene = Synthetic::new(4, 64, Shading::Flat);
         let settings = CriterionSettings {
             rnd_fraction: 0.01,
             ..Default::default()
@@ -90,15 +112,27 @@ mod tests {
         let mut rnd = Rnd::new(&settings, 3);
         let first = rnd.select(&scene.input(), 1000);
         assert!(
-            !first.is_empty() && first.len() <= 41,
-            "{} picks of at most 40 + 1",
+            !first.is_empty() && first.len() <= 40,
+            "{} leaves from one pass of 40 picks",
             first.len()
         );
-        assert!(
-            rnd.select(&scene.input(), 1000).is_empty(),
-            "the pass is over"
-        );
+        // Further passes on the same mesh offer each leaf at most once, then run dry.
+        let mut offered = first.clone();
+        loop {
+            let more = rnd.select(&scene.input(), 1000);
+            if more.is_empty() {
+                break;
+            }
+            offered.extend(more);
+        }
+        let distinct: HashSet<NodeId> = offered.iter().copied().collect();
+        assert_eq!(distinct.len(), offered.len(), "a leaf offered twice");
+        assert!(offered.len() <= scene.mesh.leaf_count());
+        assert!(rnd.select(&scene.input(), 1000).is_empty());
         rnd.reset();
         assert_eq!(rnd.select(&scene.input(), 1000), first);
+        // The refined mesh has new leaves to offer.
+        scene.refine_and_shade(&first);
+        assert!(!rnd.select(&scene.input(), 1000).is_empty());
     }
 }
