@@ -75,8 +75,7 @@ pub struct CriterionSettings {
     pub large_triangle_fraction: f32,
     /// RND: a pass ends after this fraction of width × height pixels has been picked (§4.3.1).
     pub rnd_fraction: f32,
-    /// NLD_IS: a pass ends after this fraction of width × height leaves has been selected
-    /// (§4.3.3).
+    /// NLD_IS: at most this fraction of width × height leaves is selected per camera (§4.3.3).
     pub nld_is_fraction: f32,
     /// No selection of a leaf covering fewer pixels (§4.3.3: 6).
     pub min_leaf_pixels: u32,
