@@ -459,10 +459,14 @@ impl ShadingCache {
             .fold(0.0, f32::max)
     }
 
-    /// L_white of DESIGN.md §6 (thesis appendix A): the largest luminance among the cached
-    /// samples of the visible leaves on their visible sides, vertices off-screen included.
+    /// L_white of DESIGN.md §6 (thesis appendix A), over the cached samples of the visible leaves
+    /// on their visible sides, vertices off-screen included: the largest luminance but for the
+    /// top [`L_WHITE_OUTLIERS`] of them. The plain maximum lets one sample decide for the whole
+    /// view: a vertex of bracara's pool that happened to mirror the sun set L_white so high that
+    /// the picture went dark and every S fell below S_min, and NLD_OS stopped refining for good
+    /// (a 20-s convergence run stuck at 6.6k samples). The few samples above L_white show white.
     pub fn l_white(&self, mesh: &SubdivisionMesh, visible: &VisibleSet) -> f32 {
-        visible
+        let mut lum: Vec<f32> = visible
             .leaves
             .iter()
             .flat_map(|v| {
@@ -473,9 +477,17 @@ impl ShadingCache {
             })
             .filter_map(|key| self.packed(slot_index(key)))
             .map(|s| luminance(s.rgb))
-            .fold(0.0, f32::max)
+            .collect();
+        let skipped = (lum.len() as f64 * L_WHITE_OUTLIERS) as usize;
+        let Some(rank) = lum.len().checked_sub(1 + skipped) else {
+            return 0.0;
+        };
+        *lum.select_nth_unstable_by(rank, f32::total_cmp).1
     }
 }
+
+/// The fraction of the brightest visible samples [`ShadingCache::l_white`] leaves above it.
+const L_WHITE_OUTLIERS: f64 = 0.001;
 
 #[cfg(test)]
 mod tests {
@@ -575,6 +587,31 @@ mod tests {
             height: 4,
         };
         assert!((cache.l_white(&mesh, &visible) - 4.0).abs() < 1e-6);
+    }
+
+    /// One glint among thousands of samples does not set L_white; the rest's maximum does.
+    #[test]
+    fn l_white_leaves_out_a_lone_outlier() {
+        let mesh = SubdivisionMesh::new(&crate::mesh::grid_mesh(40), Default::default());
+        let mut cache = ShadingCache::new(1 << 24);
+        let visible = VisibleSet {
+            leaves: (0..mesh.base_count() as NodeId)
+                .map(|leaf| crate::visible::VisibleLeaf {
+                    leaf,
+                    side: Side::Front,
+                    pixels: 9,
+                })
+                .collect(),
+            width: 64,
+            height: 64,
+        };
+        for v in 0..mesh.vertex_count() as u32 {
+            let l = if v == 7 { 1e5 } else { 1.0 + v as f32 * 1e-4 };
+            cache.insert(key(v), sample(l, Quality::DIRECT, 0));
+        }
+        let below = 1.0 + (mesh.vertex_count() - 1) as f32 * 1e-4;
+        assert!((cache.l_white(&mesh, &visible) - below).abs() < 2e-3);
+        assert_eq!(ShadingCache::new(1).l_white(&mesh, &visible), 0.0);
     }
 
     /// A long random walk of visible sets: after each eviction the cache is within budget
