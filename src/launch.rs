@@ -1,8 +1,8 @@
 //! The launcher's default action (DESIGN.md §2): renderer(s), SMA and viewer as separate child
 //! processes of this same binary, wired over loopback, on the built-in scene. In a window when a
-//! display is there; headless otherwise, writing snapshots into a folder.
+//! display is there; headless otherwise, writing snapshots into a folder. The servers bind port 0
+//! and report the port they got (`conventions::listening`), which the launcher passes on.
 
-use std::net::{SocketAddr, TcpListener};
 use std::path::PathBuf;
 use std::process::Stdio;
 use std::time::Duration;
@@ -47,20 +47,36 @@ fn has_display() -> bool {
         .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
 }
 
-/// A free loopback port, asked of the OS (the tiny window until the child binds it is harmless:
-/// the SMA and the viewer reconnect with backoff).
-pub fn free_loopback_addr() -> anyhow::Result<SocketAddr> {
-    Ok(TcpListener::bind("127.0.0.1:0")?.local_addr()?)
-}
+/// How long a server may take to report its address (scene load, BVH build, wgpu start on Mesa).
+const START_TIMEOUT: Duration = Duration::from_secs(120);
 
 fn child(args: &[String]) -> anyhow::Result<Child> {
+    spawn(args, Stdio::inherit())
+}
+
+fn spawn(args: &[String], stdout: Stdio) -> anyhow::Result<Child> {
     let exe = std::env::current_exe().context("locating the walkthrough binary")?;
     Command::new(exe)
         .args(args)
         .stdin(Stdio::null())
+        .stdout(stdout)
         .kill_on_drop(true)
         .spawn()
         .with_context(|| format!("starting walkthrough {}", args.join(" ")))
+}
+
+/// Starts a server told `--listen 127.0.0.1:0`; [`listening_addr`] reads where it listens.
+fn server(args: &[String]) -> anyhow::Result<Child> {
+    spawn(args, Stdio::piped())
+}
+
+/// The address `server` reports; the rest of its stdout goes on to ours.
+fn listening_addr(server: &mut Child) -> anyhow::Result<String> {
+    let stdout = server.stdout.take().context("the server's stdout")?;
+    let stdout = std::fs::File::from(stdout.into_owned_fd()?);
+    let addr = conventions::listening::read_addr(stdout, std::io::stdout(), START_TIMEOUT)
+        .context("waiting for a server's address")?;
+    Ok(addr.to_string())
 }
 
 fn strings(v: &[&str]) -> Vec<String> {
@@ -77,34 +93,35 @@ async fn run_async(args: LaunchArgs) -> anyhow::Result<()> {
         .unwrap_or(2);
     let threads = (cores / args.renderers.max(1)).max(1).to_string();
     let mut servers = Vec::new();
-    let mut renderer_flags = Vec::new();
     for _ in 0..args.renderers.max(1) {
-        let addr = free_loopback_addr()?.to_string();
         let a = [
             "renderer",
             "serve",
             "--scene",
             &args.scene,
             "--listen",
-            &addr,
+            "127.0.0.1:0",
             "--threads",
             &threads,
         ];
-        servers.push(child(&strings(&a))?);
-        renderer_flags.extend(["--renderer".to_string(), addr]);
+        servers.push(server(&strings(&a))?);
     }
-    let sma_addr = free_loopback_addr()?.to_string();
     let mut sma = strings(&[
         "sma",
         "--scene",
         &args.scene,
         "--listen",
-        &sma_addr,
+        "127.0.0.1:0",
         "--criterion",
         &args.criterion,
     ]);
-    sma.extend(renderer_flags);
-    servers.push(child(&sma)?);
+    // The renderers load their scenes side by side; then each reports its address.
+    for renderer in &mut servers {
+        sma.extend(["--renderer".to_string(), listening_addr(renderer)?]);
+    }
+    let mut sma = server(&sma)?;
+    let sma_addr = listening_addr(&mut sma)?;
+    servers.push(sma);
 
     let headless = args.headless || !has_display();
     let mut viewer = strings(&["viewer", "--connect", &sma_addr]);

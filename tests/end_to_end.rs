@@ -1,4 +1,4 @@
-//! The whole system over loopback (issue 7, item 2): renderer, SMA and headless viewer as real
+//! The whole system over loopback (DESIGN.md §10): renderer, SMA and headless viewer as real
 //! separate processes of the `walkthrough` binary, on view VT of the built-in scene at a small size.
 //!
 //! - Refinement must pay: for each of the thesis's criteria (rnd, nld-is, nld-os), with snapshots
@@ -24,10 +24,10 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use protocol::viewer_link::{Camera, Epoch, SceneInfo, ViewerToSma};
+use testkit::ground_truth::GroundTruth;
+use testkit::loopback::{System, SystemConfig, ViewerConfig};
 use viewer::link::{Link, LinkEvent};
 use viewer::table::{ApplyCounts, TriangleTable};
-use walkthrough::bench::convergence::ground_truth::GroundTruth;
-use walkthrough::bench::convergence::loopback::{System, SystemConfig, ViewerConfig};
 use walkthrough::bench::convergence::record::{Measurement, Schedule};
 use walkthrough::bench::convergence::{GROUND_TRUTH_SEED, INTERACTIVE_BOUNCES, measure_snapshots};
 use walkthrough::bench::metrics::Reference;

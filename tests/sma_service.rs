@@ -1,42 +1,34 @@
-//! The SMA with real processes over loopback (issue 5, Tests): `walkthrough renderer serve`
-//! ×2 and `walkthrough sma`, driven by the scripted viewer of `sma::probe`, which fails on any
+//! The SMA with real processes over loopback: `walkthrough renderer serve` ×2 and
+//! `walkthrough sma`, driven by the scripted viewer of `testkit::probe`, which fails on any
 //! inconsistency of its triangle table (duplicate insert, unknown remove or update, an epoch
 //! whose count disagrees). Needs a wgpu adapter for the SMA's visibility (Mesa without a GPU):
 //! without one the tests say so and return, unless `WALKTHROUGH_REQUIRE_GPU` is set.
 
-use std::process::Stdio;
 use std::time::Duration;
 
 use glam::Vec3;
-use sma::probe::{self, Probe};
-use sma::visibility::Gpu;
-use tokio::process::{Child, Command};
+use sma::visibility::{Gpu, coverage};
+use testkit::child::{Process, start_server, strings};
+use testkit::gpu::gpu_or_skip;
+use testkit::probe::Probe;
 
 const W: u32 = 256;
 const H: u32 = 192;
 const WAIT: Duration = Duration::from_secs(120);
 
 fn gpu() -> Option<Gpu> {
-    probe::gpu_or_skip(Gpu::new())
+    gpu_or_skip(Gpu::new())
 }
 
-/// Starts `walkthrough <args>` and waits for the line ending in "listening on ADDR".
-async fn start(args: &[&str]) -> (Child, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_walkthrough"))
-        .args(args)
-        .env("NODEVICE_SELECT", "1")
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .kill_on_drop(true)
-        .spawn()
-        .expect("starting walkthrough");
-    let addr = probe::listening_addr(child.stdout.take().unwrap(), WAIT)
-        .await
+/// Starts `walkthrough <args>` (a server on port 0) and returns it with the address it reports.
+fn start(args: &[&str]) -> (Process, String) {
+    let exe = std::path::Path::new(env!("CARGO_BIN_EXE_walkthrough"));
+    let server = start_server(exe, args[0], &strings(args), None)
         .unwrap_or_else(|e| panic!("walkthrough {args:?}: {e:#}"));
-    (child, addr)
+    (server.process, server.addr.to_string())
 }
 
-async fn renderer(scene: &str) -> (Child, String) {
+fn renderer(scene: &str) -> (Process, String) {
     start(&[
         "renderer",
         "serve",
@@ -47,10 +39,9 @@ async fn renderer(scene: &str) -> (Child, String) {
         "--threads",
         "1",
     ])
-    .await
 }
 
-async fn sma(scene: &str, renderers: &[&str], extra: &[&str]) -> (Child, String) {
+fn sma(scene: &str, renderers: &[&str], extra: &[&str]) -> (Process, String) {
     let mut args = vec![
         "sma",
         "--scene",
@@ -64,7 +55,7 @@ async fn sma(scene: &str, renderers: &[&str], extra: &[&str]) -> (Child, String)
         args.extend(["--renderer", r]);
     }
     args.extend(extra);
-    start(&args).await
+    start(&args)
 }
 
 /// Pixels whose coverage differs between the probe's table and the scene's base mesh.
@@ -73,17 +64,17 @@ fn coverage_difference(gpu: &Gpu, probe: &Probe, camera: &protocol::viewer_link:
     let base: Vec<[Vec3; 3]> = (0..scene.mesh.triangles.len())
         .map(|t| scene.mesh.triangle_positions(t))
         .collect();
-    let bounds = probe::bounds(&probe.scene);
-    let want = probe::coverage(gpu, &base, camera, bounds).unwrap();
-    let have = probe::coverage(gpu, &probe::table_triangles(probe), camera, bounds).unwrap();
+    let bounds = probe.bounds();
+    let want = coverage(gpu, &base, camera, bounds).unwrap();
+    let have = coverage(gpu, &probe.triangles(), camera, bounds).unwrap();
     want.iter().zip(&have).filter(|(a, b)| a != b).count()
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn refinement_keeps_the_table_consistent_and_the_visible_surface_covered() {
     let Some(gpu) = gpu() else { return };
-    let (_r, raddr) = renderer("cornell").await;
-    let (_s, saddr) = sma("cornell", &[&raddr], &["--criterion", "nld-os"]).await;
+    let (_r, raddr) = renderer("cornell");
+    let (_s, saddr) = sma("cornell", &[&raddr], &["--criterion", "nld-os"]);
     let mut probe = Probe::connect(&saddr).await.unwrap();
     probe
         .send(protocol::viewer_link::ViewerToSma::Pause)
@@ -121,19 +112,18 @@ async fn refinement_keeps_the_table_consistent_and_the_visible_surface_covered()
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn one_of_two_renderers_killed_loses_no_request_and_two_viewers_agree() {
     let Some(gpu) = gpu() else { return };
-    let (mut doomed, a) = renderer("bracara").await;
-    let (_b, b) = renderer("bracara").await;
+    let (mut doomed, a) = renderer("bracara");
+    let (_b, b) = renderer("bracara");
     let (_s, saddr) = sma(
         "bracara",
         &[&a, &b],
         &["--no-refine", "--batch-points", "8"],
-    )
-    .await;
+    );
     let mut one = Probe::connect(&saddr).await.unwrap();
     let camera = one.view("VT", W, H).await.unwrap();
     // Kill one renderer once shading has begun, while it holds batches.
     one.until(WAIT, |e| e.samples > 0).await.unwrap();
-    doomed.kill().await.unwrap();
+    doomed.kill();
     let done = one.complete(camera.seq, WAIT).await.unwrap();
     assert!(
         one.epochs.iter().any(|e| e.samples < done.samples / 2),

@@ -5,14 +5,14 @@ use std::path::Path;
 
 type Section = (&'static str, fn(bool) -> anyhow::Result<String>);
 
-/// The sections in the order of the issues that asked for them.
+/// The sections, from the wire up to the viewer.
 const SECTIONS: &[Section] = &[
-    ("protocol", super::protocol_bench::section),
-    ("scene", scene::bench::section),
-    ("renderer", renderer::bench::section),
-    ("sma-core", sma::bench::section),
-    ("sma-service", sma::service_bench::section),
-    ("viewer", viewer::bench::section),
+    ("protocol", super::protocol::section),
+    ("scene", super::scene::section),
+    ("renderer", super::renderer::section),
+    ("sma-core", super::sma_core::section),
+    ("sma-service", super::sma_service::section),
+    ("viewer", super::viewer::section),
 ];
 
 /// Sections written by the long end-to-end benchmarks (`bench convergence`, `bench accuracy`).

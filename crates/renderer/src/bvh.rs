@@ -5,32 +5,12 @@
 use std::time::{Duration, Instant};
 
 use glam::Vec3;
-use obvhs::BvhBuildParams;
 use obvhs::cwbvh::CwBvh;
-use obvhs::cwbvh::builder::build_cwbvh_from_tris;
 use obvhs::ray::{Ray, RayHit};
 use obvhs::rt_triangle::RtTriangle;
-use obvhs::triangle::Triangle as BvhTriangle;
 use scene::Mesh;
-
-/// BVH build presets of obvhs. `Slow` splits large triangles (spatial pre-splits); on Sponza it
-/// traced fastest (DEPENDENCY-NOTES.md), so it is the default.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum BuildPreset {
-    Fast,
-    Medium,
-    Slow,
-}
-
-impl BuildPreset {
-    pub fn params(self) -> BvhBuildParams {
-        match self {
-            BuildPreset::Fast => BvhBuildParams::fast_build(),
-            BuildPreset::Medium => BvhBuildParams::medium_build(),
-            BuildPreset::Slow => BvhBuildParams::slow_build(),
-        }
-    }
-}
+pub use scene::bvh::BuildPreset;
+use scene::bvh::{build_cwbvh, bvh_triangles};
 
 /// The closest hit of a ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -50,31 +30,11 @@ pub struct SceneBvh {
     build_time: Duration,
 }
 
-/// The scene's triangles in the form obvhs builds from.
-pub fn bvh_triangles(mesh: &Mesh) -> Vec<BvhTriangle> {
-    (0..mesh.triangles.len())
-        .map(|t| {
-            let [a, b, c] = mesh.triangle_positions(t);
-            BvhTriangle {
-                v0: a.into(),
-                v1: b.into(),
-                v2: c.into(),
-            }
-        })
-        .collect()
-}
-
 impl SceneBvh {
     pub fn build(mesh: &Mesh, preset: BuildPreset) -> SceneBvh {
         let start = Instant::now();
         let tris = bvh_triangles(mesh);
-        // obvhs' builder expects at least one primitive; an empty scene gets an empty BVH, which
-        // its traversal treats as "no nodes".
-        let bvh = if tris.is_empty() {
-            CwBvh::default()
-        } else {
-            build_cwbvh_from_tris(&tris, preset.params(), &mut Duration::default())
-        };
+        let bvh = build_cwbvh(&tris, preset);
         let prim_triangle = bvh.primitive_indices.clone();
         let prims = prim_triangle
             .iter()

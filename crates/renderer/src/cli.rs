@@ -1,7 +1,6 @@
 //! Command line: `renderer serve …` and `renderer reference …` (the launcher embeds [`Cli`] as
 //! `walkthrough renderer …`).
 
-use std::io::Write;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -73,13 +72,6 @@ pub enum Command {
         #[arg(long, default_value_t = 0)]
         threads: usize,
     },
-    /// Print the renderer's BENCHMARKS.md section (run from the repository root, where
-    /// scenes/sponza.toml is).
-    Bench {
-        /// A few-second version with small sizes.
-        #[arg(long)]
-        quick: bool,
-    },
 }
 
 /// A bounce depth on the command line: a number, or "unbounded" (`None`, Russian roulette).
@@ -134,10 +126,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             };
             reference(&scene, &view, &settings, &out, l_white, threads)
         }
-        Command::Bench { quick } => {
-            print!("{}", crate::bench::section(quick)?);
-            Ok(())
-        }
     }
 }
 
@@ -168,9 +156,8 @@ fn serve(spec: &str, listen: &str, threads: usize, max_frame: usize) -> anyhow::
             .await
             .with_context(|| format!("binding {listen}"))?;
         let addr = listener.local_addr()?;
-        // A machine-readable line for launchers and tests that asked for port 0.
-        println!("listening on {addr}");
-        std::io::stdout().flush()?;
+        // The launcher and tests read this line to learn the port when `--listen` asks for port 0.
+        conventions::listening::announce("renderer", addr)?;
         tracing::info!(%addr, "renderer serving");
         service
             .serve(listener, async {

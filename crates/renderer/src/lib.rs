@@ -7,9 +7,8 @@
 //! - [`shade`]: points and batches at a quality, deterministic per (seed, index);
 //! - [`service`]: the TCP server of the renderer link;
 //! - [`reference`] and [`tonemap`]: reference images (EXR + tone-mapped PNG);
-//! - [`cli`]: `renderer serve` and `renderer reference`; [`bench`]: BENCHMARKS.md figures.
+//! - [`cli`]: `renderer serve` and `renderer reference`, the only module that parses arguments.
 
-pub mod bench;
 pub mod bvh;
 pub mod cli;
 pub mod counters;

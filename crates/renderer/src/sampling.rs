@@ -83,9 +83,9 @@ pub fn uniform_triangle(u: [f32; 2]) -> [f32; 2] {
     [s * (1.0 - u[1]), s * u[1]]
 }
 
-/// Rec. 709 luminance (DESIGN.md §6).
+/// Rec. 709 luminance (DESIGN.md §6, `conventions::luminance`) of a radiance vector.
 pub fn luminance(c: Vec3) -> f32 {
-    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+    conventions::luminance(c.to_array())
 }
 
 #[cfg(test)]

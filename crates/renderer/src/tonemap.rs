@@ -1,35 +1,14 @@
-//! Tone mapping and image files for reference images. Drago's logarithmic operator (thesis eq. 4.2,
-//! DESIGN.md §9), `L_d = log(1 + L) / log(1 + L_white)`, applied to Rec. 709 luminance with the
-//! colour kept, then sRGB encoding: the same mapping the viewer applies, so images compare.
+//! Image files for reference images: linear EXR, and a PNG tone-mapped with Drago's operator
+//! (thesis eq. 4.2, DESIGN.md §9) then sRGB-encoded, by `conventions::tone_map`: the same mapping
+//! the viewer applies, so images compare.
 
 use std::path::Path;
 
 use anyhow::Context;
+use conventions::tone_map::{ToneMap, srgb8};
 use glam::Vec3;
 
 use crate::sampling::luminance;
-
-/// Drago-mapped display RGB (0..1 where `L <= L_white`) of linear radiance `rgb`.
-pub fn drago(rgb: Vec3, l_white: f32) -> Vec3 {
-    let l = luminance(rgb);
-    // Also rejects NaN: comparisons with NaN are false.
-    let usable = l > 0.0 && l_white > 0.0;
-    if !usable {
-        return Vec3::ZERO;
-    }
-    let ld = (1.0 + l).ln() / (1.0 + l_white).ln();
-    rgb * (ld / l)
-}
-
-/// sRGB transfer function of a linear value in 0..1.
-pub fn srgb_encode(x: f32) -> f32 {
-    let x = x.clamp(0.0, 1.0);
-    if x <= 0.003_130_8 {
-        12.92 * x
-    } else {
-        1.055 * x.powf(1.0 / 2.4) - 0.055
-    }
-}
 
 /// The largest finite luminance among `pixels` (the default `L_white`).
 pub fn max_luminance(pixels: impl IntoIterator<Item = Vec3>) -> f32 {
@@ -44,8 +23,8 @@ pub fn max_luminance(pixels: impl IntoIterator<Item = Vec3>) -> f32 {
 pub fn to_srgb8(pixels: &[Vec3], l_white: f32) -> Vec<u8> {
     pixels
         .iter()
-        .flat_map(|&p| drago(p, l_white).to_array())
-        .map(|c| (srgb_encode(c) * 255.0 + 0.5) as u8)
+        .flat_map(|&p| ToneMap::Drago.display_rgb(p.to_array(), l_white))
+        .map(srgb8)
         .collect()
 }
 
@@ -91,21 +70,11 @@ mod tests {
     use super::*;
 
     #[test]
-    fn drago_maps_white_to_one_and_keeps_colour_ratios() {
-        let white = drago(Vec3::splat(5.0), 5.0);
-        assert!((luminance(white) - 1.0).abs() < 1e-5);
-        let c = drago(Vec3::new(2.0, 1.0, 0.5), 10.0);
-        assert!((c.x / c.y - 2.0).abs() < 1e-5 && (c.y / c.z - 2.0).abs() < 1e-5);
-        assert_eq!(drago(Vec3::ZERO, 1.0), Vec3::ZERO);
-        assert_eq!(drago(Vec3::splat(f32::NAN), 1.0), Vec3::ZERO);
-    }
-
-    #[test]
-    fn srgb_endpoints_and_monotone() {
-        assert_eq!(srgb_encode(0.0), 0.0);
-        assert!((srgb_encode(1.0) - 1.0).abs() < 1e-6);
-        assert!(srgb_encode(0.2) > srgb_encode(0.1));
-        assert!((srgb_encode(0.5) - 0.7354).abs() < 1e-3);
+    fn png_pixels_are_drago_then_srgb() {
+        let px = [Vec3::new(2.0, 1.0, 0.5), Vec3::ZERO];
+        let bytes = to_srgb8(&px, 4.0);
+        let want = ToneMap::Drago.display_rgb([2.0, 1.0, 0.5], 4.0).map(srgb8);
+        assert_eq!(bytes, [want[0], want[1], want[2], 0, 0, 0]);
     }
 
     #[test]

@@ -13,18 +13,18 @@ mod obj_check;
 mod scene_file;
 mod vertex_split;
 
-pub mod bench;
+pub mod bvh;
+mod cpu_visibility;
 pub mod export;
 pub mod info;
 pub mod model;
 pub mod settings;
-pub mod visibility;
 
 pub use builder::SceneBuilder;
 pub use builtin::BUILTIN_NAMES;
+pub use cpu_visibility::{VisibilityEstimator, visible_base_triangles};
 pub use error::SceneError;
 pub use fingerprint::hex as fingerprint_hex;
 pub use model::{Effects, LoadReport, Material, Mesh, Scattering, Scene, Triangle};
 pub use scene_file::{load, load_scene_file};
 pub use settings::{QualitySetting, SceneSettings, Sky, Sun, ViewpointSetting};
-pub use visibility::{VisibilityEstimator, visible_base_triangles};

@@ -17,8 +17,8 @@ use protocol::Side;
 use protocol::renderer_link::{Quality, SampleKey};
 
 use crate::mesh::{NodeId, SubdivisionMesh};
-use crate::nld::luminance;
-use crate::visible::VisibleSet;
+use crate::visible_set::VisibleSet;
+use conventions::luminance;
 
 /// A sample as callers build and read it; stored packed (`PackedSample`).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -578,7 +578,7 @@ mod tests {
         );
         assert_eq!(cache.leaf_radiance(&mesh, 0, Side::Back), None);
         let visible = VisibleSet {
-            leaves: vec![crate::visible::VisibleLeaf {
+            leaves: vec![crate::visible_set::VisibleLeaf {
                 leaf: 0,
                 side: Side::Front,
                 pixels: 9,
@@ -596,7 +596,7 @@ mod tests {
         let mut cache = ShadingCache::new(1 << 24);
         let visible = VisibleSet {
             leaves: (0..mesh.base_count() as NodeId)
-                .map(|leaf| crate::visible::VisibleLeaf {
+                .map(|leaf| crate::visible_set::VisibleLeaf {
                     leaf,
                     side: Side::Front,
                     pixels: 9,

@@ -1,17 +1,22 @@
 //! The SMA's command line (`sma …`, and `walkthrough sma …` through the launcher): every
-//! refinement parameter is a flag; the defaults, and the measurements behind them, are in
-//! `CriterionSettings::default` / `MeshParams::default` (the core) and on each flag here.
+//! refinement parameter is a flag. The defaults are set once, in `SmaConfig::default` and the
+//! core's `CriterionSettings::default` / `MeshParams::default`; the measurements behind them are
+//! on each flag here. The only module of the library that knows clap: it turns flags into an
+//! [`SmaConfig`] and runs [`server::start`](crate::server::start).
 
 use std::time::Duration;
 
 use anyhow::Context;
 use clap::Parser;
-use protocol::frame::DEFAULT_MAX_FRAME;
-use protocol::viewer_link::SceneInfo;
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 
-use crate::criteria::{CRITERIA, CriterionSettings};
+use crate::config::{ScheduleConfig, SmaConfig};
+use crate::criteria::{CriterionKind, CriterionSettings};
 use crate::mesh::MeshParams;
-use crate::schedule::ScheduleConfig;
+
+fn defaults() -> SmaConfig {
+    SmaConfig::default()
+}
 
 fn criterion_defaults() -> CriterionSettings {
     CriterionSettings::default()
@@ -19,6 +24,13 @@ fn criterion_defaults() -> CriterionSettings {
 
 fn mesh_defaults() -> MeshParams {
     MeshParams::default()
+}
+
+/// `--criterion`: one of the criteria's names, as a [`CriterionKind`].
+fn criterion_parser() -> impl TypedValueParser<Value = CriterionKind> {
+    let names: Vec<&str> = CriterionKind::ALL.iter().map(|k| k.name()).collect();
+    PossibleValuesParser::new(names)
+        .map(|name| CriterionKind::from_name(&name).expect("a possible value"))
 }
 
 #[derive(Parser, Debug, Clone)]
@@ -31,19 +43,19 @@ pub struct Cli {
     #[arg(long, default_value = "bracara")]
     pub scene: String,
     /// Address to accept viewers on.
-    #[arg(long, default_value = "127.0.0.1:7200")]
+    #[arg(long, default_value_t = defaults().listen)]
     pub listen: String,
     /// A renderer `host:port`; repeat for several.
     #[arg(long = "renderer", required = true)]
     pub renderers: Vec<String>,
     /// Refinement criterion (each viewer may change its own with SetCriterion).
-    #[arg(long, default_value = "nld-os", value_parser = clap::builder::PossibleValuesParser::new(CRITERIA))]
-    pub criterion: String,
+    #[arg(long, default_value_t = defaults().schedule.criterion, value_parser = criterion_parser())]
+    pub criterion: CriterionKind,
     /// No refinement at all: only the base mesh is shaded (the control run).
     #[arg(long)]
     pub no_refine: bool,
     /// Seed of the criteria's and the renderers' random streams.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = defaults().schedule.seed)]
     pub seed: u64,
 
     /// R: leaves a criterion may select per refinement round (§4.3.5). A round waits for its
@@ -52,42 +64,42 @@ pub struct Cli {
     /// FLIP 0.095 / 0.082 / 0.067 at 1 s with R = 64 / 256 / 1024, and RND on Sponza S1 0.132 /
     /// 0.119 / 0.117 at 10 s; but with 1024 RND ran out of leaves to offer on VT after 5 s (0.072
     /// against 0.057 with 256). A camera change is not held up: it re-plans the queue at once.
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = defaults().schedule.max_selections)]
     pub max_selections: usize,
     /// No leaf covering fewer pixels is split (one sample per few pixels is the useful limit).
-    #[arg(long, default_value_t = 6)]
+    #[arg(long, default_value_t = defaults().schedule.min_split_pixels)]
     pub min_split_pixels: u32,
     /// K: visibility is re-run after this many new samples.
-    #[arg(long, default_value_t = 20_000)]
+    #[arg(long, default_value_t = defaults().schedule.revisit_samples)]
     pub revisit_samples: u64,
     /// Points per shade batch.
-    #[arg(long, default_value_t = 128)]
+    #[arg(long, default_value_t = defaults().schedule.batch_points)]
     pub batch_points: usize,
     /// Batches in flight per renderer.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = defaults().schedule.batches_per_renderer)]
     pub batches_per_renderer: usize,
     /// Refinement waits until fewer samples than this are queued or in flight.
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = defaults().schedule.queue_low)]
     pub queue_low: usize,
     /// A camera rests (refinement may start) once unchanged this many milliseconds.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = defaults().schedule.rest.as_millis() as u64)]
     pub rest_ms: u64,
     /// A view-dependent sample is retaken once the eye has moved by this angle, seen from it.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = defaults().schedule.view_angle_deg)]
     pub view_angle_deg: f32,
     /// Seconds between stats lines.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = defaults().schedule.stats_every.as_secs_f32())]
     pub stats_secs: f32,
     /// Subdivision of a base triangle no viewer has seen for this many visibility passes is
     /// collapsed (0: never). Passes come with each camera change and every K samples, so this
     /// is some seconds of walking away, or minutes of standing elsewhere.
-    #[arg(long, default_value_t = 300)]
+    #[arg(long, default_value_t = defaults().schedule.coarsen_after_passes)]
     pub coarsen_after_passes: u64,
     /// Shading cache budget, MiB.
-    #[arg(long, default_value_t = 1024)]
+    #[arg(long, default_value_t = defaults().schedule.cache_budget_bytes >> 20)]
     pub cache_mib: usize,
     /// Largest frame accepted or sent.
-    #[arg(long, default_value_t = DEFAULT_MAX_FRAME)]
+    #[arg(long, default_value_t = defaults().max_frame)]
     pub max_frame: usize,
 
     /// NLD_OS: first S_ref (§4.3.4).
@@ -123,17 +135,17 @@ pub struct Cli {
 }
 
 impl Cli {
-    /// A command line with every default, for tests and benchmarks.
-    pub fn with_renderers(renderers: Vec<String>) -> Cli {
-        let mut cli = Cli::parse_from(["sma", "--renderer", "unused"]);
-        cli.renderers = renderers;
-        cli
-    }
-
-    pub fn mesh_params(&self) -> MeshParams {
-        MeshParams {
-            min_edge_length: self.min_edge_length,
-            weld_tolerance_rel: self.weld_tolerance,
+    /// The configuration these flags ask for.
+    pub fn config(&self) -> SmaConfig {
+        SmaConfig {
+            listen: self.listen.clone(),
+            renderers: self.renderers.clone(),
+            max_frame: self.max_frame,
+            mesh: MeshParams {
+                min_edge_length: self.min_edge_length,
+                weld_tolerance_rel: self.weld_tolerance,
+            },
+            schedule: self.schedule_config(),
         }
     }
 
@@ -150,9 +162,9 @@ impl Cli {
         }
     }
 
-    pub fn schedule_config(&self) -> ScheduleConfig {
+    fn schedule_config(&self) -> ScheduleConfig {
         ScheduleConfig {
-            criterion: self.criterion.clone(),
+            criterion: self.criterion,
             criterion_settings: self.criterion_settings(),
             refine: !self.no_refine,
             max_selections: self.max_selections,
@@ -188,46 +200,41 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 async fn serve(cli: Cli) -> anyhow::Result<()> {
     let scene =
         scene::load(&cli.scene).with_context(|| format!("loading scene {:?}", cli.scene))?;
-    let running = crate::server::start(&cli, scene).await?;
-    // Tests and the launcher read this line to learn the port when `--listen` asks for port 0.
-    println!("sma listening on {}", running.addr);
-    let outcome = tokio::select! {
-        r = tokio::signal::ctrl_c() => r.context("waiting for Ctrl-C"),
-        _ = running.finished() => Ok(()),
+    let ctrl_c = async {
+        let _ = tokio::signal::ctrl_c().await;
+        tracing::info!("shutting down");
     };
-    tracing::info!("shutting down");
-    running.stop().await?;
-    outcome
+    let running = crate::server::start(cli.config(), scene, ctrl_c).await?;
+    // The launcher and tests read this line to learn the port when `--listen` asks for port 0.
+    conventions::listening::announce("sma", running.addr)?;
+    running.stopped().await
 }
 
-pub fn scene_info(scene: &scene::Scene, active_criterion: &str) -> SceneInfo {
-    let (lo, hi) = scene.mesh.bounds();
-    let mut criteria = vec![active_criterion.to_string()];
-    criteria.extend(
-        CRITERIA
-            .iter()
-            .filter(|c| **c != active_criterion)
-            .map(|c| c.to_string()),
-    );
-    SceneInfo {
-        name: scene.name.clone(),
-        fingerprint: scene.fingerprint,
-        bounds: protocol::types::Bounds {
-            min: lo.to_array(),
-            max: hi.to_array(),
-        },
-        viewpoints: scene
-            .settings
-            .viewpoints
-            .iter()
-            .map(|v| protocol::types::Viewpoint {
-                name: v.name.clone(),
-                eye: v.eye,
-                target: v.target,
-                up: v.up,
-                fov_y_deg: v.fov_y_deg,
-            })
-            .collect(),
-        criteria,
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn flag_defaults_are_the_config_defaults() {
+        let cli = Cli::try_parse_from(["sma", "--renderer", "r:1"]).unwrap();
+        let (from_flags, defaults) = (cli.config(), SmaConfig::default());
+        assert_eq!(from_flags.listen, defaults.listen);
+        assert_eq!(from_flags.renderers, ["r:1"]);
+        assert_eq!(from_flags.max_frame, defaults.max_frame);
+        assert_eq!(
+            format!("{:?}", from_flags.schedule),
+            format!("{:?}", defaults.schedule)
+        );
+        assert_eq!(
+            format!("{:?}", from_flags.mesh),
+            format!("{:?}", defaults.mesh)
+        );
+    }
+
+    #[test]
+    fn criteria_are_parsed_by_name() {
+        let cli = Cli::try_parse_from(["sma", "--renderer", "r:1", "--criterion", "rnd"]).unwrap();
+        assert_eq!(cli.criterion, CriterionKind::Rnd);
+        assert!(Cli::try_parse_from(["sma", "--renderer", "r:1", "--criterion", "x"]).is_err());
     }
 }

@@ -1,6 +1,6 @@
 //! Refinement criteria (thesis §4.3, DESIGN.md §6), one module each behind [`Criterion`]. Adding
-//! one: a new file under `criteria/`, a `mod` line, its name in [`CRITERIA`] and an arm in
-//! [`make_criterion`].
+//! one: a new file under `criteria/`, a `mod` line, a variant of [`CriterionKind`] with its name,
+//! and an arm in [`make_criterion`].
 //!
 //! Every criterion returns at most R (`max`) leaves per call (§4.3.5) so the SMA's loop stays
 //! responsive, keeps its progress between calls, and is deterministic for a seed.
@@ -9,10 +9,12 @@ mod nld_is;
 mod nld_os;
 mod nld_px;
 mod rnd;
+#[cfg(any(test, feature = "bench"))]
+pub mod synthetic;
 
 use crate::cache::ShadingCache;
 use crate::mesh::{NodeId, SubdivisionMesh};
-use crate::visible::VisibleSet;
+use crate::visible_set::VisibleSet;
 
 pub use nld_is::NldIs;
 pub use nld_os::NldOs;
@@ -49,7 +51,7 @@ impl LuminanceImage {
 }
 
 pub trait Criterion: Send {
-    fn name(&self) -> &'static str;
+    fn kind(&self) -> CriterionKind;
     /// Whether `select` needs `CriterionInput::image`.
     fn needs_image(&self) -> bool;
     /// Up to `max` distinct leaves to refine; empty when nothing (more) is worth refining now.
@@ -58,7 +60,53 @@ pub trait Criterion: Send {
     fn reset(&mut self);
 }
 
-pub const CRITERIA: &[&str] = &["rnd", "nld-is", "nld-os", "nld-px"];
+/// The criteria there are; on the wire and the command line by [`CriterionKind::name`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum CriterionKind {
+    /// RND, §4.3.1.
+    Rnd,
+    /// NLD_IS, §4.3.3.
+    NldIs,
+    /// NLD_OS, §4.3.4.
+    NldOs,
+    /// NLD_PX: NLD_OS ranked by eq. 3.4's priority.
+    NldPx,
+}
+
+impl CriterionKind {
+    pub const ALL: [CriterionKind; 4] = [
+        CriterionKind::Rnd,
+        CriterionKind::NldIs,
+        CriterionKind::NldOs,
+        CriterionKind::NldPx,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            CriterionKind::Rnd => "rnd",
+            CriterionKind::NldIs => "nld-is",
+            CriterionKind::NldOs => "nld-os",
+            CriterionKind::NldPx => "nld-px",
+        }
+    }
+
+    /// The criterion called `name`, if there is one.
+    pub fn from_name(name: &str) -> Option<CriterionKind> {
+        CriterionKind::ALL.into_iter().find(|k| k.name() == name)
+    }
+
+    /// Every name, comma-separated (for messages).
+    pub fn names() -> String {
+        let names: Vec<&str> = CriterionKind::ALL.iter().map(|k| k.name()).collect();
+        names.join(", ")
+    }
+}
+
+impl std::fmt::Display for CriterionKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
 
 /// Every parameter of every criterion. Defaults and the measurements behind them are in
 /// `Default` and in each criterion's module documentation.
@@ -84,7 +132,7 @@ pub struct CriterionSettings {
     pub nld_px_epsilon: f32,
 }
 
-/// Defaults from the synthetic convergence runs of `bench::criteria_experiment` (8×8 grid at
+/// Defaults from the synthetic convergence runs of the `sma-core` benchmark (8×8 grid at
 /// 128×128, a hard shadow line, a shadow disc between vertices, a smooth ripple; mean absolute
 /// luminance error after 300 / 600 / 1,200 samples, R = 16; figures in BENCHMARKS.md):
 /// - `s_ref_start` 0.5, `s_ref_step` 0.1: the error did not move (0.0150 / 0.0091 / 0.0031)
@@ -117,19 +165,18 @@ impl Default for CriterionSettings {
     }
 }
 
-/// The criterion called `name` (one of [`CRITERIA`]).
+/// A criterion of `kind`; `seed` feeds the random ones.
 pub fn make_criterion(
-    name: &str,
+    kind: CriterionKind,
     settings: &CriterionSettings,
     seed: u64,
-) -> Option<Box<dyn Criterion>> {
-    Some(match name {
-        "rnd" => Box::new(Rnd::new(settings, seed)),
-        "nld-is" => Box::new(NldIs::new(settings)),
-        "nld-os" => Box::new(NldOs::new(settings)),
-        "nld-px" => Box::new(NldPx::new(settings)),
-        _ => return None,
-    })
+) -> Box<dyn Criterion> {
+    match kind {
+        CriterionKind::Rnd => Box::new(Rnd::new(settings, seed)),
+        CriterionKind::NldIs => Box::new(NldIs::new(settings)),
+        CriterionKind::NldOs => Box::new(NldOs::new(settings)),
+        CriterionKind::NldPx => Box::new(NldPx::new(settings)),
+    }
 }
 
 /// Whether a visible leaf covers more than `fraction` of the image (§4.3.5).
@@ -141,7 +188,7 @@ fn is_large(pixels: u32, visible: &VisibleSet, fraction: f32) -> bool {
 fn leaf_nld(input: &CriterionInput, leaf: NodeId, side: protocol::Side) -> Option<f32> {
     let rgb = input.cache.leaf_radiance(input.mesh, leaf, side)?;
     Some(crate::nld::nld3(
-        rgb.map(crate::nld::luminance),
+        rgb.map(conventions::luminance),
         input.l_white,
     ))
 }
@@ -151,11 +198,12 @@ mod tests {
     use super::*;
 
     #[test]
-    fn every_listed_criterion_is_made_and_named_so() {
-        for &name in CRITERIA {
-            let c = make_criterion(name, &CriterionSettings::default(), 1).expect(name);
-            assert_eq!(c.name(), name);
+    fn every_kind_is_made_and_found_by_its_name() {
+        for kind in CriterionKind::ALL {
+            let c = make_criterion(kind, &CriterionSettings::default(), 1);
+            assert_eq!(c.kind(), kind);
+            assert_eq!(CriterionKind::from_name(kind.name()), Some(kind));
         }
-        assert!(make_criterion("nope", &CriterionSettings::default(), 1).is_none());
+        assert_eq!(CriterionKind::from_name("nope"), None);
     }
 }

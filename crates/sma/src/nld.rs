@@ -1,11 +1,6 @@
 //! The NLD metric (thesis eq. 4.3, appendix A) and NLD_MM (eq. 4.4), with luminance from RGB by
 //! Rec. 709 weights (DESIGN.md §6).
 
-/// Rec. 709 luminance of linear RGB.
-pub fn luminance(rgb: [f32; 3]) -> f32 {
-    0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]
-}
-
 /// `S` of eq. 4.3 for any N: sqrt(sum_{i<j} (L_i - L_j)^2 / ((N*N div 4) L_white^2)). The pair
 /// sum is computed as N * sum (L_i - mean)^2, the same quantity, in O(N) and never negative.
 /// Clamped to [0, 1] (a vertex may be brighter than L_white); 0 when N < 2, when L_white is not

@@ -10,11 +10,11 @@ use anyhow::Context;
 use tokio::net::TcpListener;
 use tokio::sync::{mpsc, watch};
 
-use crate::cli::{Cli, scene_info};
+use crate::config::SmaConfig;
 use crate::mesh::SubdivisionMesh;
 use crate::pool::{self, PoolConfig, PoolEvent};
 use crate::schedule::Schedule;
-use crate::viewer_link::{self, ViewerEvent, ViewerId, ViewerLinkConfig};
+use crate::viewer_link::{self, ViewerEvent, ViewerId, ViewerLinkConfig, scene_info};
 use crate::visibility::Gpu;
 
 /// A started SMA.
@@ -26,11 +26,18 @@ pub struct Running {
 }
 
 impl Running {
-    /// Resolves when the schedule has ended by itself (an error in it ends the SMA).
-    pub async fn finished(&self) {
-        while !self.schedule.is_finished() {
-            tokio::time::sleep(Duration::from_millis(100)).await;
+    /// Resolves once the SMA has stopped: the `shutdown` given to [`start`] resolved (or
+    /// [`Running::stop`] was called), or the schedule ended by itself (an error in it ends the SMA).
+    /// Returns the schedule's outcome.
+    pub async fn stopped(self) -> anyhow::Result<()> {
+        let mut shutdown = self.shutdown.subscribe();
+        while !self.schedule.is_finished() && !*shutdown.borrow_and_update() {
+            tokio::select! {
+                _ = shutdown.changed() => {}
+                _ = tokio::time::sleep(Duration::from_millis(100)) => {}
+            }
         }
+        self.stop().await
     }
 
     /// Signals every task and the schedule to stop, and waits for the schedule's outcome.
@@ -42,32 +49,42 @@ impl Running {
     }
 }
 
-/// Starts the SMA for `scene` as `cli` says: binds the listener, connects the pool, opens the
-/// graphics device. Must be called within a multi-threaded tokio runtime.
-pub async fn start(cli: &Cli, scene: scene::Scene) -> anyhow::Result<Running> {
-    let mesh = SubdivisionMesh::new(&scene.mesh, cli.mesh_params());
+/// Starts the SMA for `scene` as `config` says: binds the listener, connects the pool, opens the
+/// graphics device; everything stops when `shutdown` resolves (or at [`Running::stop`]). Must be
+/// called within a multi-threaded tokio runtime.
+pub async fn start(
+    config: SmaConfig,
+    scene: scene::Scene,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> anyhow::Result<Running> {
+    let mesh = SubdivisionMesh::new(&scene.mesh, config.mesh);
     let gpu = Gpu::new().context("visibility needs a graphics adapter")?;
-    let (shutdown, shutdown_rx) = watch::channel(false);
+    let (shutdown_tx, shutdown_rx) = watch::channel(false);
+    let on_shutdown = shutdown_tx.clone();
+    tokio::spawn(async move {
+        shutdown.await;
+        let _ = on_shutdown.send(true);
+    });
     let (pool_tx, pool_rx) = mpsc::unbounded_channel();
     let pool_config = PoolConfig {
-        renderers: cli.renderers.clone(),
+        renderers: config.renderers.clone(),
         fingerprint: scene.fingerprint,
-        depth: cli.batches_per_renderer.max(1),
-        max_frame: cli.max_frame,
+        depth: config.schedule.batches_per_renderer.max(1),
+        max_frame: config.max_frame,
         backoff_min: Duration::from_millis(100),
         backoff_max: Duration::from_secs(5),
     };
     let pool = pool::spawn(pool_config, pool_tx, shutdown_rx.clone());
     let link = ViewerLinkConfig {
-        scene_info: scene_info(&scene, &cli.criterion),
+        scene_info: scene_info(&scene, config.schedule.criterion),
         fingerprint: scene.fingerprint,
-        max_frame: cli.max_frame,
+        max_frame: config.max_frame,
     };
-    let schedule = Schedule::new(cli.schedule_config(), &scene, mesh, gpu, pool)?;
+    let schedule = Schedule::new(config.schedule, &scene, mesh, gpu, pool);
     tracing::info!(adapter = %schedule.adapter(), scene = %scene.name, "visibility device");
-    let listener = TcpListener::bind(&cli.listen)
+    let listener = TcpListener::bind(&config.listen)
         .await
-        .with_context(|| format!("listening on {}", cli.listen))?;
+        .with_context(|| format!("listening on {}", config.listen))?;
     let addr = listener.local_addr()?;
     let (viewer_tx, viewer_rx) = mpsc::unbounded_channel();
     tokio::spawn(accept_viewers(
@@ -79,7 +96,7 @@ pub async fn start(cli: &Cli, scene: scene::Scene) -> anyhow::Result<Running> {
     let schedule = spawn_schedule(schedule, viewer_rx, pool_rx, shutdown_rx)?;
     Ok(Running {
         addr,
-        shutdown,
+        shutdown: shutdown_tx,
         schedule,
     })
 }
@@ -109,7 +126,7 @@ fn spawn_schedule(
 
 /// Accepts viewers until shutdown. Accept errors (e.g. out of file descriptors) are logged and
 /// retried after a pause rather than ending the server.
-pub async fn accept_viewers(
+async fn accept_viewers(
     listener: TcpListener,
     config: ViewerLinkConfig,
     events: mpsc::UnboundedSender<ViewerEvent>,

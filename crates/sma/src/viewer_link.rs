@@ -9,6 +9,8 @@ use protocol::{Fingerprint, ProtocolError, Role, split_tcp};
 use tokio::net::TcpStream;
 use tokio::sync::{mpsc, watch};
 
+use crate::criteria::CriterionKind;
+
 /// Identifies one viewer connection for the life of the process.
 pub type ViewerId = u64;
 
@@ -145,5 +147,36 @@ pub fn camera_problem(camera: &Camera) -> Option<String> {
         ))
     } else {
         None
+    }
+}
+
+/// What a viewer learns of `scene` first (it has no scene of its own, DESIGN.md §2): its name,
+/// fingerprint, bounds, viewpoints, and the criteria, the one viewers start with first.
+pub fn scene_info(scene: &scene::Scene, active: CriterionKind) -> SceneInfo {
+    let (lo, hi) = scene.mesh.bounds();
+    let criteria = std::iter::once(active)
+        .chain(CriterionKind::ALL.into_iter().filter(|&k| k != active))
+        .map(|k| k.name().to_string())
+        .collect();
+    SceneInfo {
+        name: scene.name.clone(),
+        fingerprint: scene.fingerprint,
+        bounds: protocol::types::Bounds {
+            min: lo.to_array(),
+            max: hi.to_array(),
+        },
+        viewpoints: scene
+            .settings
+            .viewpoints
+            .iter()
+            .map(|v| protocol::types::Viewpoint {
+                name: v.name.clone(),
+                eye: v.eye,
+                target: v.target,
+                up: v.up,
+                fov_y_deg: v.fov_y_deg,
+            })
+            .collect(),
+        criteria,
     }
 }

@@ -1,31 +1,30 @@
-//! The SMA service in-process over loopback (issue 5, Tests), against fake renderers that shade
-//! a known function of position and record every request, and the scripted viewer of
-//! `sma::probe`, which fails on any inconsistency of its triangle table. Needs a wgpu adapter
+//! The SMA service in-process over loopback, against fake renderers that shade a known function
+//! of position and record every request (`testkit::fake_renderer`), and the scripted viewer of
+//! `testkit::probe`, which fails on any inconsistency of its triangle table. Needs a wgpu adapter
 //! (Mesa without a GPU): without one the tests say so and return, unless
 //! `WALKTHROUGH_REQUIRE_GPU` is set.
 
 use std::collections::HashMap;
-use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use glam::Vec3;
-use protocol::connection::accept_handshake;
-use protocol::renderer_link::{FromRenderer, Quality, Radiance, SampleKey, ShadePoint, ToRenderer};
+use protocol::Side;
+use protocol::renderer_link::{Quality, SampleKey};
 use protocol::viewer_link::{Camera, ViewerToSma};
-use protocol::{Role, Side, split_tcp};
 use scene::{Material, Scene, SceneBuilder, SceneSettings, ViewpointSetting};
-use sma::cli::Cli;
-use sma::probe::{self, Probe};
+use sma::config::SmaConfig;
 use sma::server::Running;
 use sma::visibility::Gpu;
-use tokio::net::TcpListener;
+use testkit::fake_renderer::{self, Fault, Log};
+use testkit::gpu::gpu_or_skip;
+use testkit::probe::Probe;
 
 const W: u32 = 200;
 const H: u32 = 150;
 const WAIT: Duration = Duration::from_secs(60);
 
 fn gpu_available() -> bool {
-    probe::gpu_or_skip(Gpu::new()).is_some()
+    gpu_or_skip(Gpu::new()).is_some()
 }
 
 fn viewpoint(name: &str, eye: [f32; 3], target: [f32; 3]) -> ViewpointSetting {
@@ -87,13 +86,6 @@ fn diffuse_wall() -> Scene {
 /// What the fake renderer returns: a sharp "shadow" edge at x = 0.3 (something to refine), the
 /// back side darker, the cheap quality dimmer, and a view-dependent point brighter the further
 /// its eye is off x = 0, so each of those shows in the radiance.
-fn fake_radiance(scene: &Scene, point: &ShadePoint, quality: Quality) -> [f32; 3] {
-    let [a, b, c] = scene.mesh.triangle_positions(point.base_triangle as usize);
-    let [u, v] = point.bary;
-    let p = a * (1.0 - u - v) + b * u + c * v;
-    radiance_at(p, point.side, quality, point.eye.map(Vec3::from))
-}
-
 fn radiance_at(p: Vec3, side: Side, quality: Quality, eye: Option<Vec3>) -> [f32; 3] {
     let lit = if p.x > 0.3 { 1.0 } else { 0.1 };
     let side = if side == Side::Back { 0.5 } else { 1.0 };
@@ -102,89 +94,21 @@ fn radiance_at(p: Vec3, side: Side, quality: Quality, eye: Option<Vec3>) -> [f32
     [lit * side * q * gloss; 3]
 }
 
-type Log = Arc<Mutex<Vec<(SampleKey, Quality, Option<[f32; 3]>)>>>;
-
-/// How a fake renderer misbehaves at its n-th batch: it takes it, answers nothing, and closes
-/// the connection, then either stops listening (killed mid-batch) or accepts again (restarted).
-#[derive(Clone, Copy, PartialEq)]
-enum Fault {
-    None,
-    Die(usize),
-    Drop(usize),
-}
-
-/// A renderer stand-in on a free port that shades [`fake_radiance`] and logs every request.
+/// A renderer stand-in shading [`radiance_at`].
 async fn fake_renderer(scene: Scene, fault: Fault) -> (String, Log) {
-    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap().to_string();
-    let log: Log = Arc::default();
-    let task_log = log.clone();
-    tokio::spawn(async move {
-        let mut batches = 0;
-        while let Ok((stream, _)) = listener.accept().await {
-            let (mut reader, mut writer) = split_tcp::<ToRenderer, FromRenderer>(stream, 1 << 26);
-            let fp = Some(scene.fingerprint);
-            if accept_handshake(
-                &mut reader,
-                &mut writer,
-                Role::Renderer,
-                Role::Sma,
-                fp,
-                true,
-            )
-            .await
-            .is_err()
-            {
-                continue;
-            }
-            while let Ok(ToRenderer::ShadeBatch(batch)) = reader.recv().await {
-                batches += 1;
-                match fault {
-                    Fault::Die(n) if n == batches => return, // listener and link dropped
-                    Fault::Drop(n) if n == batches => {
-                        // Link dropped, listener kept. Closed gracefully: a socket closed with
-                        // unread batches in it resets the connection, and the reset can discard
-                        // replies already sent (the SMA then rightly asks for them again, which
-                        // would read as a repeat here). So: FIN after the replies, then read
-                        // until the SMA closes its end.
-                        drop(writer);
-                        while reader.recv().await.is_ok() {}
-                        break;
-                    }
-                    _ => {}
-                }
-                task_log
-                    .lock()
-                    .unwrap()
-                    .extend(batch.points.iter().map(|p| (p.key, batch.quality, p.eye)));
-                let rgb = batch
-                    .points
-                    .iter()
-                    .map(|p| fake_radiance(&scene, p, batch.quality))
-                    .collect();
-                let reply = Radiance {
-                    batch_id: batch.batch_id,
-                    quality: batch.quality,
-                    rgb,
-                    flags: vec![0; batch.points.len()],
-                    micros: 1,
-                };
-                if writer.send(&FromRenderer::Radiance(reply)).await.is_err() {
-                    break;
-                }
-            }
-        }
-    });
-    (addr, log)
+    fake_renderer::start(scene, radiance_at, fault).await
 }
 
-fn cli(renderers: Vec<String>, refine: bool) -> Cli {
-    let mut cli = Cli::with_renderers(renderers);
-    cli.listen = "127.0.0.1:0".into();
-    cli.no_refine = !refine;
-    cli.rest_ms = 0;
-    cli.stats_secs = 60.0;
-    cli
+fn config(renderers: Vec<String>, refine: bool) -> SmaConfig {
+    let mut config = SmaConfig {
+        listen: "127.0.0.1:0".into(),
+        renderers,
+        ..SmaConfig::default()
+    };
+    config.schedule.refine = refine;
+    config.schedule.rest = Duration::ZERO;
+    config.schedule.stats_every = Duration::from_secs(60);
+    config
 }
 
 /// Every (key, quality) requested at most once, for the same eye.
@@ -200,9 +124,11 @@ fn repeated_requests(log: &Log) -> Vec<(SampleKey, Quality)> {
         .collect()
 }
 
-/// The SMA service started with `cli` on `scene`, and a probe viewer connected to it.
-async fn start_with_probe(cli: &Cli, scene: &Scene) -> (Running, Probe) {
-    let sma = sma::server::start(cli, scene.clone()).await.unwrap();
+/// The SMA service started with `config` on `scene`, and a probe viewer connected to it.
+async fn start_with_probe(config: &SmaConfig, scene: &Scene) -> (Running, Probe) {
+    let sma = sma::server::start(config.clone(), scene.clone(), std::future::pending())
+        .await
+        .unwrap();
     let probe = Probe::connect(&sma.addr.to_string()).await.unwrap();
     (sma, probe)
 }
@@ -215,7 +141,7 @@ async fn view_completely(probe: &mut Probe, name: &str) -> Camera {
 }
 
 fn coverage(scene: &Scene, tris: &[[Vec3; 3]], camera: &Camera) -> Vec<bool> {
-    probe::coverage(&Gpu::new().unwrap(), tris, camera, scene.mesh.bounds()).unwrap()
+    sma::visibility::coverage(&Gpu::new().unwrap(), tris, camera, scene.mesh.bounds()).unwrap()
 }
 
 fn scene_coverage(scene: &Scene, camera: &Camera) -> Vec<bool> {
@@ -227,7 +153,7 @@ fn scene_coverage(scene: &Scene, camera: &Camera) -> Vec<bool> {
 
 /// What the triangles shown to `probe` cover from `camera`.
 fn shown_coverage(scene: &Scene, probe: &Probe, camera: &Camera) -> Vec<bool> {
-    coverage(scene, &probe::table_triangles(probe), camera)
+    coverage(scene, &probe.triangles(), camera)
 }
 
 fn differing(a: &[bool], b: &[bool]) -> usize {
@@ -241,7 +167,7 @@ async fn first_picture_then_refinement_stays_consistent_and_covers_the_visible_s
     }
     let scene = diffuse_wall();
     let (renderer, log) = fake_renderer(scene.clone(), Fault::None).await;
-    let (sma, mut probe) = start_with_probe(&cli(vec![renderer], true), &scene).await;
+    let (sma, mut probe) = start_with_probe(&config(vec![renderer], true), &scene).await;
     probe.send(ViewerToSma::Pause).await.unwrap();
     let camera = probe.view("front", W, H).await.unwrap();
     let first = probe.complete(camera.seq, WAIT).await.unwrap();
@@ -311,14 +237,14 @@ async fn walking_around_a_wall_shows_its_other_side() {
     }
     let scene = diffuse_wall();
     let (renderer, _) = fake_renderer(scene.clone(), Fault::None).await;
-    let (sma, mut probe) = start_with_probe(&cli(vec![renderer], false), &scene).await;
+    let (sma, mut probe) = start_with_probe(&config(vec![renderer], false), &scene).await;
     let wall_sides = |probe: &Probe| -> Vec<(Side, f32)> {
         probe
             .table
             .values()
             .filter(|t| t.positions.iter().all(|p| p[2].abs() < 1e-6))
             .filter(|t| t.positions.iter().any(|p| p[1] > 1e-6))
-            .map(|t| (sma::visible::split_shown_id(t.id).1, t.radiance[0][0]))
+            .map(|t| (sma::visible_set::split_shown_id(t.id).1, t.radiance[0][0]))
             .collect()
     };
     view_completely(&mut probe, "front").await;
@@ -358,7 +284,7 @@ async fn mirror_samples_are_retaken_after_the_eye_moves_and_diffuse_ones_never()
             diffuse_wall()
         };
         let (renderer, log) = fake_renderer(scene.clone(), Fault::None).await;
-        let (sma, mut probe) = start_with_probe(&cli(vec![renderer], false), &scene).await;
+        let (sma, mut probe) = start_with_probe(&config(vec![renderer], false), &scene).await;
         for view in ["front", "side", "front"] {
             view_completely(&mut probe, view).await;
         }
@@ -396,7 +322,7 @@ async fn two_viewers_at_one_mirror_each_see_it_from_their_own_eye() {
     }
     let scene = wall_scene(Material::mirror("mirror", Vec3::ZERO, Vec3::splat(0.9)));
     let (renderer, _) = fake_renderer(scene.clone(), Fault::None).await;
-    let (sma, mut a) = start_with_probe(&cli(vec![renderer], false), &scene).await;
+    let (sma, mut a) = start_with_probe(&config(vec![renderer], false), &scene).await;
     let mut b = Probe::connect(&sma.addr.to_string()).await.unwrap();
     let ca = a.view("front", W, H).await.unwrap();
     let cb = b.view("side", W, H).await.unwrap();
@@ -429,9 +355,9 @@ async fn two_viewers_at_one_mirror_each_see_it_from_their_own_eye() {
 async fn shown_after_looking_away(coarsen_after_passes: u64) -> usize {
     let scene = diffuse_wall();
     let (renderer, _) = fake_renderer(scene.clone(), Fault::None).await;
-    let mut cli = cli(vec![renderer], true);
-    cli.coarsen_after_passes = coarsen_after_passes;
-    let (sma, mut probe) = start_with_probe(&cli, &scene).await;
+    let mut config = config(vec![renderer], true);
+    config.schedule.coarsen_after_passes = coarsen_after_passes;
+    let (sma, mut probe) = start_with_probe(&config, &scene).await;
     probe.view("front", W, H).await.unwrap();
     let refined = probe.until(WAIT, |e| e.shown >= 12 && e.outstanding == 0);
     refined.await.unwrap();
@@ -466,9 +392,9 @@ async fn a_renderer_killed_mid_batch_loses_no_request() {
     let scene = diffuse_wall();
     let (dying, _) = fake_renderer(scene.clone(), Fault::Die(2)).await;
     let (healthy, _) = fake_renderer(scene.clone(), Fault::None).await;
-    let mut cli = cli(vec![dying, healthy], false);
-    cli.batch_points = 2; // many small batches, so the dying one holds some
-    let (sma, mut probe) = start_with_probe(&cli, &scene).await;
+    let mut config = config(vec![dying, healthy], false);
+    config.schedule.batch_points = 2; // many small batches, so the dying one holds some
+    let (sma, mut probe) = start_with_probe(&config, &scene).await;
     let cam = view_completely(&mut probe, "front").await;
     let shown = shown_coverage(&scene, &probe, &cam);
     assert_eq!(differing(&scene_coverage(&scene, &cam), &shown), 0);
@@ -482,9 +408,9 @@ async fn a_dropped_renderer_link_reconnects_and_its_batch_is_reissued() {
     }
     let scene = diffuse_wall();
     let (flaky, log) = fake_renderer(scene.clone(), Fault::Drop(2)).await;
-    let mut cli = cli(vec![flaky], false);
-    cli.batch_points = 2;
-    let (sma, mut probe) = start_with_probe(&cli, &scene).await;
+    let mut config = config(vec![flaky], false);
+    config.schedule.batch_points = 2;
+    let (sma, mut probe) = start_with_probe(&config, &scene).await;
     // Only the one renderer: completing needs the reconnection and the re-issued batch.
     let cam = view_completely(&mut probe, "front").await;
     let shown = shown_coverage(&scene, &probe, &cam);
@@ -503,7 +429,7 @@ async fn two_viewers_share_one_cache_and_a_bad_frame_closes_only_its_viewer() {
     }
     let scene = diffuse_wall();
     let (renderer, log) = fake_renderer(scene.clone(), Fault::None).await;
-    let (sma, mut a) = start_with_probe(&cli(vec![renderer], false), &scene).await;
+    let (sma, mut a) = start_with_probe(&config(vec![renderer], false), &scene).await;
     let addr = sma.addr.to_string();
     let mut b = Probe::connect(&addr).await.unwrap();
     let ca = a.view("front", W, H).await.unwrap();

@@ -6,8 +6,8 @@
 use glam::Vec3;
 use protocol::types::Viewpoint;
 use protocol::viewer_link::Camera;
-use sma::probe::gpu_or_skip;
 use sma::visibility::{Gpu, IdPass, LuminancePass, TriangleBuffer, id_pass::reversed_z};
+use testkit::gpu::gpu_or_skip;
 
 const W: u32 = 160;
 const H: u32 = 120;

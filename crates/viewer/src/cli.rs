@@ -1,8 +1,29 @@
-//! Command line of the viewer (also `walkthrough viewer …`, which embeds [`Cli`]).
+//! Command line of the viewer (also `walkthrough viewer …`, which embeds [`Cli`]): the only module
+//! of the library that knows clap; it turns flags into a [`ViewerConfig`].
 
 use std::path::PathBuf;
 
-use crate::draw::ToneMap;
+use conventions::ToneMap;
+
+use crate::config::ViewerConfig;
+
+/// `--tonemap`: the operators of `conventions::tone_map`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ToneMapFlag {
+    /// Drago's logarithmic mapping, eq. 4.2.
+    Drago,
+    /// Reinhard's global operator, eq. 4.1.
+    Reinhard,
+}
+
+impl From<ToneMapFlag> for ToneMap {
+    fn from(flag: ToneMapFlag) -> ToneMap {
+        match flag {
+            ToneMapFlag::Drago => ToneMap::Drago,
+            ToneMapFlag::Reinhard => ToneMap::Reinhard,
+        }
+    }
+}
 
 #[derive(clap::Parser, Clone, Debug)]
 #[command(
@@ -42,8 +63,8 @@ pub struct Cli {
     /// Headless: a scripted walk (see `camera_path` for the format); t = 0 at the first camera.
     #[arg(long)]
     pub camera_path: Option<PathBuf>,
-    #[arg(long, value_enum, default_value_t = ToneMap::Drago)]
-    pub tonemap: ToneMap,
+    #[arg(long, value_enum, default_value_t = ToneMapFlag::Drago)]
+    pub tonemap: ToneMapFlag,
     /// Overlay the triangle edges (the refinement mesh).
     #[arg(long)]
     pub wireframe: bool,
@@ -68,9 +89,33 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         cli.width > 0 && cli.height > 0,
         "--width and --height must be positive"
     );
-    if cli.headless {
-        crate::headless::run(&cli)
+    let headless = cli.headless;
+    let config = cli.config();
+    if headless {
+        crate::headless::run(&config)
     } else {
-        crate::window::run(&cli)
+        crate::window::run(&config)
+    }
+}
+
+impl Cli {
+    /// The configuration these flags ask for.
+    pub fn config(self) -> ViewerConfig {
+        ViewerConfig {
+            connect: self.connect,
+            view: self.view,
+            width: self.width,
+            height: self.height,
+            snapshot_every: self.snapshot_every,
+            snapshot_at_samples: self.snapshot_at_samples,
+            snapshot_when_idle: self.snapshot_when_idle,
+            seconds: self.seconds,
+            out: self.out,
+            camera_path: self.camera_path,
+            tone_map: self.tonemap.into(),
+            wireframe: self.wireframe,
+            criterion: self.criterion,
+            no_refine: self.no_refine,
+        }
     }
 }

@@ -3,6 +3,7 @@
 //! The same pass draws into a window surface and into offscreen targets.
 
 use bytemuck::{Pod, Zeroable};
+use conventions::ToneMap;
 use glam::Vec3;
 use protocol::viewer_link::Camera;
 
@@ -10,25 +11,6 @@ use crate::table::{Extent, Vertex};
 use crate::vertex_buffer::GpuTriangles;
 
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-
-/// Tone-mapping operator (DESIGN.md §9, thesis §4.1).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
-pub enum ToneMap {
-    /// Drago's logarithmic mapping, eq. 4.2: L_d = log(1 + L) / log(1 + L_white).
-    #[default]
-    Drago,
-    /// Reinhard's global operator, eq. 4.1: L_d = L (1 + L / L_white²) / (1 + L).
-    Reinhard,
-}
-
-impl ToneMap {
-    pub fn next(self) -> ToneMap {
-        match self {
-            ToneMap::Drago => ToneMap::Reinhard,
-            ToneMap::Reinhard => ToneMap::Drago,
-        }
-    }
-}
 
 /// What a drawing pass writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

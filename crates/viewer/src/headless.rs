@@ -10,7 +10,7 @@ use protocol::viewer_link::{Camera, Epoch, ViewerToSma};
 
 use crate::camera_path::CameraPath;
 use crate::camera_sender::{CameraSender, DEFAULT_INTERVAL};
-use crate::cli::Cli;
+use crate::config::ViewerConfig;
 use crate::draw::{DrawSettings, depth_range};
 use crate::gpu::Gpu;
 use crate::link::{Link, LinkEvent};
@@ -101,12 +101,14 @@ impl SnapshotPlan {
     }
 }
 
-pub fn run(cli: &Cli) -> anyhow::Result<()> {
+pub fn run(config: &ViewerConfig) -> anyhow::Result<()> {
     anyhow::ensure!(
-        cli.seconds.is_some() || !cli.snapshot_at_samples.is_empty() || cli.snapshot_when_idle,
+        config.seconds.is_some()
+            || !config.snapshot_at_samples.is_empty()
+            || config.snapshot_when_idle,
         "headless needs an end: --seconds, --snapshot-at-samples or --snapshot-when-idle"
     );
-    let path_text = cli
+    let path_text = config
         .camera_path
         .as_ref()
         .map(|p| std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display())))
@@ -114,21 +116,21 @@ pub fn run(cli: &Cli) -> anyhow::Result<()> {
     let gpu = Gpu::headless()?;
     tracing::info!(adapter = %gpu.describe(), "headless viewer");
     let (tx, events) = mpsc::channel();
-    let link = Link::spawn(cli.connect.clone(), move |event| {
+    let link = Link::spawn(config.connect.clone(), move |event| {
         let _ = tx.send(event);
     })?;
     let mut headless = Headless {
-        offscreen: Offscreen::new(&gpu, cli.width, cli.height),
+        offscreen: Offscreen::new(&gpu, config.width, config.height),
         triangles: GpuTriangles::new(&gpu),
-        writer: SnapshotWriter::create(&cli.out)?,
+        writer: SnapshotWriter::create(&config.out)?,
         plan: SnapshotPlan::new(
-            cli.snapshot_every,
-            cli.snapshot_at_samples.clone(),
-            cli.snapshot_when_idle,
-            cli.seconds,
+            config.snapshot_every,
+            config.snapshot_at_samples.clone(),
+            config.snapshot_when_idle,
+            config.seconds,
         ),
         gpu,
-        cli,
+        config,
         path_text,
         link,
         state: ViewState::default(),
@@ -150,7 +152,7 @@ struct Walk {
 }
 
 struct Headless<'a> {
-    cli: &'a Cli,
+    config: &'a ViewerConfig,
     gpu: Gpu,
     offscreen: Offscreen,
     triangles: GpuTriangles,
@@ -176,10 +178,10 @@ impl Headless<'_> {
             }
             let Some(walk) = &self.walk else {
                 let waited = launched.elapsed().as_secs_f64();
-                if self.cli.seconds.is_some_and(|s| waited >= s) {
+                if self.config.seconds.is_some_and(|s| waited >= s) {
                     anyhow::bail!(
                         "no SMA answered at {} within {waited:.1} s",
-                        self.cli.connect
+                        self.config.connect
                     );
                 }
                 continue;
@@ -204,7 +206,7 @@ impl Headless<'_> {
             return Ok(());
         };
         if self.walk.is_none() {
-            let (camera, path) = start_camera(self.cli, scene, self.path_text.as_deref())?;
+            let (camera, path) = start_camera(self.config, scene, self.path_text.as_deref())?;
             self.walk = Some(Walk {
                 camera,
                 path,
@@ -215,7 +217,7 @@ impl Headless<'_> {
         self.link.send(ViewerToSma::Camera(
             self.sender.force(camera, Instant::now()),
         ));
-        for msg in preferences(self.cli.criterion.as_deref(), self.cli.no_refine) {
+        for msg in preferences(self.config.criterion.as_deref(), self.config.no_refine) {
             self.link.send(msg);
         }
         Ok(())
@@ -230,7 +232,8 @@ impl Headless<'_> {
         else {
             return;
         };
-        *camera = Camera::from_viewpoint(&path.at(t as f32), 0, self.cli.width, self.cli.height);
+        *camera =
+            Camera::from_viewpoint(&path.at(t as f32), 0, self.config.width, self.config.height);
         if let Some(sent) = self.sender.offer(camera, Instant::now()) {
             self.link.send(ViewerToSma::Camera(sent));
         }
@@ -242,9 +245,9 @@ impl Headless<'_> {
         };
         self.triangles.sync(&self.gpu, &mut self.state.table);
         let settings = DrawSettings {
-            tone_map: self.cli.tonemap,
+            tone_map: self.config.tone_map,
             l_white: self.state.l_white,
-            wireframe: self.cli.wireframe,
+            wireframe: self.config.wireframe,
         };
         let depth = depth_range(&walk.camera, self.state.table.extent());
         let image =
@@ -277,19 +280,21 @@ impl Headless<'_> {
 
 /// The first camera and the walk to follow, once the scene is known.
 fn start_camera(
-    cli: &Cli,
+    config: &ViewerConfig,
     scene: &protocol::viewer_link::SceneInfo,
     path_text: Option<&str>,
 ) -> anyhow::Result<(Camera, Option<CameraPath>)> {
-    let start = pick_viewpoint(scene, cli.view.as_deref())?;
+    let start = pick_viewpoint(scene, config.view.as_deref())?;
     let fov = start.as_ref().map_or(FALLBACK_FOV_DEG, |vp| vp.fov_y_deg);
     let path = path_text
         .map(|text| CameraPath::parse(text, fov))
         .transpose()?;
     let camera = match (&path, &start) {
-        (Some(path), _) => Camera::from_viewpoint(&path.at(0.0), 0, cli.width, cli.height),
-        (None, Some(vp)) => Camera::from_viewpoint(vp, 0, cli.width, cli.height),
-        (None, None) => WalkCamera::overlooking(&scene.bounds, 1.0).camera(cli.width, cli.height),
+        (Some(path), _) => Camera::from_viewpoint(&path.at(0.0), 0, config.width, config.height),
+        (None, Some(vp)) => Camera::from_viewpoint(vp, 0, config.width, config.height),
+        (None, None) => {
+            WalkCamera::overlooking(&scene.bounds, 1.0).camera(config.width, config.height)
+        }
     };
     Ok((camera, path))
 }

@@ -6,17 +6,19 @@
 //!   patched with partial uploads and a compute scatter;
 //! - [`update`]: changes held back until the `Epoch` that closes them;
 //! - [`link`]: the SMA connection with reconnect and backoff; [`view_state`] follows its events;
-//! - [`draw`] (with `draw.wgsl`): the pass with tone mapping; [`offscreen`]: the same pass into
-//!   textures, read back ([`render_offscreen`] for the end-to-end benchmark);
+//! - [`draw`] (with `draw.wgsl`): the pass with tone mapping (`conventions::tone_map`, held to
+//!   the shader by a test); [`offscreen`]: the same pass into textures, read back;
 //! - [`window`] (winit) and [`headless`] (snapshots, [`snapshot_files`]) front ends, with
 //!   [`walk_camera`], [`camera_path`], [`camera_sender`] and [`session`];
-//! - [`gpu`]: device setup and the `WALKTHROUGH_REQUIRE_GPU` rule; [`bench`]: BENCHMARKS.md figures;
-//! - [`cli`]: the command line, embedded by the launcher as `walkthrough viewer`.
+//! - [`gpu`]: device setup and the `WALKTHROUGH_REQUIRE_GPU` rule;
+//! - [`config`]: the viewer's configuration, plain values;
+//! - [`cli`]: the command line, embedded by the launcher as `walkthrough viewer`, the only module
+//!   that parses arguments.
 
-pub mod bench;
 pub mod camera_path;
 pub mod camera_sender;
 pub mod cli;
+pub mod config;
 pub mod draw;
 pub mod gpu;
 pub mod headless;
@@ -31,5 +33,6 @@ pub mod view_state;
 pub mod walk_camera;
 pub mod window;
 
-pub use draw::{DrawSettings, ToneMap};
-pub use offscreen::{Snapshot, render_offscreen, render_offscreen_with};
+pub use conventions::ToneMap;
+pub use draw::DrawSettings;
+pub use offscreen::{Snapshot, render_offscreen_with};

@@ -219,18 +219,8 @@ fn linear_rgb(bytes: &[u8], bytes_per_pixel: u32) -> Vec<[f32; 3]> {
     }
 }
 
-/// Draws `triangles` as the viewer would, seen by `camera` at the camera's image size: for the
-/// end-to-end benchmark and tests. Opens its own headless device.
-pub fn render_offscreen(
-    triangles: &[ShownTriangle],
-    camera: &Camera,
-    settings: &DrawSettings,
-) -> anyhow::Result<Snapshot> {
-    let gpu = Gpu::headless()?;
-    render_offscreen_with(&gpu, triangles, camera, settings)
-}
-
-/// [`render_offscreen`] on a device the caller keeps.
+/// Draws `triangles` as the viewer would, seen by `camera` at the camera's image size, on `gpu`
+/// (tests compare it with what a running viewer drew).
 pub fn render_offscreen_with(
     gpu: &Gpu,
     triangles: &[ShownTriangle],

@@ -20,7 +20,7 @@ use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
 use crate::camera_sender::{CameraSender, DEFAULT_INTERVAL};
-use crate::cli::Cli;
+use crate::config::ViewerConfig;
 use crate::draw::{DrawSettings, Drawer, Output, depth_range, depth_texture};
 use crate::gpu::Gpu;
 use crate::link::{Link, LinkEvent};
@@ -38,13 +38,13 @@ const LOOK_RAD_PER_PIXEL: f32 = 0.003;
 const TURN_RAD_PER_S: f32 = 1.5;
 const SPEED_STEP: f32 = 1.5;
 
-pub fn run(cli: &Cli) -> anyhow::Result<()> {
+pub fn run(config: &ViewerConfig) -> anyhow::Result<()> {
     let event_loop = EventLoop::<LinkEvent>::with_user_event().build()?;
     let proxy = event_loop.create_proxy();
-    let link = Link::spawn(cli.connect.clone(), move |event| {
+    let link = Link::spawn(config.connect.clone(), move |event| {
         let _ = proxy.send_event(event);
     })?;
-    let mut app = App::new(cli.clone(), link);
+    let mut app = App::new(config.clone(), link);
     event_loop.run_app(&mut app)?;
     app.link.close();
     app.failure.map_or(Ok(()), Err)
@@ -63,10 +63,10 @@ struct Display {
 }
 
 impl Display {
-    fn open(event_loop: &ActiveEventLoop, cli: &Cli) -> anyhow::Result<Display> {
+    fn open(event_loop: &ActiveEventLoop, config: &ViewerConfig) -> anyhow::Result<Display> {
         let attributes = Window::default_attributes()
             .with_title(TITLE)
-            .with_inner_size(PhysicalSize::new(cli.width, cli.height));
+            .with_inner_size(PhysicalSize::new(config.width, config.height));
         let window = Arc::new(event_loop.create_window(attributes)?);
         let instance = wgpu::Instance::new(
             wgpu::InstanceDescriptor::new_with_display_handle(Box::new(
@@ -148,7 +148,7 @@ impl Keys {
 }
 
 struct App {
-    cli: Cli,
+    config: ViewerConfig,
     link: Link,
     state: ViewState,
     display: Option<Display>,
@@ -169,17 +169,17 @@ struct App {
 }
 
 impl App {
-    fn new(cli: Cli, link: Link) -> App {
+    fn new(config: ViewerConfig, link: Link) -> App {
         let now = Instant::now();
         App {
             settings: DrawSettings {
-                tone_map: cli.tonemap,
+                tone_map: config.tone_map,
                 l_white: 1.0,
-                wireframe: cli.wireframe,
+                wireframe: config.wireframe,
             },
-            criterion: cli.criterion.clone(),
-            paused: cli.no_refine,
-            cli,
+            criterion: config.criterion.clone(),
+            paused: config.no_refine,
+            config,
             link,
             state: ViewState::default(),
             display: None,
@@ -208,7 +208,7 @@ impl App {
         };
         if self.walk.is_none() {
             let speed = default_speed(&scene.bounds);
-            let start = pick_viewpoint(scene, self.cli.view.as_deref()).unwrap_or_else(|e| {
+            let start = pick_viewpoint(scene, self.config.view.as_deref()).unwrap_or_else(|e| {
                 tracing::warn!("{e:#}; starting at the first viewpoint");
                 scene.viewpoints.first().cloned()
             });
@@ -364,7 +364,7 @@ impl App {
                     if paused { " (paused)" } else { "" }
                 )
             }
-            _ => format!("{TITLE} — connecting to {}…", self.cli.connect),
+            _ => format!("{TITLE} — connecting to {}…", self.config.connect),
         };
         d.window.set_title(&title);
     }
@@ -375,7 +375,7 @@ impl ApplicationHandler<LinkEvent> for App {
         if self.display.is_some() {
             return;
         }
-        match Display::open(event_loop, &self.cli).context("opening the window") {
+        match Display::open(event_loop, &self.config).context("opening the window") {
             Ok(display) => {
                 self.display = Some(display);
                 self.restate();

@@ -1,6 +1,8 @@
-//! Offscreen drawing of known triangles: expected pixel colours with the tone-mapping formulas
-//! (thesis eq. 4.1, 4.2) computed here independently of the shader; Gouraud interpolation; the
-//! depth test; the wireframe overlay; and the headless binary writing its snapshot files.
+//! Offscreen drawing of known triangles: expected pixel colours from the Rust tone maps of
+//! `conventions::tone_map` (thesis eq. 4.1, 4.2), so the WGSL shader, which cannot import them, is
+//! held to their values (luminance, both operators, sRGB) on a real wgpu device; Gouraud
+//! interpolation; the depth test; the wireframe overlay; and the headless binary writing its
+//! snapshot files.
 
 mod common;
 
@@ -13,28 +15,11 @@ const W: u32 = 160;
 const H: u32 = 120;
 const L_WHITE: f32 = 4.0;
 
-fn luminance(c: [f32; 3]) -> f32 {
-    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
-}
-
-fn srgb8(c: f32) -> f32 {
-    let c = c.clamp(0.0, 1.0);
-    let s = if c <= 0.003_130_8 {
-        12.92 * c
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    };
-    s * 255.0
-}
-
-/// The formula, written out: display luminance from luminance, colour ratios kept, sRGB 8-bit.
+/// What the shader must draw: the Rust tone map of `conventions`, then 8-bit sRGB (unrounded, so
+/// a tolerance of one level covers the GPU's rounding).
 fn expected(rgb: [f32; 3], op: ToneMap) -> [f32; 3] {
-    let l = luminance(rgb);
-    let ld = match op {
-        ToneMap::Drago => (1.0 + l).ln() / (1.0 + L_WHITE).ln(),
-        ToneMap::Reinhard => l * (1.0 + l / (L_WHITE * L_WHITE)) / (1.0 + l),
-    };
-    rgb.map(|c| srgb8(c * ld / l))
+    op.display_rgb(rgb, L_WHITE)
+        .map(|c| conventions::tone_map::srgb_encode(c) * 255.0)
 }
 
 fn pixel(s: &Snapshot, x: u32, y: u32) -> [f32; 3] {

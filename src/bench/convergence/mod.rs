@@ -5,8 +5,6 @@
 //! into a CSV; tables, plots and strips are drawn from it into the output folder, and the Markdown
 //! section into `docs/bench/convergence.md`.
 
-pub mod ground_truth;
-pub mod loopback;
 pub mod manifest;
 pub mod record;
 pub mod snapshots;
@@ -21,10 +19,10 @@ use clap::Args;
 
 use crate::bench::metrics::{LinearImage, Reference};
 use crate::bench::{plots, strips};
-use ground_truth::GroundTruth;
-use loopback::{System, SystemConfig, ViewerConfig};
 use manifest::ViewRecord;
 use record::{Measurement, NO_REFINE, Schedule};
+use testkit::ground_truth::GroundTruth;
+use testkit::loopback::{System, SystemConfig, ViewerConfig};
 
 /// Bounce depth of the interactive preset (DESIGN.md §10: 64 paths × 2 bounces per sample); the
 /// ground truth uses the same estimator and depth, per pixel.
@@ -136,9 +134,9 @@ pub fn run(args: ConvergenceArgs) -> anyhow::Result<()> {
 
 /// The criteria the SMA offers, the thesis's three first.
 pub fn default_criteria() -> Vec<String> {
-    sma::criteria::CRITERIA
+    sma::criteria::CriterionKind::ALL
         .iter()
-        .map(|c| c.to_string())
+        .map(|c| c.name().to_string())
         .collect()
 }
 

@@ -10,7 +10,7 @@
 
 use std::collections::{HashMap, HashSet, VecDeque};
 
-use super::{Criterion, CriterionInput, CriterionSettings, LuminanceImage};
+use super::{Criterion, CriterionInput, CriterionKind, CriterionSettings, LuminanceImage};
 use crate::mesh::NodeId;
 use crate::mesh::fast_hash::FastHash;
 use crate::nld::nld_metric;
@@ -88,8 +88,8 @@ impl NldIs {
 }
 
 impl Criterion for NldIs {
-    fn name(&self) -> &'static str {
-        "nld-is"
+    fn kind(&self) -> CriterionKind {
+        CriterionKind::NldIs
     }
 
     fn needs_image(&self) -> bool {
@@ -189,7 +189,7 @@ impl NldIs {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench::synthetic::{Shading, Synthetic};
+    use crate::criteria::synthetic::{Shading, Synthetic};
 
     #[test]
     fn a_flat_image_selects_nothing_and_an_edge_is_found() {

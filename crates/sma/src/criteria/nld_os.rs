@@ -9,7 +9,7 @@
 
 use std::collections::HashSet;
 
-use super::{Criterion, CriterionInput, CriterionSettings, is_large, leaf_nld};
+use super::{Criterion, CriterionInput, CriterionKind, CriterionSettings, is_large, leaf_nld};
 use crate::mesh::NodeId;
 use crate::mesh::fast_hash::FastHash;
 
@@ -69,8 +69,8 @@ impl NldOs {
 }
 
 impl Criterion for NldOs {
-    fn name(&self) -> &'static str {
-        "nld-os"
+    fn kind(&self) -> CriterionKind {
+        CriterionKind::NldOs
     }
 
     fn needs_image(&self) -> bool {
@@ -127,7 +127,7 @@ impl Criterion for NldOs {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench::synthetic::{Shading, Synthetic};
+    use crate::criteria::synthetic::{Shading, Synthetic};
 
     #[test]
     fn a_flat_lit_region_is_left_alone() {

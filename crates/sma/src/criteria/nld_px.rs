@@ -25,7 +25,7 @@
 
 use std::collections::HashSet;
 
-use super::{Criterion, CriterionInput, CriterionSettings, is_large, leaf_nld};
+use super::{Criterion, CriterionInput, CriterionKind, CriterionSettings, is_large, leaf_nld};
 use crate::mesh::NodeId;
 use crate::mesh::fast_hash::FastHash;
 
@@ -45,8 +45,8 @@ impl NldPx {
 }
 
 impl Criterion for NldPx {
-    fn name(&self) -> &'static str {
-        "nld-px"
+    fn kind(&self) -> CriterionKind {
+        CriterionKind::NldPx
     }
 
     fn needs_image(&self) -> bool {
@@ -89,7 +89,7 @@ impl Criterion for NldPx {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench::synthetic::{Shading, Synthetic};
+    use crate::criteria::synthetic::{Shading, Synthetic};
 
     #[test]
     fn ranks_by_spread_times_pixels_and_leaves_flat_regions_alone() {

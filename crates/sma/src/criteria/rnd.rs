@@ -12,7 +12,7 @@ use std::collections::HashSet;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
-use super::{Criterion, CriterionInput, CriterionSettings};
+use super::{Criterion, CriterionInput, CriterionKind, CriterionSettings};
 use crate::mesh::NodeId;
 use crate::mesh::fast_hash::FastHash;
 
@@ -43,8 +43,8 @@ impl Rnd {
 }
 
 impl Criterion for Rnd {
-    fn name(&self) -> &'static str {
-        "rnd"
+    fn kind(&self) -> CriterionKind {
+        CriterionKind::Rnd
     }
 
     fn needs_image(&self) -> bool {
@@ -100,7 +100,7 @@ impl Criterion for Rnd {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench::synthetic::{Shading, Synthetic};
+    use crate::criteria::synthetic::{Shading, Synthetic};
 
     #[test]
     fn passes_go_on_while_they_offer_new_leaves_and_repeat_after_reset() {

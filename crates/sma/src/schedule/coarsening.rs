@@ -12,7 +12,7 @@
 use std::collections::BTreeSet;
 
 use crate::mesh::{NodeId, RefinementStep, SubdivisionMesh};
-use crate::visible::VisibleSet;
+use crate::visible_set::VisibleSet;
 
 #[derive(Debug)]
 pub struct Coarsening {
@@ -93,7 +93,7 @@ impl Coarsening {
 mod tests {
     use super::*;
     use crate::mesh::grid_mesh;
-    use crate::visible::VisibleLeaf;
+    use crate::visible_set::VisibleLeaf;
     use protocol::Side;
 
     fn visible(leaves: &[NodeId]) -> VisibleSet {

@@ -10,7 +10,7 @@ use protocol::viewer_link::{Recolour, ShownTriangle, SmaToViewer, TriangleId};
 
 use crate::cache::ShadingCache;
 use crate::mesh::{NodeId, SubdivisionMesh};
-use crate::visible::shown_id;
+use crate::visible_set::shown_id;
 
 /// Inserts are split so no frame nears the protocol's maximum (about 80 bytes a triangle).
 const MAX_TRIANGLES_PER_MESSAGE: usize = 100_000;
@@ -92,6 +92,6 @@ impl Display {
     pub fn shown_triangles(&self) -> impl Iterator<Item = (NodeId, [[f32; 3]; 3])> + '_ {
         self.shown
             .iter()
-            .map(|(&id, &rgb)| (crate::visible::split_shown_id(id).0, rgb))
+            .map(|(&id, &rgb)| (crate::visible_set::split_shown_id(id).0, rgb))
     }
 }

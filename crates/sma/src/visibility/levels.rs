@@ -10,7 +10,7 @@ use protocol::viewer_link::Camera;
 use super::gpu::{Gpu, GpuError};
 use super::id_pass::{Coverage, IdPass, TriangleBuffer};
 use crate::mesh::{NodeId, SubdivisionMesh};
-use crate::visible::{VisibleLeaf, VisibleSet};
+use crate::visible_set::{VisibleLeaf, VisibleSet};
 
 /// The result of one two-level pass for one camera.
 #[derive(Clone, Debug, Default)]

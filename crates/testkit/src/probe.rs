@@ -1,7 +1,7 @@
-//! A scripted protocol viewer that checks what the SMA sends (issue 5, Tests): it keeps the
-//! viewer's triangle table and fails on a duplicate insert, a remove or update of an unknown id,
-//! an `Error`, or an `Epoch` whose `shown` disagrees with the table. Used by the service tests
-//! (in-process and with real processes) and by the service benchmarks.
+//! A scripted protocol viewer that checks what the SMA sends: it keeps the viewer's triangle table
+//! and fails on a duplicate insert, a remove or update of an unknown id, an `Error`, or an `Epoch`
+//! whose `shown` disagrees with the table (DESIGN.md §8). Used by the service tests (in-process
+//! and with real processes) and by the service benchmarks.
 
 use std::collections::HashMap;
 use std::time::Duration;
@@ -14,11 +14,7 @@ use protocol::viewer_link::{
     Camera, Epoch, SceneInfo, ShownTriangle, SmaToViewer, TriangleId, ViewerToSma,
 };
 use protocol::{Hello, Role, split_tcp};
-use tokio::io::{AsyncBufReadExt, BufReader};
 use tokio::net::TcpStream;
-use tokio::process::ChildStdout;
-
-use crate::visibility::{Gpu, GpuError, IdPass, TriangleBuffer, scene_view_projection};
 
 pub struct Probe {
     reader: TcpReader<SmaToViewer>,
@@ -163,6 +159,22 @@ impl Probe {
             .await
     }
 
+    /// The table's triangles.
+    pub fn triangles(&self) -> Vec<[Vec3; 3]> {
+        self.table
+            .values()
+            .map(|t| t.positions.map(Vec3::from))
+            .collect()
+    }
+
+    /// Scene bounds as sent in `SceneInfo`.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        (
+            Vec3::from(self.scene.bounds.min),
+            Vec3::from(self.scene.bounds.max),
+        )
+    }
+
     /// Pairs of shown triangles whose interiors overlap (coplanar and intersecting): a parent
     /// shown with its child, or two sides of one leaf. Shared edges and corners do not count.
     pub fn overlaps(&self) -> Vec<(TriangleId, TriangleId)> {
@@ -218,70 +230,6 @@ fn coplanar_overlap(a: &[Vec3; 3], b: &[Vec3; 3]) -> bool {
         }
     }
     true
-}
-
-/// Pixels covered by `triangles` seen from `camera` (with the SMA's near and far planes for a
-/// scene of `bounds`): the coverage of an ID pass.
-pub fn coverage(
-    gpu: &Gpu,
-    triangles: &[[Vec3; 3]],
-    camera: &Camera,
-    bounds: (Vec3, Vec3),
-) -> anyhow::Result<Vec<bool>> {
-    let mut pass = IdPass::new(gpu);
-    let mut buffer = TriangleBuffer::default();
-    buffer.upload(gpu, triangles);
-    let view_proj = scene_view_projection(camera, bounds);
-    let image = pass.render(gpu, &buffer, view_proj, camera.width, camera.height)?;
-    Ok(image.ids.iter().map(|&id| id != 0).collect())
-}
-
-/// The table's triangles, for [`coverage`].
-pub fn table_triangles(probe: &Probe) -> Vec<[Vec3; 3]> {
-    probe
-        .table
-        .values()
-        .map(|t| t.positions.map(Vec3::from))
-        .collect()
-}
-
-/// Scene bounds as sent in `SceneInfo`.
-pub fn bounds(info: &SceneInfo) -> (Vec3, Vec3) {
-    (Vec3::from(info.bounds.min), Vec3::from(info.bounds.max))
-}
-
-/// The adapter of a test that needs one. Without one the test is skipped (`None`, said on
-/// stderr), or fails where `WALKTHROUGH_REQUIRE_GPU` is set.
-pub fn gpu_or_skip(gpu: Result<Gpu, GpuError>) -> Option<Gpu> {
-    match gpu {
-        Ok(gpu) => Some(gpu),
-        Err(e) if std::env::var_os("WALKTHROUGH_REQUIRE_GPU").is_some() => {
-            panic!("WALKTHROUGH_REQUIRE_GPU is set but no adapter: {e}")
-        }
-        Err(e) => {
-            eprintln!(
-                "SKIPPED: no wgpu adapter ({e}); set WALKTHROUGH_REQUIRE_GPU to make this fail"
-            );
-            None
-        }
-    }
-}
-
-/// The ADDR of the first "listening on ADDR" line a child process writes, within `timeout`. The
-/// rest of its output is drained, so that the child never blocks on a full pipe.
-pub async fn listening_addr(stdout: ChildStdout, timeout: Duration) -> anyhow::Result<String> {
-    let mut lines = BufReader::new(stdout).lines();
-    let addr = tokio::time::timeout(timeout, async {
-        while let Some(line) = lines.next_line().await? {
-            if let Some((_, addr)) = line.split_once("listening on ") {
-                return Ok(addr.trim().to_string());
-            }
-        }
-        bail!("ended before listening")
-    })
-    .await??;
-    tokio::spawn(async move { while let Ok(Some(_)) = lines.next_line().await {} });
-    Ok(addr)
 }
 
 #[cfg(test)]

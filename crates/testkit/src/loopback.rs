@@ -1,19 +1,13 @@
 //! One measured run of the whole system on loopback (DESIGN.md §2): renderer(s), the SMA and a
 //! headless viewer as real separate processes of the `walkthrough` binary, as a user would start
-//! them on three machines. Every child is killed when the run is dropped, on every exit path.
+//! them on three machines. Each server binds port 0 and reports its address (`crate::child`).
+//! Every child is killed when the run is dropped, on every exit path.
 
-use std::fs::File;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use anyhow::Context;
-
-use crate::launch::free_loopback_addr;
-
-/// How long a child may take to bind its port (scene load, BVH build, wgpu start on Mesa).
-const START_TIMEOUT: Duration = Duration::from_secs(120);
+use crate::child::{Process, Server, start_server, strings};
 
 /// What the SMA and its renderers run.
 #[derive(Clone, Debug)]
@@ -48,58 +42,6 @@ pub struct ViewerConfig {
     pub when_idle: bool,
 }
 
-struct Process {
-    name: &'static str,
-    child: Child,
-    log: PathBuf,
-}
-
-impl Process {
-    fn spawn(
-        exe: &Path,
-        name: &'static str,
-        args: &[String],
-        logs: &Path,
-    ) -> anyhow::Result<Process> {
-        let log = logs.join(format!("{name}.log"));
-        let out = File::create(&log).with_context(|| format!("creating {}", log.display()))?;
-        let child = Command::new(exe)
-            .args(args)
-            .stdin(Stdio::null())
-            .stdout(out.try_clone()?)
-            .stderr(out)
-            .env("NODEVICE_SELECT", "1")
-            .spawn()
-            .with_context(|| format!("starting {} {}", exe.display(), args.join(" ")))?;
-        Ok(Process { name, child, log })
-    }
-
-    /// An error naming the process and the end of its log.
-    fn failure(&self, what: &str) -> anyhow::Error {
-        let log = std::fs::read_to_string(&self.log).unwrap_or_default();
-        let lines: Vec<&str> = log.lines().collect();
-        let tail = &lines[lines.len().saturating_sub(15)..];
-        anyhow::anyhow!(
-            "{} {what} (log {}):\n{}",
-            self.name,
-            self.log.display(),
-            tail.join("\n")
-        )
-    }
-
-    fn exited(&mut self) -> Option<std::process::ExitStatus> {
-        self.child.try_wait().ok().flatten()
-    }
-}
-
-/// A child never outlives its handle, whatever way the run ends (a failure, a panic in a test).
-impl Drop for Process {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
 /// The running system: renderer(s) and SMA, killed when dropped.
 pub struct System {
     exe: PathBuf,
@@ -109,7 +51,7 @@ pub struct System {
 }
 
 impl System {
-    /// Starts the renderer(s), waits for them to listen, then the SMA, and waits for it to listen,
+    /// Starts the renderer(s), waits for their addresses, then the SMA, and waits for its address,
     /// so the viewer's clock starts against a ready system (t = 0 at the first camera, §10).
     pub fn start(config: &SystemConfig, logs: &Path) -> anyhow::Result<System> {
         std::fs::create_dir_all(logs)?;
@@ -117,70 +59,52 @@ impl System {
             .map(|n| n.get())
             .unwrap_or(2);
         let threads = (cores / config.renderers.max(1)).max(1).to_string();
-        let mut system = System {
-            exe: config.exe.clone(),
-            logs: logs.to_path_buf(),
-            sma_addr: free_loopback_addr()?,
-            servers: vec![],
-        };
-        let mut sma_args = strings(&[
-            "sma",
-            "--scene",
-            &config.scene,
-            "--listen",
-            &system.sma_addr.to_string(),
-        ]);
-        sma_args.extend(strings(&[
-            "--criterion",
-            &config.criterion,
-            "--seed",
-            &config.seed.to_string(),
-        ]));
-        if !config.refine {
-            sma_args.push("--no-refine".into());
-        }
-        sma_args.extend(config.sma_flags.iter().cloned());
+        let mut servers = Vec::new();
+        let mut renderer_flags = Vec::new();
         for _ in 0..config.renderers.max(1) {
-            let addr = free_loopback_addr()?;
             let args = strings(&[
                 "renderer",
                 "serve",
                 "--scene",
                 &config.scene,
                 "--listen",
-                &addr.to_string(),
+                "127.0.0.1:0",
                 "--threads",
                 &threads,
             ]);
-            system.start_server("renderer", &args, addr)?;
-            sma_args.extend(["--renderer".to_string(), addr.to_string()]);
+            let Server { process, addr } = start_server(
+                &config.exe,
+                "renderer",
+                &args,
+                Some(&logs.join(format!("renderer{}.log", servers.len()))),
+            )?;
+            servers.push(process);
+            renderer_flags.extend(["--renderer".to_string(), addr.to_string()]);
         }
-        system.start_server("sma", &sma_args, system.sma_addr)?;
-        Ok(system)
-    }
-
-    fn start_server(
-        &mut self,
-        name: &'static str,
-        args: &[String],
-        addr: SocketAddr,
-    ) -> anyhow::Result<()> {
-        self.servers
-            .push(Process::spawn(&self.exe, name, args, &self.logs)?);
-        let started = Instant::now();
-        while !is_bound(addr) {
-            let process = self.servers.last_mut().expect("just pushed");
-            if process.exited().is_some() {
-                return Err(process.failure("exited before listening"));
-            }
-            if started.elapsed() > START_TIMEOUT {
-                return Err(process.failure(&format!(
-                    "did not listen on {addr} within {START_TIMEOUT:?}"
-                )));
-            }
-            std::thread::sleep(Duration::from_millis(50));
+        let mut sma_args = strings(&[
+            "sma",
+            "--scene",
+            &config.scene,
+            "--listen",
+            "127.0.0.1:0",
+            "--criterion",
+            &config.criterion,
+            "--seed",
+            &config.seed.to_string(),
+        ]);
+        if !config.refine {
+            sma_args.push("--no-refine".into());
         }
-        Ok(())
+        sma_args.extend(config.sma_flags.iter().cloned());
+        sma_args.extend(renderer_flags);
+        let sma = start_server(&config.exe, "sma", &sma_args, Some(&logs.join("sma.log")))?;
+        servers.push(sma.process);
+        Ok(System {
+            exe: config.exe.clone(),
+            logs: logs.to_path_buf(),
+            sma_addr: sma.addr,
+            servers,
+        })
     }
 
     /// The SMA's viewer address (a second, in-process viewer may connect to it).
@@ -195,7 +119,7 @@ impl System {
             &self.exe,
             "viewer",
             &viewer_args(config, self.sma_addr, out),
-            &self.logs,
+            Some(&self.logs.join("viewer.log")),
         )?;
         let deadline = Instant::now() + config.time_limit;
         loop {
@@ -258,26 +182,4 @@ fn viewer_args(c: &ViewerConfig, sma: SocketAddr, out: &Path) -> Vec<String> {
         args.push("--snapshot-when-idle".into());
     }
     args
-}
-
-/// Whether some process listens on `addr`'s port, read from the kernel's socket tables: a probe
-/// connection would be a peer without a handshake, and a probe bind could steal the port from the
-/// child about to bind it.
-fn is_bound(addr: SocketAddr) -> bool {
-    let port = format!(":{:04X}", addr.port());
-    ["/proc/net/tcp", "/proc/net/tcp6"].iter().any(|table| {
-        std::fs::read_to_string(table)
-            .unwrap_or_default()
-            .lines()
-            .skip(1)
-            .any(|line| {
-                let fields: Vec<&str> = line.split_whitespace().collect();
-                // Columns: sl, local_address (hex ip:port), rem_address, st (0A = LISTEN), …
-                fields.len() > 3 && fields[1].ends_with(&port) && fields[3] == "0A"
-            })
-    })
-}
-
-fn strings(v: &[&str]) -> Vec<String> {
-    v.iter().map(|s| s.to_string()).collect()
 }

@@ -1,8 +1,8 @@
-//! Figures of the SMA service for BENCHMARKS.md (issue 5): the cost of one ID pass at 1024×768
+//! Figures of the SMA service for BENCHMARKS.md (DESIGN.md §10 costs): the cost of one ID pass at 1024×768
 //! against submitted triangles (fixed cost and slope, thesis §5.4: 137 triangles/ms plus 30 ms on
-//! 2006 hardware), the two-level visibility of a built-in scene's named views, and, when run from
-//! the `walkthrough` launcher (which can start renderer and SMA processes), the end-to-end
-//! latencies and the SMA's memory per leaf (see [`end_to_end`]).
+//! 2006 hardware), the two-level visibility of a built-in scene's named views, and, with renderer
+//! and SMA processes started from the `walkthrough` binary, the end-to-end latencies and the SMA's
+//! memory per leaf (see [`end_to_end`]).
 
 use std::fmt::Write;
 use std::time::Instant;
@@ -12,8 +12,10 @@ use protocol::types::Viewpoint;
 use protocol::viewer_link::Camera;
 use rand::{RngExt, SeedableRng};
 
-use crate::mesh::{MeshParams, SubdivisionMesh};
-use crate::visibility::{Gpu, IdPass, TriangleBuffer, Visibility};
+use sma::mesh::{MeshParams, SubdivisionMesh};
+use sma::visibility::{Gpu, IdPass, TriangleBuffer, Visibility};
+
+use super::stats::{fit_line, median};
 
 mod end_to_end;
 
@@ -33,11 +35,6 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
         Err(e) => writeln!(md, "End-to-end figures not measured: {e:#}\n")?,
     }
     Ok(md)
-}
-
-fn median(mut xs: Vec<f64>) -> f64 {
-    xs.sort_by(f64::total_cmp);
-    xs[xs.len() / 2]
 }
 
 /// `n` random triangles filling a 20-unit cube in front of the camera, sized so the total
@@ -118,19 +115,6 @@ fn write_pass_cost(md: &mut String, gpu: &Gpu, runs: usize, quick: bool) -> anyh
         1.0 / slope.max(1e-12)
     )?;
     Ok(())
-}
-
-/// (intercept, slope) of the least-squares line through `points`.
-fn fit_line(points: &[(f64, f64)]) -> (f64, f64) {
-    let n = points.len() as f64;
-    let (sx, sy) = points
-        .iter()
-        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
-    let (mx, my) = (sx / n, sy / n);
-    let sxx: f64 = points.iter().map(|(x, _)| (x - mx).powi(2)).sum();
-    let sxy: f64 = points.iter().map(|(x, y)| (x - mx) * (y - my)).sum();
-    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-    (my - slope * mx, slope)
 }
 
 /// Both levels on each named view of the built-in scene, unrefined mesh.

@@ -1,12 +1,13 @@
-//! Protocol throughput (issue 2): encode + decode of triangle inserts on one core, and triangles
+//! Protocol throughput (DESIGN.md §8): encode + decode of triangle inserts on one core, and triangles
 //! per second over loopback TCP between two processes (this one and a `loopback-sink` child).
 
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
-use anyhow::Context;
 use protocol::frame::{DEFAULT_MAX_FRAME, decode, encode};
 use protocol::split_tcp;
 use protocol::viewer_link::{Epoch, ShownTriangle, SmaToViewer, ViewerToSma};
+
+use testkit::child::{start_server, strings};
 
 use super::stats::median;
 
@@ -46,6 +47,7 @@ fn codec_rate(batches: usize) -> anyhow::Result<f64> {
 pub fn loopback_sink(listen: &str) -> anyhow::Result<()> {
     tokio::runtime::Runtime::new()?.block_on(async {
         let listener = tokio::net::TcpListener::bind(listen).await?;
+        conventions::listening::announce("loopback sink", listener.local_addr()?)?;
         let (stream, _) = listener.accept().await?;
         let (mut rx, mut tx) = split_tcp::<SmaToViewer, ViewerToSma>(stream, DEFAULT_MAX_FRAME);
         let mut count = 0u64;
@@ -64,19 +66,14 @@ pub fn loopback_sink(listen: &str) -> anyhow::Result<()> {
 
 /// Triangles per second from this process to a sink process over loopback.
 fn loopback_rate(batches: usize) -> anyhow::Result<f64> {
-    let addr = std::net::TcpListener::bind("127.0.0.1:0")?
-        .local_addr()?
-        .to_string();
     let exe = std::env::current_exe()?;
-    let mut sink = std::process::Command::new(exe)
-        .args(["bench", "loopback-sink", "--listen", &addr])
-        .spawn()
-        .context("starting the loopback sink")?;
+    let args = strings(&["bench", "loopback-sink", "--listen", "127.0.0.1:0"]);
+    let sink = start_server(&exe, "loopback sink", &args, None)?;
     let msgs: Vec<SmaToViewer> = (0..batches)
         .map(|b| insert_batch((b * BATCH) as u64))
         .collect();
     let rate = tokio::runtime::Runtime::new()?.block_on(async {
-        let stream = connect_with_retry(&addr).await?;
+        let stream = tokio::net::TcpStream::connect(sink.addr).await?;
         let (mut rx, mut tx) = split_tcp::<ViewerToSma, SmaToViewer>(stream, DEFAULT_MAX_FRAME);
         let t = Instant::now();
         for m in &msgs {
@@ -91,18 +88,8 @@ fn loopback_rate(batches: usize) -> anyhow::Result<f64> {
         rx.recv().await?;
         anyhow::Ok(shown as f64 / t.elapsed().as_secs_f64())
     });
-    let _ = sink.wait();
+    drop(sink);
     rate
-}
-
-async fn connect_with_retry(addr: &str) -> anyhow::Result<tokio::net::TcpStream> {
-    for _ in 0..100 {
-        if let Ok(s) = tokio::net::TcpStream::connect(addr).await {
-            return Ok(s);
-        }
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    }
-    anyhow::bail!("the loopback sink never listened on {addr}")
 }
 
 pub fn section(quick: bool) -> anyhow::Result<String> {

@@ -1,8 +1,6 @@
-//! Figures of the SMA core for BENCHMARKS.md (issue 4): an NLD_OS call on 100k visible leaves,
+//! Figures of the SMA core for BENCHMARKS.md (DESIGN.md §10 costs): an NLD_OS call on 100k visible leaves,
 //! splits per second with closure, bytes per leaf and per cached vertex; and the synthetic
 //! convergence runs behind the criterion defaults.
-
-pub mod synthetic;
 
 use std::fmt::Write;
 use std::time::Instant;
@@ -11,12 +9,15 @@ use protocol::Side;
 use protocol::renderer_link::{Quality, SampleKey};
 use rand::{RngExt, SeedableRng};
 
-use crate::cache::{CachedSample, ShadingCache};
-use crate::criteria::Criterion;
-use crate::criteria::{CriterionInput, CriterionSettings, NldOs, NldPx, make_criterion};
-use crate::mesh::{MeshParams, NodeId, SubdivisionMesh, grid_mesh};
-use crate::visible::{VisibleLeaf, VisibleSet};
-use synthetic::{Shading, Synthetic};
+use sma::cache::{CachedSample, ShadingCache};
+use sma::criteria::synthetic::{Shading, Synthetic};
+use sma::criteria::{
+    Criterion, CriterionInput, CriterionKind, CriterionSettings, NldOs, NldPx, make_criterion,
+};
+use sma::mesh::{MeshParams, NodeId, SubdivisionMesh, grid_mesh};
+use sma::visible_set::{VisibleLeaf, VisibleSet};
+
+use super::stats::median;
 
 /// The Markdown section: performance figures, then the criterion experiments.
 pub fn section(quick: bool) -> anyhow::Result<String> {
@@ -26,11 +27,6 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
     write_split_speed_and_memory(&mut md, runs, if quick { 100_000 } else { 400_000 })?;
     md.push_str(&criteria_experiment(quick)?);
     Ok(md)
-}
-
-fn median(mut xs: Vec<f64>) -> f64 {
-    xs.sort_by(f64::total_cmp);
-    xs[xs.len() / 2]
 }
 
 fn sample(rgb: [f32; 3]) -> CachedSample {
@@ -214,12 +210,12 @@ fn write_split_speed_and_memory(
 /// run that stops refining earlier keeps its final error for the larger budgets.
 pub fn error_curve(
     shading: Shading,
-    criterion: &str,
+    criterion: CriterionKind,
     settings: &CriterionSettings,
     budgets: &[usize],
 ) -> Vec<f64> {
     let mut scene = Synthetic::new(8, 128, shading);
-    let mut c = make_criterion(criterion, settings, 1).expect("known criterion");
+    let mut c = make_criterion(criterion, settings, 1);
     let mut errors = Vec::with_capacity(budgets.len());
     let mut before = (scene.samples(), scene.error());
     let mut idle = 0;
@@ -243,7 +239,11 @@ pub fn error_curve(
 const SHADINGS: [Shading; 3] = [Shading::ShadowEdge, Shading::Blob, Shading::Smooth];
 
 /// The error curves of a criterion on each of [`SHADINGS`].
-fn curves(criterion: &str, settings: &CriterionSettings, budgets: &[usize]) -> Vec<Vec<f64>> {
+fn curves(
+    criterion: CriterionKind,
+    settings: &CriterionSettings,
+    budgets: &[usize],
+) -> Vec<Vec<f64>> {
     SHADINGS
         .iter()
         .map(|&s| error_curve(s, criterion, settings, budgets))
@@ -280,7 +280,7 @@ pub fn criteria_experiment(quick: bool) -> anyhow::Result<String> {
         md,
         "| criterion (defaults) | shadow line | disc | smooth | mean |\n|---|---:|---:|---:|---:|"
     )?;
-    for name in crate::criteria::CRITERIA {
+    for name in CriterionKind::ALL {
         let curves = curves(name, &d, budgets);
         writeln!(
             md,
@@ -292,14 +292,14 @@ pub fn criteria_experiment(quick: bool) -> anyhow::Result<String> {
         )?;
     }
     type Sweep = (
-        &'static str,
+        CriterionKind,
         &'static str,
         fn(f32) -> CriterionSettings,
         &'static [f32],
     );
     let sweeps: [Sweep; 6] = [
         (
-            "nld-os",
+            CriterionKind::NldOs,
             "s_ref_start",
             |x| CriterionSettings {
                 s_ref_start: x,
@@ -308,7 +308,7 @@ pub fn criteria_experiment(quick: bool) -> anyhow::Result<String> {
             &[0.3, 0.5, 0.8],
         ),
         (
-            "nld-os",
+            CriterionKind::NldOs,
             "s_ref_step",
             |x| CriterionSettings {
                 s_ref_step: x,
@@ -317,7 +317,7 @@ pub fn criteria_experiment(quick: bool) -> anyhow::Result<String> {
             &[0.05, 0.1, 0.2],
         ),
         (
-            "nld-os",
+            CriterionKind::NldOs,
             "s_min",
             |x| CriterionSettings {
                 s_min: x,
@@ -326,7 +326,7 @@ pub fn criteria_experiment(quick: bool) -> anyhow::Result<String> {
             &[0.005, 0.02, 0.05, 0.1],
         ),
         (
-            "nld-os",
+            CriterionKind::NldOs,
             "large_triangle_fraction",
             |x| CriterionSettings {
                 large_triangle_fraction: x,
@@ -335,7 +335,7 @@ pub fn criteria_experiment(quick: bool) -> anyhow::Result<String> {
             &[0.002, 0.005, 0.02],
         ),
         (
-            "nld-px",
+            CriterionKind::NldPx,
             "nld_px_epsilon",
             |x| CriterionSettings {
                 nld_px_epsilon: x,
@@ -344,7 +344,7 @@ pub fn criteria_experiment(quick: bool) -> anyhow::Result<String> {
             &[0.0, 0.05, 0.3],
         ),
         (
-            "nld-is",
+            CriterionKind::NldIs,
             "nld_is_fraction",
             |x| CriterionSettings {
                 nld_is_fraction: x,
@@ -385,7 +385,7 @@ mod tests {
         let untouched = Synthetic::new(8, 128, Shading::ShadowEdge).error();
         let refined = error_curve(
             Shading::ShadowEdge,
-            "nld-os",
+            CriterionKind::NldOs,
             &CriterionSettings::default(),
             &[200, 400],
         );

@@ -1,27 +1,29 @@
-//! Benchmarks for BENCHMARKS.md (issue 3): ray throughput on Sponza against a naive baseline in
+//! The renderer's section of BENCHMARKS.md (DESIGN.md §10 costs): ray throughput on Sponza against a naive baseline in
 //! the same run and build, BVH build times, shading samples per second at the interactive and
 //! direct-light qualities, and what accuracy costs in time. Medians of several runs, on every
 //! core of the machine.
 
 use std::fmt::Write as _;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use anyhow::Context;
 use glam::{Vec3, Vec3A};
 use obvhs::cwbvh::CwBvh;
-use obvhs::cwbvh::builder::build_cwbvh_from_tris;
 use obvhs::ray::{Ray, RayHit};
 use obvhs::triangle::Triangle as BvhTriangle;
 use protocol::Side;
 use protocol::renderer_link::{Quality, SampleKey, ShadeBatch, ShadePoint};
 use rayon::prelude::*;
 
-use crate::bvh::{BuildPreset, SceneBvh, bvh_triangles};
-use crate::point::front_point_hit_by;
-use crate::reference::camera_for;
-use crate::sampling::{cosine_hemisphere, luminance, stream, uniform_cone, uniform2};
-use crate::shade::shade_batch;
-use crate::world::World;
+use renderer::bvh::SceneBvh;
+use renderer::point::front_point_hit_by;
+use renderer::reference::camera_for;
+use renderer::sampling::{cosine_hemisphere, luminance, stream, uniform_cone, uniform2};
+use renderer::shade::shade_batch;
+use renderer::world::World;
+use scene::bvh::{BuildPreset, build_cwbvh, bvh_triangles};
+
+use super::stats::{median, median_seconds};
 
 /// Sponza's scene file, relative to the repository root (it reads ../shared/scenes).
 pub const SPONZA: &str = "scenes/sponza.toml";
@@ -115,24 +117,6 @@ fn cpu_level() -> &'static str {
     } else {
         "generic x86-64 (no AVX2)"
     }
-}
-
-fn median(mut xs: Vec<f64>) -> f64 {
-    xs.sort_by(f64::total_cmp);
-    xs[xs.len() / 2]
-}
-
-/// Median seconds of `runs` calls of `f`.
-fn time_median(runs: usize, mut f: impl FnMut()) -> f64 {
-    median(
-        (0..runs)
-            .map(|_| {
-                let t = Instant::now();
-                f();
-                t.elapsed().as_secs_f64()
-            })
-            .collect(),
-    )
 }
 
 /// Rays of one kind: origin, direction, tmax.
@@ -261,11 +245,7 @@ struct NaiveBvh {
 impl NaiveBvh {
     fn build(mesh: &scene::Mesh) -> NaiveBvh {
         let tris = bvh_triangles(mesh);
-        let bvh = build_cwbvh_from_tris(
-            &tris,
-            BuildPreset::Medium.params(),
-            &mut Duration::default(),
-        );
+        let bvh = build_cwbvh(&tris, BuildPreset::Medium);
         NaiveBvh { bvh, tris }
     }
 
@@ -424,7 +404,7 @@ fn visible_points(world: &World, view: &str, n: usize) -> anyhow::Result<Vec<Sha
             let Some(mut p) = front_point_hit_by(world, cam.eye_vec(), dir, Some(cam.eye)) else {
                 continue;
             };
-            if crate::point::surface_of(world, &p).is_ok_and(|s| s.normal.dot(dir) > 0.0) {
+            if renderer::point::surface_of(world, &p).is_ok_and(|s| s.normal.dot(dir) > 0.0) {
                 p.side = Side::Back;
                 p.key.side = Side::Back;
             }
@@ -453,7 +433,7 @@ fn samples_per_second(scenes: &[(&World, &str)], cfg: &Config) -> anyhow::Result
                 points: points.clone(),
             };
             let mut rays = 0;
-            let secs = time_median(cfg.runs, || rays = shade_batch(world, &batch).1.total());
+            let secs = median_seconds(cfg.runs, || rays = shade_batch(world, &batch).1.total());
             writeln!(
                 md,
                 "| {} | {view} | {label} | {} | {:.0} | {:.0} |",
@@ -475,7 +455,7 @@ fn hidden_vertices(world: &World, cfg: &Config) -> anyhow::Result<String> {
     let mesh = &world.scene.mesh;
     let step = (mesh.triangles.len() / cfg.points.max(1)).max(1);
     let (mut n, mut hidden, mut moved) = (0usize, 0usize, 0usize);
-    let mut counts = crate::counters::RayCounts::default();
+    let mut counts = renderer::counters::RayCounts::default();
     let start = Instant::now();
     for t in (0..mesh.triangles.len()).step_by(step) {
         for side in [Side::Front, Side::Back] {
@@ -486,14 +466,14 @@ fn hidden_vertices(world: &World, cfg: &Config) -> anyhow::Result<String> {
                 side,
                 eye: None,
             };
-            let Ok(s) = crate::point::surface_of(world, &p) else {
+            let Ok(s) = renderer::point::surface_of(world, &p) else {
                 continue;
             };
             n += 1;
-            if crate::point::is_hidden(world, &s, &mut counts) {
+            if renderer::point::is_hidden(world, &s, &mut counts) {
                 hidden += 1;
                 moved +=
-                    crate::point::locate(world, &p, &mut counts).is_ok_and(|l| l.moved) as usize;
+                    renderer::point::locate(world, &p, &mut counts).is_ok_and(|l| l.moved) as usize;
             }
         }
     }
@@ -535,7 +515,7 @@ fn error_and_time(world: &World, view: &str, cfg: &Config) -> anyhow::Result<Str
             points: points.clone(),
         };
         let mut rgb = Vec::new();
-        let secs = time_median(runs, || rgb = shade_batch(world, &batch).0.rgb);
+        let secs = median_seconds(runs, || rgb = shade_batch(world, &batch).0.rgb);
         (
             rgb.iter()
                 .map(|c| luminance(Vec3::from(*c)) as f64)
@@ -603,10 +583,5 @@ mod tests {
         assert_eq!(morton3(0, 0, 1), 4);
         assert_eq!(morton3(3, 0, 0), 0b1001);
         assert!(morton3(1023, 1023, 1023) < 1 << 30);
-    }
-
-    #[test]
-    fn median_takes_the_middle() {
-        assert_eq!(median(vec![3.0, 1.0, 2.0]), 2.0);
     }
 }

@@ -12,12 +12,14 @@ use std::time::Instant;
 use protocol::types::Viewpoint;
 use protocol::viewer_link::{Camera, ShownTriangle};
 
-use crate::draw::{DrawSettings, depth_range};
-use crate::gpu::{Gpu, headless_or_skip};
-use crate::offscreen::Offscreen;
-use crate::table::TriangleTable;
-use crate::update::TableOp;
-use crate::vertex_buffer::GpuTriangles;
+use viewer::draw::{DrawSettings, depth_range};
+use viewer::gpu::{Gpu, headless_or_skip};
+use viewer::offscreen::Offscreen;
+use viewer::table::TriangleTable;
+use viewer::update::TableOp;
+use viewer::vertex_buffer::GpuTriangles;
+
+use super::stats::median;
 
 const WIDTH: u32 = 1024;
 const HEIGHT: u32 = 768;
@@ -82,7 +84,7 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
                 "ms",
             )?;
         }
-        let verdict = if median(&with_upload) >= 2.0 {
+        let verdict = if median(with_upload.clone()) >= 2.0 {
             "met"
         } else {
             "NOT met"
@@ -113,14 +115,8 @@ fn row(out: &mut String, label: &str, values: &[f64], unit: &str) -> std::fmt::R
     writeln!(
         out,
         "| {label} | {:.2} {unit} | {min:.2} | {max:.2} |",
-        median(values)
+        median(values.to_vec())
     )
-}
-
-fn median(values: &[f64]) -> f64 {
-    let mut v = values.to_vec();
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
 /// Millions of triangles (inserted + removed) applied per second, one figure per run.

@@ -1,21 +1,20 @@
 //! End-to-end figures with real processes: one `renderer serve` (all cores) and one `sma`,
-//! started from the `walkthrough` launcher binary that runs this benchmark, and the scripted
-//! viewer of `crate::probe` at 1024×768:
+//! started from the `walkthrough` binary that runs this benchmark, and the scripted viewer of
+//! `testkit::probe` at 1024×768:
 //! - first complete picture from an empty cache: every visible triangle shown (direct-light
 //!   quality or better), then every sample at the scene's quality (`outstanding == 0`);
 //! - camera change to the viewer's matching `Epoch`, every sample cached;
 //! - the SMA's memory per leaf during a long refinement (its own stats line: mesh + cache).
 
 use std::fmt::Write;
-use std::process::Stdio;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use tokio::io::{AsyncBufReadExt, BufReader};
-use tokio::process::{Child, Command};
-use tokio::sync::mpsc;
+use testkit::child::{Process, start_server, strings};
+use testkit::probe::Probe;
 
-use crate::probe::{Probe, listening_addr};
+use crate::bench::stats::median;
 
 const WIDTH: u32 = 1024;
 const HEIGHT: u32 = 768;
@@ -36,67 +35,40 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
     } else {
         ("bracara", "VT", "VR")
     };
+    let logs = std::env::temp_dir().join(format!("walkthrough-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&logs)?;
     let runtime = tokio::runtime::Runtime::new()?;
     let mut md = String::new();
-    runtime.block_on(latencies(&exe, scene, view, other, quick, &mut md))?;
-    runtime.block_on(memory_per_leaf(&exe, scene, view, quick, &mut md))?;
+    runtime.block_on(latencies(&exe, &logs, scene, view, other, quick, &mut md))?;
+    runtime.block_on(memory_per_leaf(&exe, &logs, scene, view, quick, &mut md))?;
+    let _ = std::fs::remove_dir_all(&logs);
     Ok(md)
 }
 
-/// A child process and the receiving end of its stderr lines.
-struct Process {
-    _child: Child,
-    stderr: mpsc::UnboundedReceiver<String>,
-}
-
-/// Starts `exe args` and returns it with the address from its "listening on ADDR" line.
-async fn start(exe: &std::path::Path, args: &[&str]) -> anyhow::Result<(Process, String)> {
-    let mut child = Command::new(exe)
-        .args(args)
-        .env("NODEVICE_SELECT", "1")
-        .env("RUST_LOG", "info")
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .kill_on_drop(true)
-        .spawn()
-        .with_context(|| format!("starting {args:?}"))?;
-    let mut err = BufReader::new(child.stderr.take().context("stderr")?).lines();
-    let (tx, stderr) = mpsc::unbounded_channel();
-    tokio::spawn(async move {
-        while let Ok(Some(line)) = err.next_line().await {
-            let _ = tx.send(line);
-        }
-    });
-    let addr = listening_addr(child.stdout.take().context("stdout")?, WAIT)
-        .await
-        .with_context(|| format!("{args:?}"))?;
-    Ok((
-        Process {
-            _child: child,
-            stderr,
-        },
-        addr,
-    ))
-}
-
-async fn system(
-    exe: &std::path::Path,
+/// A renderer and an SMA with `sma_flags`, as child processes logging into `logs`; the SMA's
+/// viewer address.
+fn system(
+    exe: &Path,
+    logs: &Path,
     scene: &str,
     sma_flags: &[&str],
 ) -> anyhow::Result<(Process, Process, String)> {
-    let (renderer, raddr) = start(
+    let log = |name: &str| -> PathBuf { logs.join(format!("{name}.log")) };
+    let renderer_args = [
+        "renderer",
+        "serve",
+        "--scene",
+        scene,
+        "--listen",
+        "127.0.0.1:0",
+    ];
+    let renderer = start_server(
         exe,
-        &[
-            "renderer",
-            "serve",
-            "--scene",
-            scene,
-            "--listen",
-            "127.0.0.1:0",
-        ],
-    )
-    .await?;
+        "renderer",
+        &strings(&renderer_args),
+        Some(&log("renderer")),
+    )?;
+    let renderer_addr = renderer.addr.to_string();
     let mut args = vec![
         "sma",
         "--scene",
@@ -104,27 +76,24 @@ async fn system(
         "--listen",
         "127.0.0.1:0",
         "--renderer",
-        &raddr,
+        &renderer_addr,
     ];
     args.extend(sma_flags);
-    let (sma, saddr) = start(exe, &args).await?;
-    Ok((renderer, sma, saddr))
-}
-
-fn median(mut xs: Vec<f64>) -> f64 {
-    xs.sort_by(f64::total_cmp);
-    xs[xs.len() / 2]
+    let _ = std::fs::remove_file(log("sma"));
+    let sma = start_server(exe, "sma", &strings(&args), Some(&log("sma")))?;
+    Ok((renderer.process, sma.process, sma.addr.to_string()))
 }
 
 async fn latencies(
-    exe: &std::path::Path,
+    exe: &Path,
+    logs: &Path,
     scene: &str,
     view: &str,
     other: &str,
     quick: bool,
     md: &mut String,
 ) -> anyhow::Result<()> {
-    let (_renderer, _sma, addr) = system(exe, scene, &["--no-refine"]).await?;
+    let (_renderer, _sma, addr) = system(exe, logs, scene, &["--no-refine"])?;
     let mut probe = Probe::connect(&addr).await?;
     let t0 = Instant::now();
     let camera = probe.view(view, WIDTH, HEIGHT).await?;
@@ -181,14 +150,19 @@ async fn latencies(
 
 /// Refines for a while and reads the SMA's last stats line: leaves, mesh and cache MiB.
 async fn memory_per_leaf(
-    exe: &std::path::Path,
+    exe: &Path,
+    logs: &Path,
     scene: &str,
     view: &str,
     quick: bool,
     md: &mut String,
 ) -> anyhow::Result<()> {
-    let (_renderer, mut sma, addr) =
-        system(exe, scene, &["--criterion", "nld-os", "--stats-secs", "1"]).await?;
+    let (_renderer, sma, addr) = system(
+        exe,
+        logs,
+        scene,
+        &["--criterion", "nld-os", "--stats-secs", "1"],
+    )?;
     let mut probe = Probe::connect(&addr).await?;
     probe.view(view, WIDTH, HEIGHT).await?;
     let run = Duration::from_secs(if quick { 10 } else { 60 });
@@ -200,13 +174,11 @@ async fn memory_per_leaf(
         }
     })
     .await;
-    let mut last = None;
-    while let Ok(line) = sma.stderr.try_recv() {
-        if line.contains(" stats") {
-            last = Some(line);
-        }
-    }
-    let line = last.context("no stats line from the SMA")?;
+    let log = sma.log_text();
+    let line = log
+        .lines()
+        .rfind(|line| line.contains(" stats"))
+        .context("no stats line from the SMA")?;
     let field = |name: &str| -> Option<f64> {
         let rest = line.split(&format!(" {name}=")).nth(1)?;
         rest.split_whitespace()

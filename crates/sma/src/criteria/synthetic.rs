@@ -9,7 +9,7 @@ use protocol::renderer_link::{Quality, SampleKey};
 use crate::cache::{CachedSample, ShadingCache};
 use crate::criteria::{CriterionInput, LuminanceImage};
 use crate::mesh::{MeshParams, NodeId, SubdivisionMesh};
-use crate::visible::{VisibleLeaf, VisibleSet};
+use crate::visible_set::{VisibleLeaf, VisibleSet};
 
 /// The shading functions of the experiments, luminance over the plane.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -187,7 +187,7 @@ impl Synthetic {
             let lum = self
                 .cache
                 .leaf_radiance(&self.mesh, leaf, Side::Front)
-                .map(|rgb| rgb.map(crate::nld::luminance));
+                .map(|rgb| rgb.map(conventions::luminance));
             let lo = (p[0].min(p[1]).min(p[2]) * scale).floor().max(Vec2::ZERO);
             let hi = (p[0].max(p[1]).max(p[2]) * scale)
                 .ceil()

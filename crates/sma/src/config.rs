@@ -1,0 +1,91 @@
+//! The SMA's configuration as plain values (no argument parsing here: `cli` fills it from flags).
+//! Every default is set once, in the `Default` impls, with the measurement behind it on the flag
+//! in `cli` (DESIGN.md §6: each unstated thesis parameter is a flag with a measured default).
+
+use std::time::Duration;
+
+use protocol::frame::DEFAULT_MAX_FRAME;
+
+use crate::criteria::{CriterionKind, CriterionSettings};
+use crate::mesh::MeshParams;
+
+/// A whole SMA: where it listens, which renderers it uses, and how it refines.
+#[derive(Clone, Debug)]
+pub struct SmaConfig {
+    /// Address to accept viewers on; port 0 lets the OS pick (the bound address is reported).
+    pub listen: String,
+    /// Renderer `host:port`s.
+    pub renderers: Vec<String>,
+    /// Largest frame accepted or sent.
+    pub max_frame: usize,
+    pub mesh: MeshParams,
+    pub schedule: ScheduleConfig,
+}
+
+impl Default for SmaConfig {
+    fn default() -> Self {
+        SmaConfig {
+            listen: "127.0.0.1:7200".into(),
+            renderers: Vec::new(),
+            max_frame: DEFAULT_MAX_FRAME,
+            mesh: MeshParams::default(),
+            schedule: ScheduleConfig::default(),
+        }
+    }
+}
+
+/// Every knob of the schedule's loop.
+#[derive(Clone, Debug)]
+pub struct ScheduleConfig {
+    /// The criterion a viewer starts with (each may change its own with `SetCriterion`).
+    pub criterion: CriterionKind,
+    pub criterion_settings: CriterionSettings,
+    /// Refinement at all (off: the end-to-end control run).
+    pub refine: bool,
+    /// R: selections per refinement round (§4.3.5).
+    pub max_selections: usize,
+    /// No leaf covering fewer pixels is split.
+    pub min_split_pixels: u32,
+    /// K: visibility is re-run after this many new samples.
+    pub revisit_samples: u64,
+    /// Points per shade batch.
+    pub batch_points: usize,
+    /// Batches in flight per connected renderer.
+    pub batches_per_renderer: usize,
+    /// Refinement waits until fewer samples than this are queued or in flight.
+    pub queue_low: usize,
+    /// A camera rests once unchanged this long.
+    pub rest: Duration,
+    /// A view-dependent sample is retaken once the eye has moved by this angle, seen from it.
+    pub view_angle_deg: f32,
+    /// Time between stats lines.
+    pub stats_every: Duration,
+    pub cache_budget_bytes: usize,
+    /// Visibility passes a base triangle must be out of every view before its subdivision is
+    /// collapsed; 0: never.
+    pub coarsen_after_passes: u64,
+    /// Seed of the criteria's random streams.
+    pub seed: u64,
+}
+
+impl Default for ScheduleConfig {
+    fn default() -> Self {
+        ScheduleConfig {
+            criterion: CriterionKind::NldOs,
+            criterion_settings: CriterionSettings::default(),
+            refine: true,
+            max_selections: 256,
+            min_split_pixels: 6,
+            revisit_samples: 20_000,
+            batch_points: 128,
+            batches_per_renderer: 4,
+            queue_low: 256,
+            rest: Duration::from_millis(100),
+            view_angle_deg: 2.0,
+            stats_every: Duration::from_secs(2),
+            cache_budget_bytes: 1024 << 20,
+            coarsen_after_passes: 300,
+            seed: 1,
+        }
+    }
+}

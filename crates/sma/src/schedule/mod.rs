@@ -1,0 +1,456 @@
+//! The event loop of the SMA (DESIGN.md §3, thesis §2.2, §4.1): one owner of the mesh, the
+//! cache, the visibility passes and every viewer's state, fed by two channels (viewers, renderer
+//! pool). Each turn it first takes every waiting event, then, in this order:
+//!
+//! 1. visibility for viewers whose camera changed (or whose leaves changed), two levels;
+//! 2. refinement groups whose visible new leaves are all shaded are committed;
+//! 3. the request queue is re-planned when the visible sets or the cache changed, and batches
+//!    go to the pool while it has room (a queue that empties because answers satisfied it is
+//!    re-planned at once);
+//! 4. each viewer is brought up to date (`Remove`/`Insert`/`Update`, `ToneMap`, `Epoch`), the
+//!    epoch counting what is truly outstanding after step 3;
+//! 5. only then, when no camera is waiting, the queue is short and a viewer's camera rests, one
+//!    refinement round of at most R selections runs; its passes come at the next turn, after any
+//!    camera that arrived meanwhile. A camera change so interrupts refinement at once.
+//!
+//! It runs on its own thread: the visibility passes block for milliseconds (software
+//! rasterizer), and must not stall the tasks serving viewers and renderers.
+//!
+//! This module keeps the turn ordering ([`turns`] holds its decisions, tested with a fake clock
+//! and a fake pool); [`viewers`] holds per-viewer state and the epoch sync, [`refinement`] the
+//! refinement rounds and the luminance image, [`waits`] the small state machines of what the work
+//! waits for.
+
+mod coarsening;
+mod display;
+mod pending;
+mod plan;
+mod refinement;
+mod requests;
+mod turns;
+mod viewers;
+mod waits;
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use anyhow::Context;
+use glam::Vec3;
+use protocol::renderer_link::{Quality, point_flags};
+use protocol::viewer_link::{SmaToViewer, Stats, ViewerToSma};
+use scene::Scene;
+use tokio::sync::{mpsc, watch};
+
+use crate::cache::{CachedSample, ShadingCache};
+use crate::config::ScheduleConfig;
+use crate::criteria::{CriterionKind, make_criterion};
+use crate::mesh::SubdivisionMesh;
+use crate::pool::{PoolEvent, PoolHandle};
+use crate::viewer_link::{ViewerEvent, ViewerId};
+use crate::visibility::{Gpu, LuminancePass, Visibility};
+use coarsening::Coarsening;
+use pending::PendingRefinement;
+use plan::{Aging, NeedsInput, Qualities};
+use requests::Requests;
+use turns::{Feed, RefineGate, TurnView};
+use viewers::{SyncInput, Viewer};
+use waits::Owed;
+
+pub struct Schedule {
+    config: ScheduleConfig,
+    view_dependent: Vec<bool>,
+    qualities: Qualities,
+    aging: Aging,
+    mesh: SubdivisionMesh,
+    cache: ShadingCache,
+    visibility: Visibility,
+    luminance: LuminancePass,
+    pending: PendingRefinement,
+    coarsening: Coarsening,
+    requests: Requests,
+    pool: PoolHandle,
+    renderers: usize,
+    viewers: BTreeMap<ViewerId, Viewer>,
+    /// What the next turn owes the queue and the viewers.
+    owed: Owed,
+    samples: u64,
+    samples_since_pass: u64,
+    samples_at_last_stats: u64,
+    last_stats: Instant,
+    frame: u64,
+    refine_turn: usize,
+}
+
+impl Schedule {
+    pub fn new(
+        config: ScheduleConfig,
+        scene: &Scene,
+        mesh: SubdivisionMesh,
+        gpu: Gpu,
+        pool: PoolHandle,
+    ) -> Schedule {
+        let view_dependent = (0..scene.mesh.triangles.len())
+            .map(|t| scene.material_of(t).is_view_dependent())
+            .collect();
+        let quality = scene.settings.quality;
+        let qualities = Qualities::new(Quality {
+            paths: quality.paths,
+            bounces: quality.bounces,
+        });
+        let aging = Aging {
+            max_angle_rad: config.view_angle_deg.to_radians(),
+        };
+        let luminance = LuminancePass::new(&gpu);
+        let visibility = Visibility::new(gpu, &mesh, scene.mesh.bounds());
+        let coarsening = Coarsening::new(mesh.base_count(), config.coarsen_after_passes);
+        Schedule {
+            coarsening,
+            cache: ShadingCache::new(config.cache_budget_bytes),
+            requests: Requests::new(config.seed),
+            config,
+            view_dependent,
+            qualities,
+            aging,
+            mesh,
+            visibility,
+            luminance,
+            pending: PendingRefinement::default(),
+            pool,
+            renderers: 0,
+            viewers: BTreeMap::new(),
+            owed: Owed::default(),
+            samples: 0,
+            samples_since_pass: 0,
+            samples_at_last_stats: 0,
+            last_stats: Instant::now(),
+            frame: 0,
+            refine_turn: 0,
+        }
+    }
+
+    pub fn adapter(&self) -> String {
+        self.visibility.gpu().describe()
+    }
+
+    /// Runs until shutdown or until both channels close.
+    pub async fn run(
+        mut self,
+        mut viewers: mpsc::UnboundedReceiver<ViewerEvent>,
+        mut pool: mpsc::UnboundedReceiver<PoolEvent>,
+        mut shutdown: watch::Receiver<bool>,
+    ) -> anyhow::Result<()> {
+        let mut stats = tokio::time::interval(self.config.stats_every);
+        loop {
+            let (work_now, rest_at) = self.waiting_for();
+            tokio::select! {
+                biased;
+                _ = shutdown.changed() => return Ok(()),
+                event = viewers.recv() => match event {
+                    Some(event) => self.on_viewer_event(event),
+                    None => return Ok(()),
+                },
+                Some(event) = pool.recv() => self.on_pool_event(event),
+                _ = stats.tick() => self.report_stats(),
+                _ = sleep_until(rest_at), if rest_at.is_some() => {}
+                _ = std::future::ready(()), if work_now => {}
+            }
+            while let Ok(event) = viewers.try_recv() {
+                self.on_viewer_event(event);
+            }
+            while let Ok(event) = pool.try_recv() {
+                self.on_pool_event(event);
+            }
+            self.turn()?;
+        }
+    }
+
+    fn on_viewer_event(&mut self, event: ViewerEvent) {
+        match event {
+            ViewerEvent::Joined { id, outbox } => {
+                let viewer = Viewer::new(outbox, self.criterion(self.config.criterion, id));
+                viewer.send(self.refinement_state(&viewer));
+                self.viewers.insert(id, viewer);
+            }
+            ViewerEvent::Left { id } => {
+                self.viewers.remove(&id);
+                self.owed.queue_changed();
+            }
+            ViewerEvent::Message { id, message } => self.on_viewer_message(id, message),
+        }
+    }
+
+    fn on_viewer_message(&mut self, id: ViewerId, message: ViewerToSma) {
+        let Some(viewer) = self.viewers.get(&id) else {
+            return;
+        };
+        let criterion = match &message {
+            ViewerToSma::SetCriterion { name } => match CriterionKind::from_name(name) {
+                Some(kind) => Some(self.criterion(kind, id)),
+                None => {
+                    viewer.send(SmaToViewer::Error {
+                        message: format!(
+                            "unknown criterion {name:?}; known: {}",
+                            CriterionKind::names()
+                        ),
+                    });
+                    None
+                }
+            },
+            _ => None,
+        };
+        let viewer = self.viewers.get_mut(&id).expect("looked up above");
+        match message {
+            ViewerToSma::Camera(camera) => viewer.camera_moved(camera),
+            ViewerToSma::SetCriterion { .. } => {
+                if let Some(criterion) = criterion {
+                    viewer.criterion = criterion;
+                    viewer.wait.new_input();
+                }
+            }
+            ViewerToSma::Pause => viewer.paused = true,
+            ViewerToSma::Resume => viewer.paused = false,
+            ViewerToSma::Bye => {}
+        }
+        let viewer = &self.viewers[&id];
+        viewer.send(self.refinement_state(viewer));
+    }
+
+    fn refinement_state(&self, viewer: &Viewer) -> SmaToViewer {
+        SmaToViewer::Refinement {
+            criterion: viewer.criterion.kind().name().to_string(),
+            paused: viewer.paused || !self.config.refine,
+        }
+    }
+
+    /// A criterion of `kind` for viewer `id`, with its own random stream.
+    fn criterion(&self, kind: CriterionKind, id: ViewerId) -> Box<dyn crate::criteria::Criterion> {
+        make_criterion(kind, &self.config.criterion_settings, self.config.seed ^ id)
+    }
+
+    fn on_pool_event(&mut self, event: PoolEvent) {
+        match event {
+            PoolEvent::Shaded { batch, radiance } => {
+                self.requests.finished(&batch);
+                for ((point, rgb), flags) in
+                    batch.points.iter().zip(&radiance.rgb).zip(&radiance.flags)
+                {
+                    let base = point.base_triangle as usize;
+                    let view_dependent = self.view_dependent.get(base).copied().unwrap_or(false)
+                        || flags & point_flags::VIEW_DEPENDENT != 0;
+                    let sample = CachedSample {
+                        rgb: *rgb,
+                        quality: radiance.quality,
+                        view_dependent,
+                        eye: point.eye.map(Vec3::from),
+                        last_seen: self.frame,
+                    };
+                    self.cache.insert(point.key, sample);
+                }
+                let n = batch.points.len() as u64;
+                // New samples are new input for every criterion: one that had found nothing may
+                // find something now.
+                self.viewers.values_mut().for_each(|v| v.wait.new_input());
+                self.samples += n;
+                self.samples_since_pass += n;
+                self.owed.samples_arrived();
+            }
+            PoolEvent::Failed { batch, reason } => {
+                tracing::warn!(batch = batch.batch_id, %reason, "batch failed; its samples will be asked again");
+                self.requests.finished(&batch);
+                self.owed.queue_changed();
+            }
+            PoolEvent::Renderers { connected } => self.renderers = connected,
+        }
+    }
+
+    /// One turn after the events (see the module documentation).
+    fn turn(&mut self) -> anyhow::Result<()> {
+        if self.samples_since_pass >= self.config.revisit_samples {
+            self.viewers
+                .values_mut()
+                .for_each(|v| v.wait.leaves_changed());
+        }
+        self.run_passes()?;
+        self.commit_ready_groups();
+        self.owed = turns::feed(self.owed, self);
+        if self.owed.resync() {
+            self.sync_viewers();
+        }
+        if let Some(id) = self.refinement_candidate() {
+            self.refine_round(id)?;
+        }
+        Ok(())
+    }
+
+    fn run_passes(&mut self) -> anyhow::Result<()> {
+        if !self.viewers.values().any(|v| v.wait.needs_pass()) {
+            return Ok(());
+        }
+        self.frame += 1;
+        self.coarsen_stale();
+        for viewer in self.viewers.values_mut().filter(|v| v.wait.needs_pass()) {
+            viewer.wait.pass_done();
+            let Some(camera) = &viewer.camera else {
+                continue;
+            };
+            let view = self
+                .visibility
+                .leaf_view(&self.mesh, camera)
+                .context("visibility pass")?;
+            viewer.view = Some(view);
+        }
+        // Every viewer's view counts as seen now, not only those just re-run: while one viewer
+        // walks, what another one rests on is neither evicted nor coarsened.
+        for view in self.viewers.values().filter_map(|v| v.view.as_ref()) {
+            self.cache
+                .touch_visible(&self.mesh, &view.visible, self.frame);
+            self.coarsening.seen(&self.mesh, &view.visible, self.frame);
+        }
+        self.samples_since_pass = 0;
+        self.cache.evict(self.frame, &|_| false);
+        self.owed.views_changed();
+        Ok(())
+    }
+
+    fn replan_requests(&mut self) {
+        let mut needs = Vec::new();
+        for viewer in self.viewers.values() {
+            let (Some(view), Some(camera)) = (&viewer.view, &viewer.camera) else {
+                continue;
+            };
+            needs.extend(plan::needs(&NeedsInput {
+                view,
+                eye: camera.eye_vec(),
+                pending: &self.pending,
+                mesh: &self.mesh,
+                cache: &self.cache,
+                view_dependent: &self.view_dependent,
+                qualities: self.qualities,
+                aging: self.aging,
+            }));
+        }
+        self.requests.replan(needs);
+    }
+
+    fn sync_viewers(&mut self) {
+        let input = SyncInput {
+            mesh: &self.mesh,
+            cache: &self.cache,
+            pending: &self.pending,
+            outstanding_requests: self.requests.outstanding() as u64,
+            samples: self.samples,
+        };
+        for viewer in self.viewers.values_mut() {
+            viewer.sync(&input);
+        }
+        self.owed.synced();
+    }
+
+    fn submit_batches(&mut self) {
+        let room = self.config.batches_per_renderer.max(1) * self.renderers.max(1);
+        while self.requests.batches_in_flight() < room {
+            let Some(batch) = self
+                .requests
+                .next_batch(self.config.batch_points, &self.cache)
+            else {
+                break;
+            };
+            self.pool.submit(batch);
+        }
+    }
+
+    /// The viewers as the turn order sees them.
+    fn turn_views(&self) -> Vec<TurnView> {
+        self.viewers
+            .iter()
+            .map(|(&id, v)| TurnView {
+                id,
+                has_view: v.view.is_some(),
+                paused: v.paused,
+                wait: v.wait,
+                camera_at: v.camera_at,
+            })
+            .collect()
+    }
+
+    fn refine_gate(&self) -> RefineGate {
+        RefineGate {
+            refine: self.config.refine,
+            groups_pending: !self.pending.is_empty(),
+            outstanding: self.requests.outstanding(),
+            queue_low: self.config.queue_low,
+            rest: self.config.rest,
+        }
+    }
+
+    /// The viewer whose turn it is to refine, if refinement may run now.
+    fn refinement_candidate(&self) -> Option<ViewerId> {
+        let views = self.turn_views();
+        turns::refinement_candidate(
+            &self.refine_gate(),
+            &views,
+            self.refine_turn,
+            Instant::now(),
+        )
+    }
+
+    /// Whether a turn has work without any new event, and else when a camera comes to rest.
+    fn waiting_for(&self) -> (bool, Option<Instant>) {
+        let (views, gate, now) = (self.turn_views(), self.refine_gate(), Instant::now());
+        let candidate = turns::refinement_candidate(&gate, &views, self.refine_turn, now);
+        (
+            turns::has_work_now(self.owed, &views, candidate),
+            turns::next_rest(&gate, &views, now),
+        )
+    }
+
+    fn report_stats(&mut self) {
+        let secs = self.last_stats.elapsed().as_secs_f32().max(1e-3);
+        let rate = (self.samples - self.samples_at_last_stats) as f32 / secs;
+        self.samples_at_last_stats = self.samples;
+        self.last_stats = Instant::now();
+        let stats = Stats {
+            samples_per_sec: rate,
+            leaves: self.mesh.leaf_count() as u64,
+            cached_samples: self.cache.len() as u64,
+            renderers: self.renderers as u32,
+        };
+        tracing::info!(
+            samples = self.samples,
+            samples_per_sec = format!("{rate:.0}"),
+            leaves = stats.leaves,
+            cached = stats.cached_samples,
+            cache_mib = format!("{:.1}", self.cache.bytes() as f64 / (1 << 20) as f64),
+            mesh_mib = format!("{:.1}", self.mesh.heap_bytes() as f64 / (1 << 20) as f64),
+            queued = self.requests.queued(),
+            in_flight = self.requests.in_flight_keys(),
+            pending_steps = self.pending.len(),
+            renderers = self.renderers,
+            viewers = self.viewers.len(),
+            "stats"
+        );
+        for viewer in self.viewers.values() {
+            viewer.send(SmaToViewer::Stats(stats));
+        }
+    }
+}
+
+async fn sleep_until(at: Option<Instant>) {
+    if let Some(at) = at {
+        tokio::time::sleep_until(at.into()).await;
+    }
+}
+
+impl Feed for Schedule {
+    fn queued(&self) -> usize {
+        self.requests.queued()
+    }
+
+    fn replan(&mut self) {
+        self.replan_requests();
+    }
+
+    fn submit(&mut self) {
+        self.submit_batches();
+    }
+}

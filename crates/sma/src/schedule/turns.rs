@@ -1,0 +1,295 @@
+//! The order of a turn's decisions (see the module documentation of `schedule`), as plain
+//! functions of the schedule's state and the time, so they are tested with a fake clock and a
+//! fake pool: when the request queue is re-planned and fed, which viewer may refine, and when the
+//! loop must wake for a camera coming to rest.
+
+use std::time::{Duration, Instant};
+
+use super::waits::{Owed, ViewWait};
+use crate::viewer_link::ViewerId;
+
+/// A viewer as the turn order sees it.
+#[derive(Clone, Copy, Debug)]
+pub struct TurnView {
+    pub id: ViewerId,
+    /// A visibility pass has run for its camera.
+    pub has_view: bool,
+    pub paused: bool,
+    pub wait: ViewWait,
+    pub camera_at: Instant,
+}
+
+/// What refinement as a whole waits for, before any viewer is asked.
+#[derive(Clone, Copy, Debug)]
+pub struct RefineGate {
+    /// Refinement at all (off: the control run).
+    pub refine: bool,
+    /// Refinement groups still wait for samples.
+    pub groups_pending: bool,
+    /// Samples queued or in flight, and the level below which refinement may add more.
+    pub outstanding: usize,
+    pub queue_low: usize,
+    /// How long a camera must be unchanged to rest.
+    pub rest: Duration,
+}
+
+/// The viewer whose turn it is to refine at `now`, if refinement may run: never while a pass is
+/// owed to anyone (a camera change interrupts refinement at once), while groups wait, or while
+/// the queue is long; then the resting viewers take turns (`round` counts the rounds so far).
+pub fn refinement_candidate(
+    gate: &RefineGate,
+    viewers: &[TurnView],
+    round: usize,
+    now: Instant,
+) -> Option<ViewerId> {
+    if !gate.refine
+        || gate.groups_pending
+        || gate.outstanding >= gate.queue_low
+        || viewers.iter().any(|v| v.wait.needs_pass())
+    {
+        return None;
+    }
+    let ready: Vec<ViewerId> = viewers
+        .iter()
+        .filter(|v| {
+            v.has_view
+                && !v.paused
+                && !v.wait.is_exhausted()
+                && now.saturating_duration_since(v.camera_at) >= gate.rest
+        })
+        .map(|v| v.id)
+        .collect();
+    (!ready.is_empty()).then(|| ready[round % ready.len()])
+}
+
+/// When the next viewer's camera comes to rest after `now`, if refinement waits only for that.
+pub fn next_rest(gate: &RefineGate, viewers: &[TurnView], now: Instant) -> Option<Instant> {
+    if !gate.refine {
+        return None;
+    }
+    viewers
+        .iter()
+        .filter(|v| v.has_view && !v.paused && !v.wait.is_exhausted())
+        .map(|v| v.camera_at + gate.rest)
+        .filter(|&t| t > now)
+        .min()
+}
+
+/// Whether a turn has something to do without any new event.
+pub fn has_work_now(owed: Owed, viewers: &[TurnView], candidate: Option<ViewerId>) -> bool {
+    owed.any() || viewers.iter().any(|v| v.wait.needs_pass()) || candidate.is_some()
+}
+
+/// The request queue and the renderer pool, as feeding them sees them.
+pub trait Feed {
+    /// Needs queued, not yet sent.
+    fn queued(&self) -> usize;
+    /// Rebuilds the queue from the visible sets and the cache.
+    fn replan(&mut self);
+    /// Sends batches while the pool has room (dropping needs satisfied meanwhile).
+    fn submit(&mut self);
+}
+
+/// Re-plans when owed, or when the queue ran dry while new input came, and keeps the renderers
+/// fed. Submitting drops queued needs that answers have satisfied meanwhile; a queue emptied that
+/// way is re-planned at once, before the viewers are told what is outstanding, so an epoch never
+/// reports needs that no longer exist (nor misses new ones). Returns what is still owed.
+pub fn feed(mut owed: Owed, queue: &mut impl Feed) -> Owed {
+    let planned = owed.replan() || (queue.queued() == 0 && owed.resync());
+    if planned {
+        queue.replan();
+        owed.replanned();
+    }
+    queue.submit();
+    if !planned && owed.resync() && queue.queued() == 0 {
+        queue.replan();
+        owed.replanned();
+        queue.submit();
+    }
+    owed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A clock that moves only when told.
+    struct FakeClock(Instant);
+
+    impl FakeClock {
+        fn now(&self) -> Instant {
+            self.0
+        }
+        fn advance(&mut self, ms: u64) {
+            self.0 += Duration::from_millis(ms);
+        }
+    }
+
+    fn gate() -> RefineGate {
+        RefineGate {
+            refine: true,
+            groups_pending: false,
+            outstanding: 0,
+            queue_low: 256,
+            rest: Duration::from_millis(100),
+        }
+    }
+
+    fn resting(id: ViewerId, camera_at: Instant) -> TurnView {
+        TurnView {
+            id,
+            has_view: true,
+            paused: false,
+            wait: ViewWait::Rest,
+            camera_at,
+        }
+    }
+
+    #[test]
+    fn refinement_waits_for_the_camera_to_rest() {
+        let mut clock = FakeClock(Instant::now());
+        let viewers = [resting(1, clock.now())];
+        assert_eq!(
+            refinement_candidate(&gate(), &viewers, 0, clock.now()),
+            None
+        );
+        assert_eq!(
+            next_rest(&gate(), &viewers, clock.now()),
+            Some(clock.now() + Duration::from_millis(100))
+        );
+        clock.advance(100);
+        assert_eq!(
+            refinement_candidate(&gate(), &viewers, 0, clock.now()),
+            Some(1)
+        );
+        assert_eq!(
+            next_rest(&gate(), &viewers, clock.now()),
+            None,
+            "already resting"
+        );
+    }
+
+    #[test]
+    fn a_pass_owed_to_anyone_holds_every_refinement() {
+        let mut clock = FakeClock(Instant::now());
+        let mut moving = resting(2, clock.now());
+        moving.wait = ViewWait::Pass { exhausted: false };
+        let viewers = [resting(1, clock.now()), moving];
+        clock.advance(1000);
+        assert_eq!(
+            refinement_candidate(&gate(), &viewers, 0, clock.now()),
+            None
+        );
+        assert!(has_work_now(Owed::default(), &viewers, None));
+    }
+
+    #[test]
+    fn a_long_queue_pending_groups_or_no_refinement_hold_it_too() {
+        let mut clock = FakeClock(Instant::now());
+        let viewers = [resting(1, clock.now())];
+        clock.advance(1000);
+        let held = [
+            RefineGate {
+                outstanding: 256,
+                ..gate()
+            },
+            RefineGate {
+                groups_pending: true,
+                ..gate()
+            },
+            RefineGate {
+                refine: false,
+                ..gate()
+            },
+        ];
+        for g in held {
+            assert_eq!(
+                refinement_candidate(&g, &viewers, 0, clock.now()),
+                None,
+                "{g:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn resting_viewers_take_turns_and_exhausted_or_paused_ones_are_skipped() {
+        let mut clock = FakeClock(Instant::now());
+        let t = clock.now();
+        let mut paused = resting(3, t);
+        paused.paused = true;
+        let mut exhausted = resting(4, t);
+        exhausted.wait = ViewWait::Input;
+        let viewers = [resting(1, t), resting(2, t), paused, exhausted];
+        clock.advance(200);
+        let picks: Vec<_> = (0..4)
+            .map(|round| refinement_candidate(&gate(), &viewers, round, clock.now()))
+            .collect();
+        assert_eq!(picks, [Some(1), Some(2), Some(1), Some(2)]);
+        assert!(!has_work_now(Owed::default(), &viewers, None));
+    }
+
+    /// A fake pool behind a fake queue: it records what feeding did, in order.
+    #[derive(Default)]
+    struct FakePool {
+        queued: usize,
+        /// Needs a re-plan finds.
+        needs: usize,
+        /// Needs that answers satisfied meanwhile: dropped at the next submit.
+        satisfied: usize,
+        calls: Vec<&'static str>,
+    }
+
+    impl Feed for FakePool {
+        fn queued(&self) -> usize {
+            self.queued
+        }
+        fn replan(&mut self) {
+            self.queued = self.needs;
+            self.calls.push("replan");
+        }
+        fn submit(&mut self) {
+            self.queued = self.queued.saturating_sub(self.satisfied);
+            self.satisfied = 0;
+            self.calls.push("submit");
+        }
+    }
+
+    #[test]
+    fn an_owed_replan_comes_before_submitting() {
+        let mut owed = Owed::default();
+        owed.queue_changed();
+        let mut pool = FakePool {
+            needs: 5,
+            ..Default::default()
+        };
+        let owed = feed(owed, &mut pool);
+        assert_eq!(pool.calls, ["replan", "submit"]);
+        assert!(!owed.any());
+    }
+
+    #[test]
+    fn a_queue_emptied_by_answers_is_replanned_before_the_viewers_are_told() {
+        let mut owed = Owed::default();
+        owed.samples_arrived();
+        let mut pool = FakePool {
+            queued: 3,
+            satisfied: 3,
+            needs: 7,
+            ..Default::default()
+        };
+        let owed = feed(owed, &mut pool);
+        assert_eq!(pool.calls, ["submit", "replan", "submit"]);
+        assert_eq!(pool.queued, 7);
+        assert!(owed.resync(), "the viewers are still owed their update");
+    }
+
+    #[test]
+    fn nothing_owed_only_submits() {
+        let mut pool = FakePool {
+            queued: 3,
+            ..Default::default()
+        };
+        assert_eq!(feed(Owed::default(), &mut pool), Owed::default());
+        assert_eq!(pool.calls, ["submit"]);
+    }
+}

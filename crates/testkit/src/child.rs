@@ -1,0 +1,146 @@
+//! A server (`walkthrough renderer serve`, `walkthrough sma`, …) started as a child process with
+//! `--listen 127.0.0.1:0`: the OS picks the port, the child reports it on its `listening on` line
+//! (`conventions::listening`), and the child is killed when its handle is dropped.
+
+use std::fs::File;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::time::Duration;
+
+use anyhow::Context;
+
+/// How long a child may take to bind its port (scene load, BVH build, wgpu start on Mesa).
+pub const START_TIMEOUT: Duration = Duration::from_secs(120);
+
+/// A running child process; killed when dropped, on every exit path (a failure, a panic in a test).
+pub struct Process {
+    name: String,
+    child: Child,
+    log: Option<PathBuf>,
+}
+
+impl Process {
+    /// Starts `exe args`, its output appended to `log` when given (else stderr is inherited and
+    /// stdout dropped).
+    pub fn spawn(
+        exe: &Path,
+        name: &str,
+        args: &[String],
+        log: Option<&Path>,
+    ) -> anyhow::Result<Process> {
+        let stdout = match log {
+            Some(log) => Stdio::from(log_file(log)?),
+            None => Stdio::null(),
+        };
+        Process::spawn_with_stdout(exe, name, args, log, stdout)
+    }
+
+    fn spawn_with_stdout(
+        exe: &Path,
+        name: &str,
+        args: &[String],
+        log: Option<&Path>,
+        stdout: Stdio,
+    ) -> anyhow::Result<Process> {
+        let mut command = Command::new(exe);
+        command
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(stdout)
+            .env("NODEVICE_SELECT", "1");
+        if let Some(log) = log {
+            command.stderr(log_file(log)?);
+        }
+        let child = command
+            .spawn()
+            .with_context(|| format!("starting {} {}", exe.display(), args.join(" ")))?;
+        Ok(Process {
+            name: name.to_string(),
+            child,
+            log: log.map(Path::to_path_buf),
+        })
+    }
+
+    /// Waits for the child's `listening on` line; its stdout keeps going to the log.
+    pub fn listening_addr(&mut self, timeout: Duration) -> anyhow::Result<SocketAddr> {
+        let stdout = self.child.stdout.take().context("stdout already taken")?;
+        let found = match &self.log {
+            Some(log) => conventions::listening::read_addr(stdout, log_file(log)?, timeout),
+            None => conventions::listening::read_addr(stdout, std::io::sink(), timeout),
+        };
+        found.map_err(|e| self.failure(&format!("did not listen: {e}")))
+    }
+
+    /// Kills the child now (a renderer dying mid-run) and reaps it.
+    pub fn kill(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+
+    /// The exit status once the child has ended.
+    pub fn exited(&mut self) -> Option<ExitStatus> {
+        self.child.try_wait().ok().flatten()
+    }
+
+    /// An error naming the process and the end of its log.
+    pub fn failure(&self, what: &str) -> anyhow::Error {
+        let Some(log) = &self.log else {
+            return anyhow::anyhow!("{} {what}", self.name);
+        };
+        let text = std::fs::read_to_string(log).unwrap_or_default();
+        let lines: Vec<&str> = text.lines().collect();
+        let tail = &lines[lines.len().saturating_sub(15)..];
+        anyhow::anyhow!(
+            "{} {what} (log {}):\n{}",
+            self.name,
+            log.display(),
+            tail.join("\n")
+        )
+    }
+
+    /// The log's text so far (empty without a log).
+    pub fn log_text(&self) -> String {
+        self.log
+            .as_ref()
+            .and_then(|log| std::fs::read_to_string(log).ok())
+            .unwrap_or_default()
+    }
+}
+
+impl Drop for Process {
+    fn drop(&mut self) {
+        self.kill();
+    }
+}
+
+fn log_file(path: &Path) -> anyhow::Result<File> {
+    File::options()
+        .create(true)
+        .append(true)
+        .open(path)
+        .with_context(|| format!("opening {}", path.display()))
+}
+
+/// A child server and the address it reported.
+pub struct Server {
+    pub process: Process,
+    pub addr: SocketAddr,
+}
+
+/// Starts `exe args` (whose args include `--listen 127.0.0.1:0`) and waits for its address.
+pub fn start_server(
+    exe: &Path,
+    name: &str,
+    args: &[String],
+    log: Option<&Path>,
+) -> anyhow::Result<Server> {
+    let mut process = Process::spawn_with_stdout(exe, name, args, log, Stdio::piped())?;
+    let addr = process.listening_addr(START_TIMEOUT)?;
+    Ok(Server { process, addr })
+}
+
+/// `["a", "b"]` as owned strings, for argument lists.
+pub fn strings(v: &[&str]) -> Vec<String> {
+    v.iter().map(|s| s.to_string()).collect()
+}

@@ -1,0 +1,106 @@
+//! A renderer stand-in on a free loopback port: it shades a known function of position (so a test
+//! can predict every radiance), logs every request, and can misbehave at a chosen batch.
+
+use std::sync::{Arc, Mutex};
+
+use glam::Vec3;
+use protocol::connection::accept_handshake;
+use protocol::renderer_link::{FromRenderer, Quality, Radiance, SampleKey, ShadePoint, ToRenderer};
+use protocol::{Role, Side, split_tcp};
+use scene::Scene;
+use tokio::net::TcpListener;
+
+/// Radiance at a world point seen from `side`, at `quality`, for the eye of a view-dependent point.
+pub type Shading = fn(Vec3, Side, Quality, Option<Vec3>) -> [f32; 3];
+
+/// Every point requested: its key, the batch's quality and the point's eye.
+pub type Log = Arc<Mutex<Vec<(SampleKey, Quality, Option<[f32; 3]>)>>>;
+
+/// How the stand-in misbehaves at its n-th batch: it takes it, answers nothing, and closes the
+/// connection, then either stops listening (killed mid-batch) or accepts again (restarted).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fault {
+    None,
+    Die(usize),
+    Drop(usize),
+}
+
+/// Where `point` lies in the world.
+fn position(scene: &Scene, point: &ShadePoint) -> Vec3 {
+    let [a, b, c] = scene.mesh.triangle_positions(point.base_triangle as usize);
+    let [u, v] = point.bary;
+    a * (1.0 - u - v) + b * u + c * v
+}
+
+/// Starts the stand-in for `scene`; returns its address and its request log.
+pub async fn start(scene: Scene, shading: Shading, fault: Fault) -> (String, Log) {
+    let listener = TcpListener::bind("127.0.0.1:0")
+        .await
+        .expect("binding a loopback port");
+    let addr = listener.local_addr().expect("a bound address").to_string();
+    let log: Log = Arc::default();
+    tokio::spawn(serve(listener, scene, shading, fault, log.clone()));
+    (addr, log)
+}
+
+async fn serve(listener: TcpListener, scene: Scene, shading: Shading, fault: Fault, log: Log) {
+    let mut batches = 0;
+    while let Ok((stream, _)) = listener.accept().await {
+        let (mut reader, mut writer) = split_tcp::<ToRenderer, FromRenderer>(stream, 1 << 26);
+        let fp = Some(scene.fingerprint);
+        if accept_handshake(
+            &mut reader,
+            &mut writer,
+            Role::Renderer,
+            Role::Sma,
+            fp,
+            true,
+        )
+        .await
+        .is_err()
+        {
+            continue;
+        }
+        while let Ok(ToRenderer::ShadeBatch(batch)) = reader.recv().await {
+            batches += 1;
+            match fault {
+                Fault::Die(n) if n == batches => return, // listener and link dropped
+                Fault::Drop(n) if n == batches => {
+                    // Link dropped, listener kept. Closed gracefully: a socket closed with unread
+                    // batches in it resets the connection, and the reset can discard replies
+                    // already sent (the SMA then rightly asks for them again, which would read as
+                    // a repeat here). So: FIN after the replies, then read until the SMA closes.
+                    drop(writer);
+                    while reader.recv().await.is_ok() {}
+                    break;
+                }
+                _ => {}
+            }
+            log.lock()
+                .expect("log lock")
+                .extend(batch.points.iter().map(|p| (p.key, batch.quality, p.eye)));
+            let rgb = batch
+                .points
+                .iter()
+                .map(|p| {
+                    shading(
+                        position(&scene, p),
+                        p.side,
+                        batch.quality,
+                        p.eye.map(Vec3::from),
+                    )
+                })
+                .collect();
+            let reply = Radiance {
+                batch_id: batch.batch_id,
+                quality: batch.quality,
+                rgb,
+                flags: vec![0; batch.points.len()],
+                micros: 1,
+            };
+            if writer.send(&FromRenderer::Radiance(reply)).await.is_err() {
+                break;
+            }
+        }
+    }
+}

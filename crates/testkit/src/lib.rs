@@ -1,0 +1,16 @@
+//! The system-test harness (not part of the product): what the sma, viewer and root tests and the
+//! launcher's benchmarks need to drive real processes and check what travels between them.
+//!
+//! - [`child`]: a server started as a child process, with the address it reports;
+//! - [`loopback`]: renderer(s) and SMA as child processes, and a headless viewer run against them;
+//! - [`probe`]: a scripted viewer that checks every update the SMA sends;
+//! - [`fake_renderer`]: a renderer stand-in that shades a known function and logs requests;
+//! - [`ground_truth`]: a view's per-pixel reference image, rendered once and kept on disk;
+//! - [`gpu`]: the `WALKTHROUGH_REQUIRE_GPU` rule for tests that need an adapter.
+
+pub mod child;
+pub mod fake_renderer;
+pub mod gpu;
+pub mod ground_truth;
+pub mod loopback;
+pub mod probe;

@@ -1,0 +1,37 @@
+//! The viewer's configuration as plain values (no argument parsing here: `cli` fills it from
+//! flags).
+
+use std::path::PathBuf;
+
+use conventions::ToneMap;
+
+/// What a viewer connects to and shows, and, headless, which snapshots it takes.
+#[derive(Clone, Debug)]
+pub struct ViewerConfig {
+    /// The SMA's viewer address, host:port.
+    pub connect: String,
+    /// Named viewpoint of the scene to start at (default: the scene's first).
+    pub view: Option<String>,
+    pub width: u32,
+    pub height: u32,
+    /// Headless: a snapshot every this many seconds, from t = 0 (the first camera sent).
+    pub snapshot_every: Option<f64>,
+    /// Headless: a snapshot when the SMA's sample count first reaches each of these.
+    pub snapshot_at_samples: Vec<u64>,
+    /// Headless: a snapshot the first time the SMA has no shading request outstanding for the
+    /// current camera.
+    pub snapshot_when_idle: bool,
+    /// Headless: stop after this many seconds (otherwise when every requested snapshot is taken).
+    pub seconds: Option<f64>,
+    /// Headless: where snapshots and snapshots.csv go.
+    pub out: PathBuf,
+    /// Headless: a scripted walk (see `camera_path` for the format); t = 0 at the first camera.
+    pub camera_path: Option<PathBuf>,
+    pub tone_map: ToneMap,
+    /// Overlay the triangle edges (the refinement mesh).
+    pub wireframe: bool,
+    /// Refinement criterion to ask the SMA for at start, by its name.
+    pub criterion: Option<String>,
+    /// Ask the SMA not to refine (visible triangles are still shaded).
+    pub no_refine: bool,
+}
