@@ -1,12 +1,15 @@
-//! The command line of the launcher. Each process crate's own command line is embedded whole, so
-//! `walkthrough renderer …` is exactly `renderer …`, and tests start real separate processes from
-//! one binary.
+//! The command line of the launcher, the only module of this package that knows clap: each flag
+//! set is turned into the plain configuration its module takes. Each process crate's own command
+//! line is embedded whole, so `walkthrough renderer …` is exactly `renderer …`, and tests start
+//! real separate processes from one binary.
 
-use clap::{Parser, Subcommand};
+use std::path::PathBuf;
 
-use crate::bench::BenchCommand;
-use crate::launch::LaunchArgs;
-use crate::scene_cmd::SceneCommand;
+use clap::{Args, Parser, Subcommand};
+
+use crate::bench::accuracy::{self, AccuracyConfig};
+use crate::bench::convergence::{self, ConvergenceConfig};
+use crate::launch::LaunchConfig;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -41,11 +44,228 @@ pub enum Command {
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        None => crate::launch::run(cli.launch),
+        None => crate::launch::run(cli.launch.config()),
         Some(Command::Renderer(c)) => renderer::cli::run(c),
         Some(Command::Sma(c)) => sma::cli::run(c),
         Some(Command::Viewer(c)) => viewer::cli::run(c),
-        Some(Command::Scene(c)) => crate::scene_cmd::run(c),
-        Some(Command::Bench(c)) => crate::bench::run(c),
+        Some(Command::Scene(SceneCommand::Info {
+            scene,
+            width,
+            height,
+        })) => crate::scene_cmd::info(&scene, width, height),
+        Some(Command::Scene(SceneCommand::Export { builtin, dir })) => {
+            crate::scene_cmd::export(&builtin, &dir)
+        }
+        Some(Command::Bench(c)) => run_bench(c),
+    }
+}
+
+fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
+    match cmd {
+        BenchCommand::Report { quick, out, only } => {
+            crate::bench::report::write(&out, quick, &only)
+        }
+        BenchCommand::Convergence(args) => convergence::run(args.config()),
+        BenchCommand::Accuracy(args) => accuracy::run(args.config()),
+        BenchCommand::LoopbackSink { listen } => crate::bench::protocol::loopback_sink(&listen),
+    }
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct LaunchArgs {
+    /// Scene: a TOML file or a built-in name.
+    #[arg(long, default_value = "bracara")]
+    pub scene: String,
+    /// Viewpoint to start at (default: the scene's first).
+    #[arg(long)]
+    pub view: Option<String>,
+    /// Refinement criterion (rnd, nld-is, nld-os, …).
+    #[arg(long, default_value = "nld-os")]
+    pub criterion: String,
+    /// Number of renderer processes; the cores are shared among them.
+    #[arg(long, default_value_t = 1)]
+    pub renderers: usize,
+    #[arg(long, default_value_t = 1024)]
+    pub width: u32,
+    #[arg(long, default_value_t = 768)]
+    pub height: u32,
+    /// Stop after this many seconds (headless default: 20; a window runs until closed).
+    #[arg(long)]
+    pub seconds: Option<f64>,
+    /// Run headless even when a display is there.
+    #[arg(long)]
+    pub headless: bool,
+    /// Where headless snapshots go (default: out/run-<unix time>).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+impl LaunchArgs {
+    fn config(self) -> LaunchConfig {
+        LaunchConfig {
+            scene: self.scene,
+            view: self.view,
+            criterion: self.criterion,
+            renderers: self.renderers,
+            width: self.width,
+            height: self.height,
+            seconds: self.seconds,
+            headless: self.headless,
+            out: self.out,
+        }
+    }
+}
+
+#[derive(Subcommand, Debug)]
+pub enum SceneCommand {
+    /// Triangles, vertices, materials, bounds, dropped triangles, effects, fingerprint, and the
+    /// visible base triangles per viewpoint.
+    Info {
+        /// A scene TOML file or a built-in name (bracara, cornell).
+        scene: String,
+        /// Image size for the per-viewpoint visibility estimate.
+        #[arg(long, default_value_t = 1024)]
+        width: u32,
+        #[arg(long, default_value_t = 768)]
+        height: u32,
+    },
+    /// Writes a built-in scene as OBJ + MTL + TOML.
+    Export { builtin: String, dir: PathBuf },
+}
+
+#[derive(Subcommand, Debug)]
+pub enum BenchCommand {
+    /// Runs every benchmark section and writes BENCHMARKS.md.
+    Report {
+        /// A few seconds per section instead of the full measurement (a smoke run).
+        #[arg(long)]
+        quick: bool,
+        #[arg(long, default_value = "BENCHMARKS.md")]
+        out: PathBuf,
+        /// Only the sections whose name contains one of these (protocol, scene, renderer, sma-core,
+        /// sma-service, viewer, convergence).
+        #[arg(long, value_delimiter = ',')]
+        only: Vec<String>,
+    },
+    /// Convergence per viewpoint against the ground truth, per criterion (DESIGN.md §10).
+    Convergence(ConvergenceArgs),
+    /// Time to reach error levels against a direct per-pixel render (DESIGN.md §10).
+    Accuracy(AccuracyArgs),
+    /// The receiving end of the loopback protocol benchmark (started by `report` as a child).
+    #[command(hide = true)]
+    LoopbackSink {
+        #[arg(long)]
+        listen: String,
+    },
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct ConvergenceArgs {
+    /// One scene (a TOML file or a built-in name). Default: `bracara`, and Sponza when
+    /// ../shared/scenes is there.
+    #[arg(long)]
+    pub scene: Option<String>,
+    /// Views to measure. Default: MC, VR, VT of bracara and S1, S2, S3 of Sponza; with --scene, all
+    /// of that scene's views.
+    #[arg(long, value_delimiter = ',')]
+    pub views: Vec<String>,
+    /// Criteria to compare. Default: every criterion the SMA offers.
+    #[arg(long, value_delimiter = ',')]
+    pub criteria: Vec<String>,
+    /// Length of each run; snapshots every second.
+    #[arg(long, default_value_t = 20.0)]
+    pub seconds: f64,
+    /// Fixed sample counts at which snapshots are also taken.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "1000,2000,4000,8000,16000,32000,64000,128000,256000"
+    )]
+    pub at_samples: Vec<u64>,
+    #[arg(long, default_value_t = 1024)]
+    pub width: u32,
+    #[arg(long, default_value_t = 768)]
+    pub height: u32,
+    /// Paths per pixel of the ground truth (DESIGN.md §10: at least 256).
+    #[arg(long, default_value_t = 256)]
+    pub gt_spp: u32,
+    /// Tables, plots, strips and CSVs (committed: keep it small).
+    #[arg(long, default_value = "docs/convergence")]
+    pub out: PathBuf,
+    /// Ground truth EXRs (big: an ignored folder).
+    #[arg(long, default_value = "out/gt")]
+    pub gt_cache: PathBuf,
+    /// Raw snapshots and process logs of every run (big: an ignored folder).
+    #[arg(long, default_value = "out/convergence")]
+    pub runs: PathBuf,
+    /// Renderer processes per run (the cores are shared among them).
+    #[arg(long, default_value_t = 1)]
+    pub renderers: usize,
+    /// Seed of the SMA's criteria and renderers.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Flags passed on to every `walkthrough sma` (to measure a setting against its default),
+    /// e.g. `--sma-flags=--max-selections,256`.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub sma_flags: Vec<String>,
+    /// Do not write docs/bench/convergence.md nor BENCHMARKS.md.
+    #[arg(long, conflicts_with = "report_only")]
+    pub no_report: bool,
+    /// Measure nothing: redraw the plots, the section and BENCHMARKS.md from the CSVs in --out.
+    #[arg(long)]
+    pub report_only: bool,
+}
+
+impl ConvergenceArgs {
+    fn config(self) -> ConvergenceConfig {
+        ConvergenceConfig {
+            scene: self.scene,
+            views: self.views,
+            criteria: self.criteria,
+            seconds: self.seconds,
+            at_samples: self.at_samples,
+            width: self.width,
+            height: self.height,
+            gt_spp: self.gt_spp,
+            out: self.out,
+            gt_cache: self.gt_cache,
+            runs: self.runs,
+            renderers: self.renderers,
+            seed: self.seed,
+            sma_flags: self.sma_flags,
+            no_report: self.no_report,
+            report_only: self.report_only,
+        }
+    }
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct AccuracyArgs {
+    /// The output folder of `bench convergence`.
+    #[arg(long, default_value = "docs/convergence")]
+    pub convergence: PathBuf,
+    /// Mean FLIP levels to reach.
+    #[arg(long, value_delimiter = ',', default_value = "0.2,0.15,0.1,0.05")]
+    pub levels: Vec<f64>,
+    /// Paths per pixel of the direct render (the interactive preset: 64).
+    #[arg(long, default_value_t = 64)]
+    pub spp: u32,
+    /// The direct renders' images (an ignored folder).
+    #[arg(long, default_value = "out/direct")]
+    pub direct: PathBuf,
+    /// Do not write docs/bench/accuracy.md nor BENCHMARKS.md.
+    #[arg(long)]
+    pub no_report: bool,
+}
+
+impl AccuracyArgs {
+    fn config(self) -> AccuracyConfig {
+        AccuracyConfig {
+            convergence: self.convergence,
+            levels: self.levels,
+            spp: self.spp,
+            direct: self.direct,
+            no_report: self.no_report,
+        }
     }
 }

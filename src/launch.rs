@@ -8,35 +8,26 @@ use std::process::Stdio;
 use std::time::Duration;
 
 use anyhow::Context;
-use clap::Args;
 use tokio::process::{Child, Command};
 
-#[derive(Args, Debug, Clone)]
-pub struct LaunchArgs {
+/// What the launcher starts (the `walkthrough` flags without a subcommand).
+#[derive(Debug, Clone)]
+pub struct LaunchConfig {
     /// Scene: a TOML file or a built-in name.
-    #[arg(long, default_value = "bracara")]
     pub scene: String,
     /// Viewpoint to start at (default: the scene's first).
-    #[arg(long)]
     pub view: Option<String>,
     /// Refinement criterion (rnd, nld-is, nld-os, …).
-    #[arg(long, default_value = "nld-os")]
     pub criterion: String,
     /// Number of renderer processes; the cores are shared among them.
-    #[arg(long, default_value_t = 1)]
     pub renderers: usize,
-    #[arg(long, default_value_t = 1024)]
     pub width: u32,
-    #[arg(long, default_value_t = 768)]
     pub height: u32,
     /// Stop after this many seconds (headless default: 20; a window runs until closed).
-    #[arg(long)]
     pub seconds: Option<f64>,
     /// Run headless even when a display is there.
-    #[arg(long)]
     pub headless: bool,
     /// Where headless snapshots go (default: out/run-<unix time>).
-    #[arg(long)]
     pub out: Option<PathBuf>,
 }
 
@@ -83,11 +74,11 @@ fn strings(v: &[&str]) -> Vec<String> {
     v.iter().map(|s| s.to_string()).collect()
 }
 
-pub fn run(args: LaunchArgs) -> anyhow::Result<()> {
+pub fn run(args: LaunchConfig) -> anyhow::Result<()> {
     tokio::runtime::Runtime::new()?.block_on(run_async(args))
 }
 
-async fn run_async(args: LaunchArgs) -> anyhow::Result<()> {
+async fn run_async(args: LaunchConfig) -> anyhow::Result<()> {
     let cores = std::thread::available_parallelism()
         .map(|n| n.get())
         .unwrap_or(2);

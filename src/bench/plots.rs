@@ -1,4 +1,4 @@
-//! Convergence plots (issue 7): the error against time and against samples, one line per
+//! Convergence plots (DESIGN.md §10): the error against time and against samples, one line per
 //! criterion and one for the run without refinement. SVG, because text in plotters' bitmap backend
 //! needs system font libraries (DEPENDENCY-NOTES.md).
 

@@ -106,7 +106,7 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
     );
     let bytes = encode(&insert_batch(0))?.len() as f64 / BATCH as f64;
     Ok(format!(
-        "## Protocol (issue 2)\n\n\
+        "## Protocol\n\n\
          Insert frames of {BATCH} triangles ({bytes:.1} bytes per triangle on the wire), {batches} frames per run, \
          median of {runs} runs.\n\n\
          | measure | triangles/s | target | met |\n|---|---:|---:|:-:|\n\

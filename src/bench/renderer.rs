@@ -15,11 +15,11 @@ use protocol::Side;
 use protocol::renderer_link::{Quality, SampleKey, ShadeBatch, ShadePoint};
 use rayon::prelude::*;
 
-use renderer::bvh::SceneBvh;
+use renderer::internals::SceneBvh;
 use renderer::point::front_point_hit_by;
 use renderer::reference::camera_for;
 use renderer::sampling::{cosine_hemisphere, luminance, stream, uniform_cone, uniform2};
-use renderer::shade::shade_batch;
+use renderer::shade_batch;
 use renderer::world::World;
 use scene::bvh::{BuildPreset, build_cwbvh, bvh_triangles};
 
@@ -455,7 +455,7 @@ fn hidden_vertices(world: &World, cfg: &Config) -> anyhow::Result<String> {
     let mesh = &world.scene.mesh;
     let step = (mesh.triangles.len() / cfg.points.max(1)).max(1);
     let (mut n, mut hidden, mut moved) = (0usize, 0usize, 0usize);
-    let mut counts = renderer::counters::RayCounts::default();
+    let mut counts = renderer::RayCounts::default();
     let start = Instant::now();
     for t in (0..mesh.triangles.len()).step_by(step) {
         for side in [Side::Front, Side::Back] {

@@ -1,4 +1,4 @@
-//! The viewer's figures for BENCHMARKS.md (issue 6): how fast updates are applied (target: 2 M
+//! The viewer's figures for BENCHMARKS.md (DESIGN.md §2 viewer): how fast updates are applied (target: 2 M
 //! triangles a second) and how long a frame takes at 100k and 1M triangles.
 //!
 //! Update batches are what the SMA sends between epochs: inserts of new triangles and removes of

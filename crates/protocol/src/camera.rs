@@ -1,10 +1,8 @@
-//! The one camera convention of the system, so the SMA's visibility pass, the viewer's drawing and
-//! the renderer's reference images agree pixel for pixel.
-//!
-//! The camera frame looks down -Z with +Y up (right-handed); `orientation` rotates it into the
-//! world. Pixel (x, y) counts from the top-left corner; pixel centres sit at +0.5. Depth maps to
-//! 0..1 as wgpu expects.
+//! The camera of the wire in the system's one camera convention (`conventions::camera`), so the
+//! SMA's visibility pass, the viewer's drawing and the renderer's reference images agree pixel for
+//! pixel.
 
+use conventions::camera::{Pinhole, look_rotation};
 use glam::{Mat4, Quat, Vec3};
 
 use crate::types::Viewpoint;
@@ -24,6 +22,17 @@ impl Camera {
         }
     }
 
+    /// The pinhole this camera is.
+    pub fn pinhole(&self) -> Pinhole {
+        Pinhole {
+            eye: self.eye_vec(),
+            rotation: self.rotation(),
+            fov_y_deg: self.fov_y_deg,
+            width: self.width,
+            height: self.height,
+        }
+    }
+
     pub fn rotation(&self) -> Quat {
         Quat::from_array(self.orientation).normalize()
     }
@@ -34,59 +43,40 @@ impl Camera {
 
     /// Unit view direction.
     pub fn forward(&self) -> Vec3 {
-        self.rotation() * Vec3::NEG_Z
+        self.pinhole().forward()
     }
 
     pub fn aspect(&self) -> f32 {
-        self.width.max(1) as f32 / self.height.max(1) as f32
+        self.pinhole().aspect()
     }
 
     /// World -> camera.
     pub fn view_matrix(&self) -> Mat4 {
-        Mat4::from_rotation_translation(self.rotation(), self.eye_vec()).inverse()
+        self.pinhole().view_matrix()
     }
 
     /// Camera -> clip, depth 0..1 (wgpu), right-handed.
     pub fn projection(&self, near: f32, far: f32) -> Mat4 {
-        glam::camera::rh::proj::directx::perspective(
-            self.fov_y_deg.to_radians(),
-            self.aspect(),
-            near,
-            far,
-        )
+        self.pinhole().projection(near, far)
     }
 
     pub fn view_projection(&self, near: f32, far: f32) -> Mat4 {
-        self.projection(near, far) * self.view_matrix()
+        self.pinhole().view_projection(near, far)
     }
 
     /// World-space unit direction through image point (x, y) in pixels (x = 0.5 is the centre of
     /// the first column).
     pub fn ray_direction(&self, x: f32, y: f32) -> Vec3 {
-        let t = (0.5 * self.fov_y_deg.to_radians()).tan();
-        let sx = (2.0 * x / self.width.max(1) as f32 - 1.0) * t * self.aspect();
-        let sy = (1.0 - 2.0 * y / self.height.max(1) as f32) * t;
-        (self.rotation() * Vec3::new(sx, sy, -1.0)).normalize()
+        self.pinhole().ray_direction(x, y)
     }
-}
-
-/// Rotation taking the camera frame (-Z forward, +Y up) to look from `eye` at `target`.
-pub fn look_rotation(eye: Vec3, target: Vec3, up: Vec3) -> Quat {
-    let f = (target - eye).normalize_or(Vec3::NEG_Z);
-    let mut r = f.cross(up);
-    if r.length_squared() < 1e-12 {
-        r = f.any_orthonormal_vector();
-    }
-    let r = r.normalize();
-    let u = r.cross(f);
-    Quat::from_mat3(&glam::Mat3::from_cols(r, u, -f)).normalize()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn camera() -> Camera {
+    #[test]
+    fn a_viewpoint_camera_is_the_pinhole_looking_at_its_target() {
         let vp = Viewpoint {
             name: "t".into(),
             eye: [1.0, 2.0, 3.0],
@@ -94,33 +84,21 @@ mod tests {
             up: [0.0, 1.0, 0.0],
             fov_y_deg: 60.0,
         };
-        Camera::from_viewpoint(&vp, 0, 640, 480)
-    }
-
-    #[test]
-    fn centre_ray_looks_at_target() {
-        let c = camera();
-        let d = c.ray_direction(320.0, 240.0);
-        let want = (Vec3::new(4.0, 2.5, -1.0) - Vec3::new(1.0, 2.0, 3.0)).normalize();
-        assert!(d.abs_diff_eq(want, 1e-5), "{d} vs {want}");
-        assert!(c.forward().abs_diff_eq(want, 1e-5));
-    }
-
-    #[test]
-    fn ray_directions_project_back_to_their_pixels() {
-        let c = camera();
-        let vp = c.view_projection(0.1, 100.0);
-        for (x, y) in [(0.5, 0.5), (100.25, 400.5), (639.5, 10.0)] {
-            let p = c.eye_vec() + c.ray_direction(x, y) * 7.0;
-            let clip = vp * p.extend(1.0);
-            let ndc = clip.truncate() / clip.w;
-            let px = (ndc.x + 1.0) * 0.5 * 640.0;
-            let py = (1.0 - ndc.y) * 0.5 * 480.0;
-            assert!(
-                (px - x).abs() < 1e-2 && (py - y).abs() < 1e-2,
-                "{px},{py} vs {x},{y}"
-            );
-            assert!((0.0..=1.0).contains(&ndc.z));
-        }
+        let c = Camera::from_viewpoint(&vp, 0, 640, 480);
+        let want = Pinhole::look_at(
+            Vec3::from(vp.eye),
+            Vec3::from(vp.target),
+            Vec3::from(vp.up),
+            60.0,
+            [640, 480],
+        );
+        assert!(
+            c.ray_direction(10.5, 20.5)
+                .abs_diff_eq(want.ray_direction(10.5, 20.5), 1e-6)
+        );
+        assert!(
+            c.view_projection(0.1, 100.0)
+                .abs_diff_eq(want.view_projection(0.1, 100.0), 1e-6)
+        );
     }
 }

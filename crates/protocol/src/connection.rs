@@ -53,17 +53,13 @@ impl<R: AsyncRead + Unpin, M: WireMessage> MessageReader<R, M> {
     async fn recv_frame(&mut self) -> Result<bytes::BytesMut, ProtocolError> {
         match self.inner.next().await {
             Some(Ok(frame)) => Ok(frame),
-            Some(Err(e)) => Err(map_codec_error(e, self.inner.decoder().max_frame_length())),
+            Some(Err(e)) => {
+                let partial_frame = !self.inner.read_buffer().is_empty();
+                let max = self.inner.decoder().max_frame_length();
+                Err(map_codec_error(e, max, partial_frame))
+            }
             None if self.inner.read_buffer().is_empty() => Err(ProtocolError::Closed),
             None => Err(ProtocolError::Truncated),
-        }
-    }
-
-    /// Messages of another type on the same stream (after the handshake).
-    pub fn retype<N: WireMessage>(self) -> MessageReader<R, N> {
-        MessageReader {
-            inner: self.inner,
-            _msg: PhantomData,
         }
     }
 }
@@ -95,28 +91,17 @@ impl<W: AsyncWrite + Unpin, M: Serialize> MessageWriter<W, M> {
             .await
             .map_err(ProtocolError::Io)
     }
-
-    /// Messages of another type on the same stream.
-    pub fn retype<N: Serialize>(self) -> MessageWriter<W, N> {
-        MessageWriter {
-            inner: self.inner,
-            max_frame: self.max_frame,
-            _msg: PhantomData,
-        }
-    }
 }
 
-fn map_codec_error(e: io::Error, max: usize) -> ProtocolError {
-    // LengthDelimitedCodec reports an oversized frame as InvalidData before reading its body.
-    if e.kind() == io::ErrorKind::InvalidData {
-        ProtocolError::FrameTooLarge { max }
-    } else if e.kind() == io::ErrorKind::UnexpectedEof
-        || e.to_string() == "bytes remaining on stream"
-    {
-        // tokio-util reports a stream that ends inside a frame with this message.
-        ProtocolError::Truncated
-    } else {
-        ProtocolError::Io(e)
+/// `partial_frame`: the read buffer still holds part of a frame.
+fn map_codec_error(e: io::Error, max: usize, partial_frame: bool) -> ProtocolError {
+    match e.kind() {
+        // LengthDelimitedCodec reports an oversized frame as InvalidData before reading its body.
+        io::ErrorKind::InvalidData => ProtocolError::FrameTooLarge { max },
+        io::ErrorKind::UnexpectedEof => ProtocolError::Truncated,
+        // tokio-util reports a stream that ends inside a frame as `Other`, its bytes still held.
+        io::ErrorKind::Other if partial_frame => ProtocolError::Truncated,
+        _ => ProtocolError::Io(e),
     }
 }
 
@@ -177,15 +162,38 @@ where
     }
 }
 
+/// What the accepting side of a handshake does with the scene fingerprints (DESIGN.md §8).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SceneCheck {
+    /// The peer must have loaded this same scene (the renderer link).
+    Same(Fingerprint),
+    /// The peer has no scene of its own (a viewer): this one is only told, in the reply.
+    Tell(Fingerprint),
+}
+
+impl SceneCheck {
+    fn ours(self) -> Fingerprint {
+        match self {
+            SceneCheck::Same(fp) | SceneCheck::Tell(fp) => fp,
+        }
+    }
+
+    fn required(&self) -> Option<&Fingerprint> {
+        match self {
+            SceneCheck::Same(fp) => Some(fp),
+            SceneCheck::Tell(_) => None,
+        }
+    }
+}
+
 /// Accepting side: reads `Hello`, checks it, replies `Welcome` or `Refused` (then the caller
-/// closes). `fingerprint` is the scene this side has loaded, checked when `check_scene` is set.
+/// closes).
 pub async fn accept_handshake<R, W, In, Out>(
     reader: &mut MessageReader<R, In>,
     writer: &mut MessageWriter<W, Out>,
     our_role: Role,
     expected_peer: Role,
-    fingerprint: Option<Fingerprint>,
-    check_scene: bool,
+    scene: SceneCheck,
 ) -> Result<Hello, ProtocolError>
 where
     R: AsyncRead + Unpin,
@@ -204,12 +212,7 @@ where
             return Err(e);
         }
     };
-    let expected_fp = if check_scene {
-        fingerprint.as_ref()
-    } else {
-        None
-    };
-    if let Err(e) = hello.check(expected_peer, expected_fp) {
+    if let Err(e) = hello.check(expected_peer, scene.required()) {
         let _ = writer
             .send_as(&HelloReply::Refused {
                 reason: e.to_string(),
@@ -221,7 +224,7 @@ where
         .send_as(&HelloReply::Welcome {
             role: our_role,
             version: PROTOCOL_VERSION,
-            fingerprint,
+            fingerprint: Some(scene.ours()),
         })
         .await?;
     Ok(hello)

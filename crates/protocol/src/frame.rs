@@ -6,6 +6,7 @@ use serde::{Serialize, de::DeserializeOwned};
 use tokio_util::codec::LengthDelimitedCodec;
 
 use crate::error::ProtocolError;
+use crate::variant_count::variant_count;
 
 /// Default maximum frame: 64 MiB, room for ~800k triangles in one `Insert`.
 pub const DEFAULT_MAX_FRAME: usize = 64 * 1024 * 1024;
@@ -36,16 +37,19 @@ pub fn decode<M: DeserializeOwned>(payload: &[u8]) -> Result<M, ProtocolError> {
     }
 }
 
-/// A message enum of one link direction. `KINDS` is its number of variants: postcard writes the
-/// variant index as the first varint, so a tag beyond it is an unknown message, not garbage.
+/// A message enum of one link direction. postcard writes the variant index as the first varint,
+/// so a tag beyond the last variant is an unknown message, not garbage.
 pub trait WireMessage: Serialize + DeserializeOwned {
-    const KINDS: u32;
+    /// The number of message kinds, from the enum's serde derive.
+    fn kinds() -> u32 {
+        variant_count::<Self>()
+    }
 }
 
 /// Decodes one message, telling an unknown message kind apart from a malformed payload.
 pub fn decode_message<M: WireMessage>(payload: &[u8]) -> Result<M, ProtocolError> {
     match postcard::take_from_bytes::<u32>(payload) {
-        Ok((tag, _)) if tag >= M::KINDS => Err(ProtocolError::UnknownMessage),
+        Ok((tag, _)) if tag >= M::kinds() => Err(ProtocolError::UnknownMessage),
         _ => decode(payload),
     }
 }

@@ -2,13 +2,14 @@
 //!
 //! Three processes meet only over TCP: renderers answer shading requests from the SMA, and viewers
 //! exchange cameras and triangles with it. This crate is a leaf: it defines its own plain types for
-//! what travels and imports none of the project's crates.
+//! what travels and depends on none of the project's crates but `conventions` (the camera).
 //!
 //! - [`frame`]: length-delimited frames carrying postcard payloads, with a maximum size;
 //! - [`handshake`]: magic, protocol version, role and (renderer link) scene fingerprint;
 //! - [`renderer_link`] and [`viewer_link`]: the messages of each link;
 //! - [`connection`]: a typed message reader and writer over any byte stream;
-//! - [`error`]: every way a peer can go wrong, as a value, never a panic.
+//! - [`error`]: every way a peer can go wrong, as a value, never a panic;
+//! - [`camera`]: the wire's camera in the system's camera convention.
 //!
 //! ```
 //! use protocol::frame::{decode, encode};
@@ -20,13 +21,14 @@
 //! assert_eq!(decode::<SmaToViewer>(&bytes).unwrap(), msg);
 //! ```
 
-pub mod camera;
+mod camera;
 pub mod connection;
-pub mod error;
+mod error;
 pub mod frame;
 pub mod handshake;
 pub mod renderer_link;
 pub mod types;
+mod variant_count;
 pub mod viewer_link;
 
 pub use connection::{MessageReader, MessageWriter, split_tcp};

@@ -109,10 +109,6 @@ pub struct Radiance {
     pub micros: u64,
 }
 
-impl WireMessage for ToRenderer {
-    const KINDS: u32 = 2;
-}
+impl WireMessage for ToRenderer {}
 
-impl WireMessage for FromRenderer {
-    const KINDS: u32 = 3;
-}
+impl WireMessage for FromRenderer {}

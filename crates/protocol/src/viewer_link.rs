@@ -117,10 +117,6 @@ pub enum SmaToViewer {
     },
 }
 
-impl WireMessage for ViewerToSma {
-    const KINDS: u32 = 5;
-}
+impl WireMessage for ViewerToSma {}
 
-impl WireMessage for SmaToViewer {
-    const KINDS: u32 = 9;
-}
+impl WireMessage for SmaToViewer {}

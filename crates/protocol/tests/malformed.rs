@@ -2,7 +2,9 @@
 //! the exact variant asserted: never a panic.
 
 use protocol::ProtocolError;
-use protocol::connection::{MessageReader, MessageWriter, accept_handshake, connect_handshake};
+use protocol::connection::{
+    MessageReader, MessageWriter, SceneCheck, accept_handshake, connect_handshake,
+};
 use protocol::frame::decode;
 use protocol::handshake::{Hello, MAGIC, PROTOCOL_VERSION, Role};
 use protocol::renderer_link::{FromRenderer, ToRenderer};
@@ -117,8 +119,7 @@ async fn handshake(
         &mut sw,
         Role::Renderer,
         Role::Sma,
-        Some(ours),
-        true,
+        SceneCheck::Same(ours),
     );
     let client = connect_handshake(&mut cr, &mut cw, hello, Role::Renderer);
     let (s, c) = tokio::join!(server, client);

@@ -9,21 +9,28 @@
 //! - [`reference`] and [`tonemap`]: reference images (EXR + tone-mapped PNG);
 //! - [`cli`]: `renderer serve` and `renderer reference`, the only module that parses arguments.
 
-pub mod bvh;
+pub(crate) mod bvh;
 pub mod cli;
-pub mod counters;
+pub(crate) mod counters;
 pub mod estimator;
-pub mod lights;
-pub mod material;
-pub mod offset;
+pub(crate) mod lights;
+pub(crate) mod material;
+pub(crate) mod offset;
 pub mod point;
 pub mod reference;
 pub mod sampling;
 pub mod service;
-pub mod shade;
+pub(crate) mod shade;
 pub mod tonemap;
 pub mod world;
 
 pub use counters::{RayCounts, RayKind};
 pub use shade::{Shaded, shade_batch, shade_point};
 pub use world::World;
+
+/// What the launcher's benchmarks measure inside the renderer (the `bench` feature): the tracer's
+/// BVH against a naive one, and hidden-point relocation.
+#[cfg(feature = "bench")]
+pub mod internals {
+    pub use crate::bvh::SceneBvh;
+}

@@ -69,11 +69,6 @@ impl Bsdf {
         if d + s > 0.0 { d / (d + s) } else { 0.0 }
     }
 
-    /// Whether the diffuse part reflects anything (a diffuse bounce is worth tracing).
-    pub fn has_diffuse(&self) -> bool {
-        self.kd.max_element() > 0.0
-    }
-
     /// f(wo, wi) of the non-delta lobes (a mirror's delta lobe is reached by sampling only).
     pub fn eval(&self, n: Vec3, wo: Vec3, wi: Vec3) -> Vec3 {
         if n.dot(wi) <= 0.0 || n.dot(wo) <= 0.0 {

@@ -1,4 +1,4 @@
-//! Analytic checks of the estimator (issue 3, "Tests"): a sunlit plane, a shadowed point, the
+//! Analytic checks of the estimator (DESIGN.md §7): a sunlit plane, a shadowed point, the
 //! white furnace, and no sample ever NaN, infinite or negative.
 
 mod common;

@@ -1,4 +1,4 @@
-//! The built-in Cornell box (issue 3, "Tests"): Monte Carlo error falls like 1/sqrt(paths), and
+//! The built-in Cornell box (DESIGN.md §7): Monte Carlo error falls like 1/sqrt(paths), and
 //! a reference image of view `main` has the regions the scene is known for.
 
 mod common;

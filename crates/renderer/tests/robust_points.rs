@@ -1,4 +1,4 @@
-//! Robust shading points (issue 3, "Robust points"): no light leaks at concave corners, points
+//! Robust shading points (DESIGN.md §7, robust ray offsets): no light leaks at concave corners, points
 //! hidden inside geometry are moved to the visible part of their face and flagged, bad requests
 //! are flagged instead of failing.
 

@@ -1,4 +1,4 @@
-//! The service over real loopback TCP (issue 3, "Tests"): batches answered exactly as the
+//! The service over real loopback TCP (DESIGN.md §7, §8): batches answered exactly as the
 //! in-process estimator answers them for the same seed; malformed frames answered with an error
 //! and the connection closed, while the server keeps serving others; a wrong scene refused.
 

@@ -1,4 +1,4 @@
-//! Mirrors and glossy lobes in scenes, and the effects counters (issue 3, "Tests"): a scene traces
+//! Mirrors and glossy lobes in scenes, and the effects counters (DESIGN.md §7): a scene traces
 //! only the rays its effects call for, and positive controls show the counters do count.
 
 mod common;

@@ -1,5 +1,5 @@
 //! Why a scene could not be loaded. Every problem a file can have is a value here, never a panic
-//! (issue 2: "a corrupt file never panics"); problems in a file name the file and, where the
+//! (a corrupt file never panics); problems in a file name the file and, where the
 //! format has lines, the line.
 
 use std::path::PathBuf;

@@ -1,4 +1,4 @@
-//! Writing a scene as OBJ + MTL + scene file (issue 2: built-ins are exportable), so other
+//! Writing a scene as OBJ + MTL + scene file (DESIGN.md §11: built-ins are exportable), so other
 //! renderers can check ours on the same scene. Loading the export gives the same scene, with the
 //! same fingerprint.
 

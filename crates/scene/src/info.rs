@@ -1,4 +1,4 @@
-//! The `walkthrough scene info` report (issue 2, command line); the launcher adds the visible
+//! The `walkthrough scene info` report (DESIGN.md §11); the launcher adds the visible
 //! base triangles per viewpoint.
 
 use std::fmt::Write as _;

@@ -17,7 +17,7 @@ pub mod bvh;
 mod cpu_visibility;
 pub mod export;
 pub mod info;
-pub mod model;
+mod model;
 pub mod settings;
 
 pub use builder::SceneBuilder;

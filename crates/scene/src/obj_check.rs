@@ -1,4 +1,4 @@
-//! A line-by-line check of OBJ and MTL text before tobj parses it (issue 2, validation).
+//! A line-by-line check of OBJ and MTL text before tobj parses it (DESIGN.md §7: OBJ/MTL validation).
 //!
 //! tobj reports errors without a line number, accepts NaN and infinity as coordinates, and
 //! panics on some malformed MTL lines (4.0.5 unwraps a colour with fewer than three numbers).

@@ -1,4 +1,4 @@
-//! The built-in scenes: what DESIGN.md §11 and issue 2 ask of them, their export, and the copies
+//! The built-in scenes: what DESIGN.md §11 asks of them, their export, and the copies
 //! kept in `scenes/`.
 
 use std::path::Path;
@@ -6,7 +6,7 @@ use std::path::Path;
 use glam::Vec3;
 use scene::{Effects, Scene, VisibilityEstimator, load};
 
-/// Issue 2: each bracara view sees between 500 and 3,000 base triangles at 1024×768 (the
+/// DESIGN.md §11: each bracara view sees between 500 and 3,000 base triangles at 1024×768 (the
 /// thesis's views saw 2,511, 602 and 737).
 const VISIBLE_RANGE: std::ops::RangeInclusive<usize> = 500..=3000;
 

@@ -4,7 +4,7 @@
 //! - [`mesh`]: the hierarchical subdivision mesh (red–green refinement, coarsening, §4.2);
 //! - [`cache`]: the object-space vertex shading cache (§5);
 //! - [`visible_set`]: the visible set V_t keyed by (leaf, side);
-//! - [`nld`]: the NLD metric (eq. 4.3) and NLD_MM (eq. 4.4);
+//! - [`nld`]: the NLD metric (eq. 4.3);
 //! - [`criteria`]: refinement criteria, one file each behind one trait (§4.3).
 //!
 //! Service:
@@ -22,7 +22,7 @@
 pub mod cache;
 pub mod criteria;
 pub mod mesh;
-pub mod nld;
+pub(crate) mod nld;
 pub mod visible_set;
 
 pub mod cli;

@@ -1,5 +1,5 @@
-//! The NLD metric (thesis eq. 4.3, appendix A) and NLD_MM (eq. 4.4), with luminance from RGB by
-//! Rec. 709 weights (DESIGN.md §6).
+//! The NLD metric (thesis eq. 4.3, appendix A), with luminance from RGB by Rec. 709 weights
+//! (DESIGN.md §6, `conventions::luminance`).
 
 /// `S` of eq. 4.3 for any N: sqrt(sum_{i<j} (L_i - L_j)^2 / ((N*N div 4) L_white^2)). The pair
 /// sum is computed as N * sum (L_i - mean)^2, the same quantity, in O(N) and never negative.
@@ -26,20 +26,6 @@ pub fn nld3(l: [f32; 3], l_white: f32) -> f32 {
     clamp_unit((pairs / (2.0 * l_white * l_white)).sqrt())
 }
 
-/// NLD_MM of eq. 4.4: (max - min) / L_white, clamped to [0, 1], 0 in the cases `nld_metric`
-/// gives 0.
-pub fn nld_mm(lum: &[f32], l_white: f32) -> f32 {
-    if lum.len() < 2 || !(l_white > 0.0 && l_white.is_finite()) {
-        return 0.0;
-    }
-    let (lo, hi) = lum
-        .iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &l| {
-            (lo.min(l), hi.max(l))
-        });
-    clamp_unit((hi - lo) / l_white)
-}
-
 /// [0, 1], NaN to 0.
 fn clamp_unit(s: f32) -> f32 {
     if s >= 0.0 { s.min(1.0) } else { 0.0 }
@@ -60,7 +46,6 @@ mod tests {
         assert_eq!(nld_metric(&[1.0; 5], 3.0), 0.0);
         assert_eq!(nld_metric(&[0.0, 1.0], 0.0), 0.0);
         assert_eq!(nld_metric(&[f32::NAN, 1.0], 1.0), 0.0);
-        assert_eq!(nld_mm(&[0.5, 1.5, 1.0], 2.0), 0.5);
     }
 
     #[test]
@@ -81,9 +66,8 @@ mod tests {
             lum in prop::collection::vec(prop_oneof![0.0f32..10.0, Just(f32::INFINITY), Just(1e30f32)], 0..9),
             l_white in prop_oneof![0.0f32..5.0, Just(0.0f32), Just(f32::INFINITY)],
         ) {
-            for s in [nld_metric(&lum, l_white), nld_mm(&lum, l_white)] {
-                prop_assert!(s.is_finite() && (0.0..=1.0).contains(&s), "S = {s}");
-            }
+            let s = nld_metric(&lum, l_white);
+            prop_assert!(s.is_finite() && (0.0..=1.0).contains(&s), "S = {s}");
             if lum.len() == 3 {
                 let s = nld3([lum[0], lum[1], lum[2]], l_white);
                 prop_assert!(s.is_finite() && (0.0..=1.0).contains(&s));

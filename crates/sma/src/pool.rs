@@ -302,6 +302,27 @@ fn checked(batch: &ShadeBatch, radiance: Radiance) -> Result<Radiance, String> {
     Ok(radiance)
 }
 
+/// Why one connection of a [`Link`] ended.
+#[derive(Debug)]
+enum LinkDown {
+    /// Connecting or the handshake failed: the backoff grows.
+    Connecting(ProtocolError),
+    /// The link had been up: the backoff starts again from its minimum.
+    Serving(ProtocolError),
+}
+
+impl LinkDown {
+    fn was_up(&self) -> bool {
+        matches!(self, LinkDown::Serving(_))
+    }
+
+    fn error(&self) -> &ProtocolError {
+        match self {
+            LinkDown::Connecting(e) | LinkDown::Serving(e) => e,
+        }
+    }
+}
+
 /// One renderer address: connects, serves, and reconnects with backoff, forever.
 struct Link {
     index: usize,
@@ -322,7 +343,7 @@ impl Link {
             };
             let (served, reason) = match outcome {
                 Ok(()) => return,
-                Err((served, e)) => (served, e.to_string()),
+                Err(down) => (down.was_up(), down.error().to_string()),
             };
             let _ = self.events.send(LinkEvent::Down {
                 index: self.index,
@@ -341,9 +362,9 @@ impl Link {
         }
     }
 
-    /// One connection. `Err((true, _))` when the link had been up (reset the backoff).
-    async fn serve(&self, generation: u64) -> Result<(), (bool, ProtocolError)> {
-        let (mut reader, mut writer) = self.connect().await.map_err(|e| (false, e))?;
+    /// One connection, until it goes down (`Ok` when the pool itself ends).
+    async fn serve(&self, generation: u64) -> Result<(), LinkDown> {
+        let (mut reader, mut writer) = self.connect().await.map_err(LinkDown::Connecting)?;
         tracing::info!(renderer = %self.addr, "renderer connected");
         let (tx, mut batches) = mpsc::unbounded_channel();
         let up = LinkEvent::Up {
@@ -357,11 +378,11 @@ impl Link {
         loop {
             tokio::select! {
                 batch = batches.recv() => match batch {
-                    Some(batch) => writer.send(&ToRenderer::ShadeBatch(batch)).await.map_err(|e| (true, e))?,
+                    Some(batch) => writer.send(&ToRenderer::ShadeBatch(batch)).await.map_err(LinkDown::Serving)?,
                     None => return Ok(()),
                 },
                 reply = reader.recv() => {
-                    let reply = reply.map_err(|e| (true, e))?;
+                    let reply = reply.map_err(LinkDown::Serving)?;
                     let fatal = match &reply {
                         FromRenderer::Error { message } => Some(message.clone()),
                         _ => None,
@@ -371,7 +392,7 @@ impl Link {
                         return Ok(());
                     }
                     if let Some(message) = fatal {
-                        return Err((true, ProtocolError::Remote(message)));
+                        return Err(LinkDown::Serving(ProtocolError::Remote(message)));
                     }
                 }
             }

@@ -3,7 +3,7 @@
 //! camera no renderer could use, gets an `Error` reply and this connection closes; every other
 //! viewer is unaffected.
 
-use protocol::connection::accept_handshake;
+use protocol::connection::{SceneCheck, accept_handshake};
 use protocol::viewer_link::{Camera, SceneInfo, SmaToViewer, ViewerToSma};
 use protocol::{Fingerprint, ProtocolError, Role, split_tcp};
 use tokio::net::TcpStream;
@@ -59,8 +59,7 @@ pub async fn serve(
         &mut writer,
         Role::Sma,
         Role::Viewer,
-        Some(config.fingerprint),
-        false,
+        SceneCheck::Tell(config.fingerprint),
     );
     if let Err(e) = handshake.await {
         tracing::info!(viewer = id, %peer, error = %e, "viewer handshake failed");

@@ -1,4 +1,4 @@
-//! The ID pass against a CPU ray cast on a hand-made scene (issue 5: "visibility on a hand-made
+//! The ID pass against a CPU ray cast on a hand-made scene (DESIGN.md §3 steps 2–3: "visibility on a hand-made
 //! scene returns exactly the triangles a CPU check says are visible"), on both id paths.
 //! Needs a wgpu adapter (Mesa without a GPU): when none is found the test says so and returns,
 //! unless `WALKTHROUGH_REQUIRE_GPU` is set, where it fails.

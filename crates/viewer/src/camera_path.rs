@@ -27,12 +27,6 @@ pub struct CameraPath {
 }
 
 impl CameraPath {
-    pub fn load(path: &std::path::Path, default_fov: f32) -> anyhow::Result<CameraPath> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("reading camera path {}", path.display()))?;
-        Self::parse(&text, default_fov).with_context(|| format!("in {}", path.display()))
-    }
-
     pub fn parse(text: &str, default_fov: f32) -> anyhow::Result<CameraPath> {
         let mut keys: Vec<Keyframe> = Vec::new();
         for (n, line) in text.lines().enumerate() {
@@ -90,11 +84,6 @@ impl CameraPath {
             fov_y_deg: a.fov_y_deg + (b.fov_y_deg - a.fov_y_deg) * s,
         }
     }
-
-    /// When the walk ends.
-    pub fn duration_s(&self) -> f32 {
-        self.keys.last().map_or(0.0, |k| k.time_s)
-    }
 }
 
 fn keyframe(t: f32, eye: [f32; 3], target: [f32; 3], fov: f32) -> Keyframe {
@@ -121,7 +110,6 @@ mod tests {
             ([2.0, 0.0, 0.0], [2.0, 0.0, -1.0], 45.0)
         );
         assert_eq!(path.at(9.0).eye, [4.0, 0.0, 0.0]);
-        assert_eq!(path.duration_s(), 2.0);
     }
 
     #[test]

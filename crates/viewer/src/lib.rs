@@ -15,8 +15,8 @@
 //! - [`cli`]: the command line, embedded by the launcher as `walkthrough viewer`, the only module
 //!   that parses arguments.
 
-pub mod camera_path;
-pub mod camera_sender;
+pub(crate) mod camera_path;
+pub(crate) mod camera_sender;
 pub mod cli;
 pub mod config;
 pub mod draw;
@@ -24,13 +24,13 @@ pub mod gpu;
 pub mod headless;
 pub mod link;
 pub mod offscreen;
-pub mod session;
-pub mod snapshot_files;
+pub(crate) mod session;
+pub(crate) mod snapshot_files;
 pub mod table;
 pub mod update;
 pub mod vertex_buffer;
 pub mod view_state;
-pub mod walk_camera;
+pub(crate) mod walk_camera;
 pub mod window;
 
 pub use conventions::ToneMap;

@@ -1,4 +1,4 @@
-//! `walkthrough bench convergence` (issue 7, DESIGN.md §10, thesis §5.2 and appendix B): for each
+//! `walkthrough bench convergence` (DESIGN.md §10, thesis §5.2 and appendix B): for each
 //! view, the ground truth once; then for each criterion a fresh system on loopback (empty cache,
 //! t = 0 at the viewer's first camera) with snapshots at 0, 1, 2, … s and at fixed sample counts;
 //! and one run with refinement switched off. Every snapshot's error against the ground truth goes
@@ -15,7 +15,6 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::Context;
-use clap::Args;
 
 use crate::bench::metrics::{LinearImage, Reference};
 use crate::bench::{plots, strips};
@@ -41,60 +40,41 @@ pub const SECTION: &str = "docs/bench/convergence.md";
 /// Time a run may take beyond its `--seconds`: processes start, wgpu opens Mesa, scenes load.
 const START_ALLOWANCE: Duration = Duration::from_secs(90);
 
-#[derive(Args, Debug, Clone)]
-pub struct ConvergenceArgs {
+/// What `bench convergence` measures and where it writes.
+#[derive(Debug, Clone)]
+pub struct ConvergenceConfig {
     /// One scene (a TOML file or a built-in name). Default: `bracara`, and Sponza when
     /// ../shared/scenes is there.
-    #[arg(long)]
     pub scene: Option<String>,
     /// Views to measure. Default: MC, VR, VT of bracara and S1, S2, S3 of Sponza; with --scene, all
     /// of that scene's views.
-    #[arg(long, value_delimiter = ',')]
     pub views: Vec<String>,
     /// Criteria to compare. Default: every criterion the SMA offers.
-    #[arg(long, value_delimiter = ',')]
     pub criteria: Vec<String>,
     /// Length of each run; snapshots every second.
-    #[arg(long, default_value_t = 20.0)]
     pub seconds: f64,
     /// Fixed sample counts at which snapshots are also taken.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "1000,2000,4000,8000,16000,32000,64000,128000,256000"
-    )]
     pub at_samples: Vec<u64>,
-    #[arg(long, default_value_t = 1024)]
     pub width: u32,
-    #[arg(long, default_value_t = 768)]
     pub height: u32,
     /// Paths per pixel of the ground truth (DESIGN.md §10: at least 256).
-    #[arg(long, default_value_t = 256)]
     pub gt_spp: u32,
     /// Tables, plots, strips and CSVs (committed: keep it small).
-    #[arg(long, default_value = "docs/convergence")]
     pub out: PathBuf,
     /// Ground truth EXRs (big: an ignored folder).
-    #[arg(long, default_value = "out/gt")]
     pub gt_cache: PathBuf,
     /// Raw snapshots and process logs of every run (big: an ignored folder).
-    #[arg(long, default_value = "out/convergence")]
     pub runs: PathBuf,
     /// Renderer processes per run (the cores are shared among them).
-    #[arg(long, default_value_t = 1)]
     pub renderers: usize,
     /// Seed of the SMA's criteria and renderers.
-    #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Flags passed on to every `walkthrough sma` (to measure a setting against its default),
     /// e.g. `--sma-flags=--max-selections,256`.
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub sma_flags: Vec<String>,
     /// Do not write docs/bench/convergence.md nor BENCHMARKS.md.
-    #[arg(long, conflicts_with = "report_only")]
     pub no_report: bool,
     /// Measure nothing: redraw the plots, the section and BENCHMARKS.md from the CSVs in --out.
-    #[arg(long)]
     pub report_only: bool,
 }
 
@@ -106,7 +86,7 @@ struct ViewSpec {
     view: String,
 }
 
-pub fn run(args: ConvergenceArgs) -> anyhow::Result<()> {
+pub fn run(args: ConvergenceConfig) -> anyhow::Result<()> {
     let exe = std::env::current_exe().context("locating the walkthrough binary")?;
     let criteria = if args.criteria.is_empty() {
         default_criteria()
@@ -140,7 +120,7 @@ pub fn default_criteria() -> Vec<String> {
         .collect()
 }
 
-fn views(args: &ConvergenceArgs) -> anyhow::Result<Vec<ViewSpec>> {
+fn views(args: &ConvergenceConfig) -> anyhow::Result<Vec<ViewSpec>> {
     let scenes: Vec<(String, Vec<String>)> = match &args.scene {
         Some(scene) => vec![(scene.clone(), vec![])],
         None => {
@@ -198,7 +178,7 @@ fn strings(v: &[&str]) -> Vec<String> {
 /// Ground truth, the run without refinement and two runs per criterion; writes the view's CSV and
 /// strip (the plot is drawn with the section, from the CSV).
 fn measure_view(
-    args: &ConvergenceArgs,
+    args: &ConvergenceConfig,
     exe: &Path,
     spec: &ViewSpec,
     criteria: &[String],
@@ -263,7 +243,7 @@ struct PlannedRun {
 /// quality), then for each criterion a run with periodic snapshots and one with snapshots at the
 /// fixed sample counts (the viewer takes one kind per run).
 fn planned_runs(
-    args: &ConvergenceArgs,
+    args: &ConvergenceConfig,
     exe: &Path,
     spec: &ViewSpec,
     criteria: &[String],

@@ -1,5 +1,5 @@
 //! The sun: a disc of finite angular size and uniform radiance, sampled uniformly over its cone.
-//! Its irradiance at normal incidence is radiance × solid angle (issue 3's analytic test).
+//! Its irradiance at normal incidence is radiance × solid angle (the analytic test of `tests/analytic.rs` checks it).
 
 use glam::Vec3;
 use scene::Sun;

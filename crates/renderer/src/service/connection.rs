@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use protocol::ProtocolError;
-use protocol::connection::{accept_handshake, split_tcp};
+use protocol::connection::{SceneCheck, accept_handshake, split_tcp};
 use protocol::handshake::Role;
 use protocol::renderer_link::{FromRenderer, ShadeBatch, ToRenderer};
 use tokio::net::TcpStream;
@@ -28,8 +28,7 @@ pub async fn handle(
         &mut writer,
         Role::Renderer,
         Role::Sma,
-        Some(fingerprint),
-        true,
+        SceneCheck::Same(fingerprint),
     )
     .await?;
 

@@ -1,6 +1,6 @@
 //! A multiply–xorshift hasher for the integer keys of the mesh and criteria tables. The default
 //! SipHash guards against adversarial keys, which ids made by this process are not, at several
-//! times the cost; splits per second (issue 4: >= 1 million) hinge on these lookups.
+//! times the cost; splits per second (target: >= 1 million, BENCHMARKS.md) hinge on these lookups.
 
 use std::hash::{BuildHasherDefault, Hasher};
 

@@ -1,5 +1,5 @@
 //! Property tests of the subdivision mesh on random meshes (seams, mixed winding, needles,
-//! non-manifold fins) under random refinement and coarsening (issue 4).
+//! non-manifold fins) under random refinement and coarsening (DESIGN.md §4).
 
 use std::collections::{BTreeSet, HashMap};
 

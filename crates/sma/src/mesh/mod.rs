@@ -61,7 +61,7 @@ const MIN_EDGE_FRACTION_OF_EXTENT: f32 = 1e-5;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MeshParams {
     /// No red split of a triangle whose longest edge is shorter than twice this (scene units), so
-    /// no child edge drops below it (issue 4: "no split below a set edge length"). Closure splits
+    /// no child edge drops below it (no split below a set edge length). Closure splits
     /// ignore it: conformity comes first. Raised to [`MIN_EDGE_FRACTION_OF_EXTENT`] of the scene
     /// extent at least.
     pub min_edge_length: f32,
@@ -118,7 +118,7 @@ pub enum Split {
     },
 }
 
-/// 20 bytes: nodes are most of the mesh's memory (issue 4: <= 100 bytes per leaf all included),
+/// 20 bytes: nodes are most of the mesh's memory (target: <= 100 bytes per leaf all included, BENCHMARKS.md),
 /// so the hierarchy links carry the node's state in their spare bits (read it through the
 /// accessors), and the base triangle is found by climbing ([`SubdivisionMesh::base_of`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -262,7 +262,7 @@ pub struct SubdivisionMesh {
 const SEAM_VERTEX: u32 = 1 << 31;
 
 /// Pushes onto a vector grown by a quarter when full rather than doubled: the node and vertex
-/// arrays are most of the mesh's memory (issue 4: <= 100 bytes per leaf all included), and the
+/// arrays are most of the mesh's memory (target: <= 100 bytes per leaf all included, BENCHMARKS.md), and the
 /// allocator moves a large block by remapping its pages, so the extra moves cost little.
 fn push_lean<T>(v: &mut Vec<T>, x: T) {
     if v.len() == v.capacity() {
@@ -398,7 +398,7 @@ impl SubdivisionMesh {
 
     /// Triangle splits since the mesh was made: one per triangle replaced by its children, red
     /// (four) or green (two), selected or made by closure; the unit of the split rate of
-    /// BENCHMARKS.md (issue 4: >= 1 million per second).
+    /// BENCHMARKS.md (target: >= 1 million per second).
     pub fn split_count(&self) -> u64 {
         self.splits
     }

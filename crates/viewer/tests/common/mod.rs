@@ -5,7 +5,7 @@
 use std::sync::mpsc;
 use std::time::Duration;
 
-use protocol::connection::accept_handshake;
+use protocol::connection::{SceneCheck, accept_handshake};
 use protocol::frame::DEFAULT_MAX_FRAME;
 use protocol::types::{Bounds, Viewpoint};
 use protocol::viewer_link::{SceneInfo, ShownTriangle, SmaToViewer, ViewerToSma};
@@ -107,8 +107,7 @@ async fn serve(
             &mut writer,
             Role::Sma,
             Role::Viewer,
-            Some(scene.fingerprint),
-            false,
+            SceneCheck::Tell(scene.fingerprint),
         )
         .await
         .is_err()

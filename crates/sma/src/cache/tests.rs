@@ -1,0 +1,282 @@
+//! Unit tests of the shading cache (DESIGN.md §5).
+use super::*;
+use protocol::renderer_link::Quality;
+use rand::{RngExt, SeedableRng};
+
+fn sample(l: f32, quality: Quality, seen: u64) -> CachedSample {
+    CachedSample {
+        rgb: [l; 3],
+        quality,
+        view_dependent: false,
+        eye: None,
+        last_seen: seen,
+    }
+}
+
+fn key(vertex: u32) -> SampleKey {
+    SampleKey {
+        vertex,
+        side: Side::Front,
+    }
+}
+
+#[test]
+fn only_better_or_new_eye_samples_replace() {
+    let mut cache = ShadingCache::new(1 << 20);
+    assert_eq!(
+        cache.insert(key(3), sample(1.0, Quality::INTERACTIVE, 0)),
+        CacheInsert::New
+    );
+    assert_eq!(
+        cache.insert(key(3), sample(2.0, Quality::DIRECT, 0)),
+        CacheInsert::Ignored
+    );
+    assert_eq!(
+        cache.insert(key(3), sample(2.0, Quality::INTERACTIVE, 0)),
+        CacheInsert::Ignored
+    );
+    assert_eq!(
+        cache.insert(key(3), sample(f32::NAN, Quality::INTERACTIVE, 0)),
+        CacheInsert::Ignored
+    );
+    let better = Quality {
+        paths: 256,
+        bounces: Some(2),
+    };
+    assert_eq!(
+        cache.insert(key(3), sample(2.0, better, 0)),
+        CacheInsert::Upgraded
+    );
+    assert_eq!(cache.get(key(3)).unwrap().rgb, [2.0; 3]);
+    let glossy = |eye| CachedSample {
+        view_dependent: true,
+        eye: Some(eye),
+        ..sample(1.0, better, 0)
+    };
+    assert_eq!(cache.insert(key(3), glossy(Vec3::X)), CacheInsert::Upgraded);
+    assert_eq!(cache.insert(key(3), glossy(Vec3::Y)), CacheInsert::Upgraded);
+    assert!(
+        cache
+            .get(SampleKey {
+                vertex: 3,
+                side: Side::Back
+            })
+            .is_none()
+    );
+}
+
+#[test]
+fn leaf_radiance_needs_all_three_vertices_of_the_side() {
+    let mesh = SubdivisionMesh::new(&crate::mesh::test_meshes::square(), Default::default());
+    let mut cache = ShadingCache::new(1 << 20);
+    for v in [0, 1] {
+        cache.insert(key(v), sample(v as f32, Quality::DIRECT, 0));
+    }
+    assert_eq!(cache.leaf_radiance(&mesh, 0, Side::Front), None);
+    assert_eq!(
+        cache
+            .missing_keys(&mesh, 0, Side::Front)
+            .collect::<Vec<_>>(),
+        vec![key(2)]
+    );
+    cache.insert(key(2), sample(4.0, Quality::DIRECT, 0));
+    assert_eq!(
+        cache.leaf_radiance(&mesh, 0, Side::Front),
+        Some([[0.0; 3], [1.0; 3], [4.0; 3]])
+    );
+    assert_eq!(cache.leaf_radiance(&mesh, 0, Side::Back), None);
+    let visible = VisibleSet {
+        leaves: vec![crate::visible_set::VisibleLeaf {
+            leaf: 0,
+            side: Side::Front,
+            pixels: 9,
+        }],
+        width: 4,
+        height: 4,
+    };
+    assert!((cache.l_white(&mesh, &visible) - 4.0).abs() < 1e-6);
+}
+
+/// One glint among thousands of samples does not set L_white; the rest's maximum does.
+#[test]
+fn l_white_leaves_out_a_lone_outlier() {
+    let mesh = SubdivisionMesh::new(&crate::mesh::grid_mesh(40), Default::default());
+    let mut cache = ShadingCache::new(1 << 24);
+    let visible = VisibleSet {
+        leaves: (0..mesh.base_count() as NodeId)
+            .map(|leaf| crate::visible_set::VisibleLeaf {
+                leaf,
+                side: Side::Front,
+                pixels: 9,
+            })
+            .collect(),
+        width: 64,
+        height: 64,
+    };
+    for v in 0..mesh.vertex_count() as u32 {
+        let l = if v == 7 { 1e5 } else { 1.0 + v as f32 * 1e-4 };
+        cache.insert(key(v), sample(l, Quality::DIRECT, 0));
+    }
+    let below = 1.0 + (mesh.vertex_count() - 1) as f32 * 1e-4;
+    assert!((cache.l_white(&mesh, &visible) - below).abs() < 2e-3);
+    assert_eq!(ShadingCache::new(1).l_white(&mesh, &visible), 0.0);
+}
+
+/// A long random walk of visible sets: after each eviction the cache is within budget
+/// unless everything left is visible now, and nothing visible now is evicted.
+#[test]
+fn eviction_keeps_memory_under_budget_over_a_long_walk() {
+    // The slot table of 20,000 vertices takes 160 kB of it.
+    let budget = 512 * 1024;
+    let mut cache = ShadingCache::new(budget);
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(7);
+    let vertices = 20_000u32;
+    for now in 1..400u64 {
+        let start = rng.random_range(0..vertices - 300);
+        let visible: Vec<SampleKey> = (start..start + 300).map(key).collect();
+        for &k in &visible {
+            cache.insert(k, sample(k.vertex as f32, Quality::DIRECT, now));
+            cache.touch(k, now);
+        }
+        cache.evict(now, &|_| false);
+        assert!(
+            cache.bytes() <= budget,
+            "{} bytes at step {now}",
+            cache.bytes()
+        );
+        assert!(
+            visible
+                .iter()
+                .all(|&k| cache.get(k).is_some_and(|s| s.rgb[0] == k.vertex as f32)),
+            "a visible sample was evicted or moved to another key"
+        );
+    }
+    assert!(cache.len() > 300);
+}
+
+fn glossy(eye: Vec3, seen: u64) -> CachedSample {
+    CachedSample {
+        view_dependent: true,
+        eye: Some(eye),
+        ..sample(1.0, Quality::DIRECT, seen)
+    }
+}
+
+/// Eyes are keyed by slot, so removals that move other samples leave them in place, and an
+/// evicted or diffuse-replaced sample's eye is dropped (and no longer charged).
+#[test]
+fn eyes_follow_their_samples_through_eviction() {
+    let mut cache = ShadingCache::new(1);
+    cache.insert(key(0), glossy(Vec3::Y, 1));
+    for v in 1..10 {
+        cache.insert(key(v), sample(1.0, Quality::DIRECT, 1));
+    }
+    // Last in the array: each removal before it moves it to the freed index.
+    cache.insert(key(10), glossy(Vec3::X, 6));
+    cache.insert(key(11), glossy(Vec3::Z, 1));
+    cache.insert(key(11), sample(1.0, Quality::INTERACTIVE, 1));
+    assert_eq!(cache.get(key(11)).unwrap().eye, None);
+    assert_eq!(cache.eyes.len(), 2);
+
+    // Everything not seen at 6 goes: the budget of one byte is never met.
+    assert_eq!(cache.evict(6, &|_| false), 11);
+    assert_eq!(cache.len(), 1);
+    let survivor = cache.get(key(10)).unwrap();
+    assert_eq!((survivor.eye, survivor.last_seen), (Some(Vec3::X), 6));
+    assert_eq!(cache.eyes.len(), 1);
+
+    let before = cache.bytes();
+    assert_eq!(cache.evict(7, &|_| false), 1);
+    assert!(cache.get(key(10)).is_none() && cache.eyes.is_empty());
+    assert_eq!(
+        before - cache.bytes(),
+        size_of::<PackedSample>() + size_of::<u32>() + EYE_ENTRY_BYTES + size_of::<EyeVariant>()
+    );
+}
+
+/// Each eye keeps its own radiance; a reader gets the kept eye nearest to it; a fifth eye
+/// replaces the kept one nearest to it; a kept eye is replaced only by a better sample.
+#[test]
+fn view_dependent_samples_keep_one_radiance_per_eye() {
+    let mut cache = ShadingCache::new(1 << 20);
+    let at = |x: f32| Vec3::new(x, 0.0, 0.0);
+    let shaded = |x: f32, quality| CachedSample {
+        rgb: [x; 3],
+        quality,
+        ..glossy(at(x), 1)
+    };
+    for x in [0.0, 10.0, 20.0, 30.0] {
+        assert_ne!(
+            cache.insert(key(1), shaded(x, Quality::DIRECT)),
+            CacheInsert::Ignored
+        );
+    }
+    let seen = |cache: &ShadingCache, x| cache.get_seen_from(key(1), Some(at(x))).unwrap();
+    assert_eq!(seen(&cache, 9.0).rgb, [10.0; 3]);
+    assert_eq!(seen(&cache, 9.0).eye, Some(at(10.0)));
+    assert_eq!(cache.get(key(1)).unwrap().rgb, [30.0; 3], "the latest");
+    // A fifth eye at 12 replaces the one at 10; the others stay.
+    cache.insert(key(1), shaded(12.0, Quality::DIRECT));
+    assert_eq!(seen(&cache, 9.0).rgb, [12.0; 3]);
+    assert_eq!(seen(&cache, 1.0).rgb, [0.0; 3]);
+    assert_eq!(cache.eye_variants, MAX_EYES);
+    // The same eye again: ignored unless better.
+    let again = CachedSample {
+        rgb: [5.0; 3],
+        ..shaded(20.0, Quality::DIRECT)
+    };
+    assert_eq!(cache.insert(key(1), again), CacheInsert::Ignored);
+    let better = CachedSample {
+        quality: Quality::INTERACTIVE,
+        ..again
+    };
+    assert_eq!(cache.insert(key(1), better), CacheInsert::Upgraded);
+    assert_eq!(seen(&cache, 21.0).rgb, [5.0; 3]);
+    assert_eq!(cache.eye_variants, MAX_EYES);
+    // A diffuse reading (no eye) and a diffuse sample: the latest, then no eyes at all.
+    assert_eq!(cache.get_seen_from(key(1), None).unwrap().rgb, [5.0; 3]);
+    let best = Quality {
+        paths: 2 * Quality::INTERACTIVE.paths,
+        ..Quality::INTERACTIVE
+    };
+    cache.insert(key(1), sample(7.0, best, 1));
+    assert_eq!(seen(&cache, 9.0).rgb, [7.0; 3]);
+    assert!(cache.eyes.is_empty() && cache.eye_variants == 0);
+}
+
+/// Frame counts past `u32::MAX` saturate: no panic, and a sample seen "now" is still spared.
+#[test]
+fn last_seen_beyond_u32_saturates() {
+    let mut cache = ShadingCache::new(1);
+    cache.insert(key(0), sample(1.0, Quality::DIRECT, u64::MAX));
+    assert_eq!(cache.get(key(0)).unwrap().last_seen, u64::from(u32::MAX));
+    cache.insert(key(1), sample(1.0, Quality::DIRECT, 5));
+    cache.touch(key(1), u64::from(u32::MAX) + 1);
+    assert_eq!(cache.get(key(1)).unwrap().last_seen, u64::from(u32::MAX));
+    assert_eq!(cache.evict(u64::MAX, &|_| false), 0);
+    assert_eq!(cache.len(), 2);
+}
+
+/// Past 256 distinct qualities a new one is stored as the best interned one not above it,
+/// and a sample below them all is ignored.
+#[test]
+fn a_full_quality_table_rounds_down() {
+    let mut cache = ShadingCache::new(usize::MAX);
+    let direct = |paths| Quality {
+        paths,
+        bounces: Some(0),
+    };
+    for paths in 1..=MAX_QUALITIES as u32 {
+        assert_eq!(
+            cache.insert(key(paths), sample(1.0, direct(paths), 0)),
+            CacheInsert::New
+        );
+    }
+    cache.insert(key(0), sample(1.0, direct(1000), 0));
+    assert_eq!(cache.get(key(0)).unwrap().quality, direct(256));
+    assert_eq!(
+        cache.insert(key(9999), sample(1.0, direct(0), 0)),
+        CacheInsert::Ignored
+    );
+    assert_eq!(cache.qualities.len(), MAX_QUALITIES);
+}
