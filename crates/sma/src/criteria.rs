@@ -9,7 +9,7 @@ mod nld_is;
 mod nld_os;
 mod nld_px;
 mod rnd;
-#[cfg(any(test, feature = "bench"))]
+#[cfg(any(test, feature = "testing"))]
 pub mod synthetic;
 
 use crate::cache::ShadingCache;

@@ -16,8 +16,9 @@
 //! - [`server`]: the listener, and starting/stopping a whole SMA (also in-process, for tests);
 //! - [`cli`]: the command line, the only module that parses arguments.
 //!
-//! The `bench` feature exposes what the launcher's benchmarks measure of the core
-//! (`criteria::synthetic`, the synthetic scenes behind the criterion defaults).
+//! The `testing` feature exposes the fixtures of the core's own tests to the launcher's
+//! benchmarks: `mesh::grid_mesh` and `criteria::synthetic` (the synthetic scenes behind the
+//! criterion defaults).
 
 pub mod cache;
 pub mod criteria;

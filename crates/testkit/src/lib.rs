@@ -5,11 +5,13 @@
 //! - [`loopback`]: renderer(s) and SMA as child processes, and a headless viewer run against them;
 //! - [`probe`]: a scripted viewer that checks every update the SMA sends;
 //! - [`fake_renderer`]: a renderer stand-in that shades a known function and logs requests;
+//! - [`fake_sma`]: an SMA stand-in that sends what a viewer test queues and reports what it hears;
 //! - [`ground_truth`]: a view's per-pixel reference image, rendered once and kept on disk;
 //! - [`gpu`]: the `WALKTHROUGH_REQUIRE_GPU` rule for tests that need an adapter.
 
 pub mod child;
 pub mod fake_renderer;
+pub mod fake_sma;
 pub mod gpu;
 pub mod ground_truth;
 pub mod loopback;

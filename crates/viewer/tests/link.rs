@@ -7,9 +7,10 @@ mod common;
 use std::collections::HashMap;
 use std::sync::mpsc;
 
-use common::{Seen, StandIn, WAIT, scene};
+use common::{Seen, StandIn, scene};
 use proptest::prelude::*;
 use protocol::viewer_link::{Epoch, Recolour, ShownTriangle, SmaToViewer, Stats, ViewerToSma};
+use testkit::fake_sma::WAIT;
 use viewer::link::{Link, LinkEvent};
 use viewer::view_state::{Reaction, ViewState};
 

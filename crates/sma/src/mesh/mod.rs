@@ -30,6 +30,7 @@ mod adjacency;
 mod angles;
 mod coarsen;
 pub(crate) mod fast_hash;
+#[cfg(any(test, feature = "testing"))]
 mod grid;
 mod refine;
 mod step;
@@ -46,6 +47,7 @@ use glam::Vec3;
 
 pub use angles::{angle_bound, min_angle};
 use fast_hash::FastHash;
+#[cfg(any(test, feature = "testing"))]
 pub use grid::grid_mesh;
 pub use step::RefinementStep;
 
