@@ -33,9 +33,7 @@ async fn serve_answers_and_stops_on_ctrl_c() {
     BufReader::new(child.stdout.take().unwrap())
         .read_line(&mut line)
         .unwrap();
-    let addr = line
-        .trim()
-        .strip_prefix("listening on ")
+    let addr = conventions::listening::parse(&line)
         .expect("address line")
         .to_string();
 
