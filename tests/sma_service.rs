@@ -4,11 +4,13 @@
 //! whose count disagrees). Needs a wgpu adapter for the SMA's visibility (Mesa without a GPU):
 //! without one the tests say so and return, unless `WALKTHROUGH_REQUIRE_GPU` is set.
 
+use std::net::SocketAddr;
+use std::path::Path;
 use std::time::Duration;
 
 use glam::Vec3;
 use sma::visibility::{Gpu, coverage};
-use testkit::child::{Process, start_server, strings};
+use testkit::child::{Process, start_renderer, start_sma, strings};
 use testkit::gpu::gpu_or_skip;
 use testkit::probe::Probe;
 
@@ -20,42 +22,25 @@ fn gpu() -> Option<Gpu> {
     gpu_or_skip(Gpu::new())
 }
 
-/// Starts `walkthrough <args>` (a server on port 0) and returns it with the address it reports.
-fn start(args: &[&str]) -> (Process, String) {
-    let exe = std::path::Path::new(env!("CARGO_BIN_EXE_walkthrough"));
-    let server = start_server(exe, args[0], &strings(args), None)
-        .unwrap_or_else(|e| panic!("walkthrough {args:?}: {e:#}"));
+fn exe() -> &'static Path {
+    Path::new(env!("CARGO_BIN_EXE_walkthrough"))
+}
+
+/// A renderer on one thread, and its address.
+fn renderer(scene: &str) -> (Process, String) {
+    let server = start_renderer(exe(), scene, Some(1), None)
+        .unwrap_or_else(|e| panic!("renderer for {scene}: {e:#}"));
     (server.process, server.addr.to_string())
 }
 
-fn renderer(scene: &str) -> (Process, String) {
-    start(&[
-        "renderer",
-        "serve",
-        "--scene",
-        scene,
-        "--listen",
-        "127.0.0.1:0",
-        "--threads",
-        "1",
-    ])
-}
-
+/// An SMA on `renderers` with more `extra` flags, and its viewer address.
 fn sma(scene: &str, renderers: &[&str], extra: &[&str]) -> (Process, String) {
-    let mut args = vec![
-        "sma",
-        "--scene",
-        scene,
-        "--listen",
-        "127.0.0.1:0",
-        "--stats-secs",
-        "60",
-    ];
-    for r in renderers {
-        args.extend(["--renderer", r]);
-    }
-    args.extend(extra);
-    start(&args)
+    let renderers: Vec<SocketAddr> = renderers.iter().map(|r| r.parse().unwrap()).collect();
+    let mut flags = strings(&["--stats-secs", "60"]);
+    flags.extend(strings(extra));
+    let server = start_sma(exe(), scene, &renderers, &flags, None)
+        .unwrap_or_else(|e| panic!("sma for {scene}: {e:#}"));
+    (server.process, server.addr.to_string())
 }
 
 /// Pixels whose coverage differs between the probe's table and the scene's base mesh.

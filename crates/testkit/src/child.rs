@@ -140,6 +140,43 @@ pub fn start_server(
     Ok(Server { process, addr })
 }
 
+/// `walkthrough renderer serve` on `scene`, with `threads` workers (all cores when `None`).
+pub fn start_renderer(
+    exe: &Path,
+    scene: &str,
+    threads: Option<usize>,
+    log: Option<&Path>,
+) -> anyhow::Result<Server> {
+    let mut args = strings(&[
+        "renderer",
+        "serve",
+        "--scene",
+        scene,
+        "--listen",
+        "127.0.0.1:0",
+    ]);
+    if let Some(threads) = threads {
+        args.extend(["--threads".to_string(), threads.to_string()]);
+    }
+    start_server(exe, "renderer", &args, log)
+}
+
+/// `walkthrough sma` on `scene` with the renderers at `renderers` and more `flags`.
+pub fn start_sma(
+    exe: &Path,
+    scene: &str,
+    renderers: &[SocketAddr],
+    flags: &[String],
+    log: Option<&Path>,
+) -> anyhow::Result<Server> {
+    let mut args = strings(&["sma", "--scene", scene, "--listen", "127.0.0.1:0"]);
+    args.extend(flags.iter().cloned());
+    for renderer in renderers {
+        args.extend(["--renderer".to_string(), renderer.to_string()]);
+    }
+    start_server(exe, "sma", &args, log)
+}
+
 /// `["a", "b"]` as owned strings, for argument lists.
 pub fn strings(v: &[&str]) -> Vec<String> {
     v.iter().map(|s| s.to_string()).collect()

@@ -7,7 +7,7 @@ use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use crate::child::{Process, Server, start_server, strings};
+use crate::child::{Process, start_renderer, start_sma, strings};
 
 /// What the SMA and its renderers run.
 #[derive(Clone, Debug)]
@@ -58,46 +58,23 @@ impl System {
         let cores = std::thread::available_parallelism()
             .map(|n| n.get())
             .unwrap_or(2);
-        let threads = (cores / config.renderers.max(1)).max(1).to_string();
+        let threads = (cores / config.renderers.max(1)).max(1);
         let mut servers = Vec::new();
-        let mut renderer_flags = Vec::new();
-        for _ in 0..config.renderers.max(1) {
-            let args = strings(&[
-                "renderer",
-                "serve",
-                "--scene",
-                &config.scene,
-                "--listen",
-                "127.0.0.1:0",
-                "--threads",
-                &threads,
-            ]);
-            let Server { process, addr } = start_server(
-                &config.exe,
-                "renderer",
-                &args,
-                Some(&logs.join(format!("renderer{}.log", servers.len()))),
-            )?;
-            servers.push(process);
-            renderer_flags.extend(["--renderer".to_string(), addr.to_string()]);
+        let mut renderers = Vec::new();
+        for n in 0..config.renderers.max(1) {
+            let log = logs.join(format!("renderer{n}.log"));
+            let renderer = start_renderer(&config.exe, &config.scene, Some(threads), Some(&log))?;
+            servers.push(renderer.process);
+            renderers.push(renderer.addr);
         }
-        let mut sma_args = strings(&[
-            "sma",
-            "--scene",
-            &config.scene,
-            "--listen",
-            "127.0.0.1:0",
-            "--criterion",
-            &config.criterion,
-            "--seed",
-            &config.seed.to_string(),
-        ]);
+        let mut flags = strings(&["--criterion", &config.criterion]);
+        flags.extend(["--seed".to_string(), config.seed.to_string()]);
         if !config.refine {
-            sma_args.push("--no-refine".into());
+            flags.push("--no-refine".into());
         }
-        sma_args.extend(config.sma_flags.iter().cloned());
-        sma_args.extend(renderer_flags);
-        let sma = start_server(&config.exe, "sma", &sma_args, Some(&logs.join("sma.log")))?;
+        flags.extend(config.sma_flags.iter().cloned());
+        let log = logs.join("sma.log");
+        let sma = start_sma(&config.exe, &config.scene, &renderers, &flags, Some(&log))?;
         servers.push(sma.process);
         Ok(System {
             exe: config.exe.clone(),

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use testkit::child::{Process, start_server, strings};
+use testkit::child::{Process, start_renderer, start_sma, strings};
 use testkit::probe::Probe;
 
 use crate::bench::stats::median;
@@ -54,33 +54,10 @@ fn system(
     sma_flags: &[&str],
 ) -> anyhow::Result<(Process, Process, String)> {
     let log = |name: &str| -> PathBuf { logs.join(format!("{name}.log")) };
-    let renderer_args = [
-        "renderer",
-        "serve",
-        "--scene",
-        scene,
-        "--listen",
-        "127.0.0.1:0",
-    ];
-    let renderer = start_server(
-        exe,
-        "renderer",
-        &strings(&renderer_args),
-        Some(&log("renderer")),
-    )?;
-    let renderer_addr = renderer.addr.to_string();
-    let mut args = vec![
-        "sma",
-        "--scene",
-        scene,
-        "--listen",
-        "127.0.0.1:0",
-        "--renderer",
-        &renderer_addr,
-    ];
-    args.extend(sma_flags);
+    let renderer = start_renderer(exe, scene, None, Some(&log("renderer")))?;
     let _ = std::fs::remove_file(log("sma"));
-    let sma = start_server(exe, "sma", &strings(&args), Some(&log("sma")))?;
+    let flags = strings(sma_flags);
+    let sma = start_sma(exe, scene, &[renderer.addr], &flags, Some(&log("sma")))?;
     Ok((renderer.process, sma.process, sma.addr.to_string()))
 }
 
