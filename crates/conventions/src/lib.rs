@@ -6,13 +6,15 @@
 //! - [`luminance`]: Rec. 709 luminance (DESIGN.md §6: one set of weights everywhere);
 //! - [`tone_map`]: Drago (eq. 4.2) and Reinhard (eq. 4.1) on luminance, colour kept, and sRGB
 //!   encoding (DESIGN.md §9); the viewer's WGSL restates them and a test holds it to these;
-//! - [`listening`]: the `listening on ADDR` line a server prints once bound, and reading it back.
+//! - [`listening`]: the `listening on ADDR` line a server prints once bound, and reading it back;
+//! - [`require_gpu`]: when a check that finds no wgpu adapter fails rather than skips.
 //!
 //! This crate depends on none of ours.
 
 pub mod camera;
 pub mod listening;
 pub mod luminance;
+pub mod require_gpu;
 pub mod tone_map;
 
 pub use luminance::{REC709, luminance};

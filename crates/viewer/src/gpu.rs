@@ -8,7 +8,9 @@
 use anyhow::{Context, anyhow};
 
 /// Set in CI (or by hand) to make a missing adapter an error instead of a skipped check.
-pub const REQUIRE_GPU_VAR: &str = "WALKTHROUGH_REQUIRE_GPU";
+pub use conventions::require_gpu::VAR as REQUIRE_GPU_VAR;
+/// Whether a missing adapter is a failure here.
+pub use conventions::require_gpu::required as gpu_required;
 
 pub struct Gpu {
     pub instance: wgpu::Instance,
@@ -69,10 +71,6 @@ impl Gpu {
             .map(|_| ())
             .map_err(|e| anyhow!("waiting for the GPU: {e}"))
     }
-}
-
-pub fn gpu_required() -> bool {
-    std::env::var_os(REQUIRE_GPU_VAR).is_some()
 }
 
 /// A headless device, or `Ok(None)` after a clear message when there is none and none is required.
