@@ -6,12 +6,28 @@
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 
+/// What a target does with one input: true when it accepted it.
+pub type Target = fn(&[u8]) -> bool;
+
 /// Where inputs are read from, in this order.
 pub const INPUT_DIRS: [&str; 3] = ["corpus", "regressions", "artifacts"];
 
 /// The `fuzz/` folder, seen from a crate in `crates/`.
 pub fn fuzz_dir(crate_dir: &str) -> PathBuf {
     Path::new(crate_dir).join("../../fuzz")
+}
+
+/// Replays every target of a crate's test (`crate_dir`: its manifest folder); each must have at
+/// least `min_seeds` seeds, or the seeds were lost.
+pub fn replay_targets(crate_dir: &str, targets: &[(&str, Target)], min_seeds: usize) {
+    let dir = fuzz_dir(crate_dir);
+    for &(target, run) in targets {
+        let ran = replay(&dir, target, run);
+        assert!(
+            ran >= min_seeds,
+            "{target}: only {ran} seeds; write them again"
+        );
+    }
 }
 
 /// Seeds named so are inputs the target must refuse; every other seed it must accept, so the
@@ -21,16 +37,12 @@ pub const REFUSED_PREFIXES: [&str; 2] = ["malformed-", "rejected-"];
 /// Runs `run` (true: the input was accepted) on every input of `target`; panics naming each input
 /// that made it panic, and each seed accepted or refused against its name. Returns how many
 /// inputs ran.
-pub fn replay(fuzz_dir: &Path, target: &str, run: impl Fn(&[u8]) -> bool) -> usize {
+pub fn replay(fuzz_dir: &Path, target: &str, run: Target) -> usize {
     let mut ran = 0;
     let mut crashed = Vec::new();
     let mut misjudged = Vec::new();
-    for (i, dir) in INPUT_DIRS
-        .map(|d| fuzz_dir.join(d).join(target))
-        .iter()
-        .enumerate()
-    {
-        let Ok(entries) = std::fs::read_dir(&dir) else {
+    for (i, dir) in INPUT_DIRS.iter().enumerate() {
+        let Ok(entries) = std::fs::read_dir(fuzz_dir.join(dir).join(target)) else {
             continue;
         };
         let mut files: Vec<PathBuf> = entries.map(|e| e.expect("corpus entry").path()).collect();

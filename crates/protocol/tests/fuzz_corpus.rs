@@ -20,7 +20,7 @@ use protocol::viewer_link::{
 use protocol::{Hello, HelloReply, PROTOCOL_VERSION, Role, Side};
 use serde::Serialize;
 
-const TARGETS: [(&str, fn(&[u8]) -> bool); 3] = [
+const TARGETS: [(&str, corpus::Target); 3] = [
     ("handshake", frames::handshake),
     ("renderer_link", frames::renderer_link),
     ("viewer_link", frames::viewer_link),
@@ -28,11 +28,7 @@ const TARGETS: [(&str, fn(&[u8]) -> bool); 3] = [
 
 #[test]
 fn the_frame_fuzz_corpus_decodes_without_panicking() {
-    let dir = corpus::fuzz_dir(env!("CARGO_MANIFEST_DIR"));
-    for (target, run) in TARGETS {
-        let ran = corpus::replay(&dir, target, run);
-        assert!(ran >= 10, "{target}: only {ran} seeds; write them again");
-    }
+    corpus::replay_targets(env!("CARGO_MANIFEST_DIR"), &TARGETS, 10);
 }
 
 #[test]

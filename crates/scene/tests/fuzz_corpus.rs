@@ -12,7 +12,7 @@ mod scene_files;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
-const TARGETS: [(&str, fn(&[u8]) -> bool); 3] = [
+const TARGETS: [(&str, corpus::Target); 3] = [
     ("scene_obj", scene_files::obj),
     ("scene_mtl", scene_files::mtl),
     ("scene_toml", scene_files::toml),
@@ -25,11 +25,7 @@ const PIECES: usize = 5;
 
 #[test]
 fn the_scene_fuzz_corpus_loads_without_panicking() {
-    let dir = corpus::fuzz_dir(env!("CARGO_MANIFEST_DIR"));
-    for (target, run) in TARGETS {
-        let ran = corpus::replay(&dir, target, run);
-        assert!(ran >= 5, "{target}: only {ran} seeds; write them again");
-    }
+    corpus::replay_targets(env!("CARGO_MANIFEST_DIR"), &TARGETS, 5);
 }
 
 #[test]
