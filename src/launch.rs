@@ -139,31 +139,57 @@ async fn run_async(args: LaunchArgs) -> anyhow::Result<()> {
 
     let (outcome, interrupted) = tokio::select! {
         status = viewer.wait() => (status.map(|s| s.success()), false),
-        _ = tokio::signal::ctrl_c() => {
-            println!("stopping…");
-            stop(&mut viewer).await;
+        signal = termination_signal() => {
+            println!("{signal}: stopping the viewer, the SMA and the renderers…");
             (Ok(true), true)
         }
     };
-    for s in &mut servers {
-        if interrupted {
-            stop(s).await;
-        } else {
-            let _ = s.kill().await;
-        }
+    if interrupted {
+        servers.push(viewer);
     }
+    stop_all(&mut servers, interrupted).await;
     match outcome? {
         true => Ok(()),
         false => anyhow::bail!("the viewer exited with an error"),
     }
 }
 
-/// Lets a child finish on its own (Ctrl-C reaches the whole process group), then kills it.
-async fn stop(child: &mut Child) {
-    if tokio::time::timeout(Duration::from_secs(3), child.wait())
-        .await
-        .is_err()
-    {
+/// Resolves at the first SIGINT or SIGTERM, naming it.
+async fn termination_signal() -> &'static str {
+    use tokio::signal::unix::{SignalKind, signal};
+    let mut term = signal(SignalKind::terminate()).ok();
+    tokio::select! {
+        _ = tokio::signal::ctrl_c() => "interrupted",
+        Some(_) = async { term.as_mut()?.recv().await } => "terminated",
+    }
+}
+
+/// Ends every child. After a signal each is asked to stop (SIGINT: the renderer and the SMA shut
+/// down their listeners, the viewer simply exits) and all together get a few seconds before the
+/// rest are killed; a signal sent to the launcher alone, not to its process group as a terminal's
+/// Ctrl-C is, thus still reaches them. When the viewer ended the run, the servers are killed at
+/// once: they hold nothing worth saving.
+async fn stop_all(children: &mut [Child], ask_first: bool) {
+    if ask_first {
+        for pid in children.iter().filter_map(Child::id) {
+            // SAFETY: kill(2) only sends a signal, to a child of ours not yet reaped.
+            unsafe {
+                libc::kill(pid as libc::pid_t, libc::SIGINT);
+            }
+        }
+    }
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(3);
+    for child in children {
+        if ask_first
+            && tokio::time::timeout_at(deadline, child.wait())
+                .await
+                .is_ok()
+        {
+            continue;
+        }
+        if ask_first {
+            eprintln!("walkthrough: a child did not stop within 3 s: killing it");
+        }
         let _ = child.kill().await;
     }
 }

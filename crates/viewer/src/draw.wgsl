@@ -19,6 +19,15 @@ struct VertexOut {
     @location(0) radiance: vec3<f32>,
     // Barycentric coordinates, for the wireframe overlay: the vertex index within its triangle.
     @location(1) bary: vec3<f32>,
+    // Clip z and w, for the depth each fragment writes itself: wgpu's GL backend remaps clip z to
+    // GL's -1..1 before the fixed function divides by w, which loses the precision reversed Z
+    // keeps far from the eye; a fragment's own z / w is the same on every backend.
+    @location(2) zw: vec2<f32>,
+};
+
+struct FragmentOut {
+    @builtin(frag_depth) depth: f32,
+    @location(0) colour: vec4<f32>,
 };
 
 @vertex
@@ -29,6 +38,7 @@ fn vs_main(
 ) -> VertexOut {
     var out: VertexOut;
     out.clip = u.view_proj * vec4<f32>(position, 1.0);
+    out.zw = out.clip.zw;
     out.radiance = radiance;
     let k = index % 3u;
     out.bary = vec3<f32>(f32(k == 0u), f32(k == 1u), f32(k == 2u));
@@ -60,7 +70,11 @@ fn srgb_encode(c: vec3<f32>) -> vec3<f32> {
 }
 
 @fragment
-fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+fn fs_main(in: VertexOut) -> FragmentOut {
+    return FragmentOut(in.zw.x / in.zw.y, shade(in));
+}
+
+fn shade(in: VertexOut) -> vec4<f32> {
     // Derivatives first, in uniform control flow.
     let edge = min(in.bary.x, min(in.bary.y, in.bary.z));
     let edge_width = fwidth(edge);

@@ -138,13 +138,16 @@ fn temple(b: &mut SceneBuilder, p: &Palette) {
         false,
         p.marble,
     );
+    // Five steps, each a slab of its own run: slabs that overlapped would put coplanar side faces
+    // on top of one another, which no depth test can order.
+    let run = 0.8;
     for k in 0..5 {
-        let depth = (5 - k) as f32 * 0.8;
+        let outer = front + (5 - k) as f32 * run;
         let height = (k + 1) as f32 * podium / 6.0;
         cuboid(
             b,
-            vec3(-6.0, 0.0, front),
-            vec3(6.0, height, front + depth),
+            vec3(-6.0, 0.0, outer - run),
+            vec3(6.0, height, outer),
             false,
             p.marble,
         );
@@ -261,7 +264,10 @@ fn street(b: &mut SceneBuilder, p: &Palette) {
             let (xa, xb) = (9.0 * side, 19.0 * side);
             let (min, max) = (vec3(xa.min(xb), 0.0, z), vec3(xa.max(xb), height, z + 10.0));
             cuboid(b, min, max, false, p.plaster);
-            let overhang = vec3(0.5, 0.0, 0.0);
+            // A lower house's gables stand against its taller neighbours' end walls: set back a
+            // little, they are not coplanar with those walls, which no depth test could order.
+            let inset = if height < 7.0 { 0.05 } else { 0.0 };
+            let overhang = vec3(0.5, 0.0, -inset);
             gable_roof(
                 b,
                 min.with_y(height) - overhang,

@@ -19,6 +19,7 @@ pub enum GpuError {
 }
 
 /// One device and queue, with what the adapter offers.
+#[derive(Clone)]
 pub struct Gpu {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
@@ -36,18 +37,30 @@ impl Gpu {
     /// 15–20% slower (DESIGN.md §3 step 2). A software adapter also tunes the process's allocator
     /// (`keep_pass_memory`).
     pub fn new() -> Result<Gpu, GpuError> {
-        Self::open(None)
+        Self::open(None, None)
     }
 
     /// As [`Gpu::new`], but `primitive_index` says whether to use `@builtin(primitive_index)`
     /// where the adapter offers it (so tests can check both id paths on one adapter).
     pub fn with_primitive_index(primitive_index: bool) -> Result<Gpu, GpuError> {
-        Self::open(Some(primitive_index))
+        Self::open(Some(primitive_index), None)
     }
 
-    fn open(primitive_index: Option<bool>) -> Result<Gpu, GpuError> {
-        let instance =
-            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle().with_env());
+    /// As [`Gpu::new`], but on `backends` only, whatever `WGPU_BACKEND` says, so that one process
+    /// can hold a GL and a Vulkan device side by side and compare their answers.
+    pub fn on_backends(backends: wgpu::Backends) -> Result<Gpu, GpuError> {
+        Self::open(None, Some(backends))
+    }
+
+    fn open(
+        primitive_index: Option<bool>,
+        backends: Option<wgpu::Backends>,
+    ) -> Result<Gpu, GpuError> {
+        let mut descriptor = wgpu::InstanceDescriptor::new_without_display_handle().with_env();
+        if let Some(backends) = backends {
+            descriptor.backends = backends;
+        }
+        let instance = wgpu::Instance::new(descriptor);
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
             power_preference: wgpu::PowerPreference::HighPerformance,
             ..Default::default()

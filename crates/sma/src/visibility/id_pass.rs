@@ -8,25 +8,40 @@ use glam::{Mat4, Vec3};
 
 use super::gpu::{Gpu, GpuError, MatrixUniform, OffscreenTarget};
 
+// Each fragment writes its own depth, z / w of its perspective-interpolated clip position, rather
+// than leave it to the fixed function: wgpu's GL backend remaps clip z from WebGPU's 0..1 to GL's
+// -1..1 (z' = 2z - w) before the fixed function divides by w, and that round trip through -1..1
+// throws away the precision reversed Z keeps near 0, far from the eye. Far surfaces then fought in
+// the depth test on GL and not on Vulkan, and the two backends saw different leaves. A fragment's
+// own depth bypasses the remap on every backend (DESIGN.md §3 steps 2–3).
 const SHADER_PRIMITIVE_INDEX: &str = r#"
 enable primitive_index;
 @group(0) @binding(0) var<uniform> view_proj: mat4x4<f32>;
-@vertex fn vs_main(@location(0) p: vec3<f32>) -> @builtin(position) vec4<f32> {
-    return view_proj * vec4<f32>(p, 1.0);
+struct Out { @builtin(position) pos: vec4<f32>, @location(0) zw: vec2<f32> };
+struct Fragment { @builtin(frag_depth) depth: f32, @location(0) id: u32 };
+@vertex fn vs_main(@location(0) p: vec3<f32>) -> Out {
+    let clip = view_proj * vec4<f32>(p, 1.0);
+    return Out(clip, clip.zw);
 }
-@fragment fn fs_main(@builtin(primitive_index) i: u32) -> @location(0) u32 {
-    return i + 1u;
+@fragment fn fs_main(v: Out, @builtin(primitive_index) i: u32) -> Fragment {
+    return Fragment(v.zw.x / v.zw.y, i + 1u);
 }
 "#;
 
 const SHADER_VERTEX_INDEX: &str = r#"
 @group(0) @binding(0) var<uniform> view_proj: mat4x4<f32>;
-struct Out { @builtin(position) pos: vec4<f32>, @location(0) @interpolate(flat) id: u32 };
+struct Out {
+    @builtin(position) pos: vec4<f32>,
+    @location(0) @interpolate(flat) id: u32,
+    @location(1) zw: vec2<f32>,
+};
+struct Fragment { @builtin(frag_depth) depth: f32, @location(0) id: u32 };
 @vertex fn vs_main(@location(0) p: vec3<f32>, @builtin(vertex_index) v: u32) -> Out {
-    return Out(view_proj * vec4<f32>(p, 1.0), v / 3u + 1u);
+    let clip = view_proj * vec4<f32>(p, 1.0);
+    return Out(clip, v / 3u + 1u, clip.zw);
 }
-@fragment fn fs_main(v: Out) -> @location(0) u32 {
-    return v.id;
+@fragment fn fs_main(v: Out) -> Fragment {
+    return Fragment(v.zw.x / v.zw.y, v.id);
 }
 "#;
 

@@ -8,14 +8,17 @@ use glam::{Mat4, Vec3};
 use super::gpu::{Gpu, GpuError};
 use super::id_pass::R32UintPass;
 
+// Depth written per fragment, as in the ID pass (see `id_pass`): the same pixels on every backend.
 const SHADER: &str = r#"
 @group(0) @binding(0) var<uniform> view_proj: mat4x4<f32>;
-struct Out { @builtin(position) pos: vec4<f32>, @location(0) lum: f32 };
+struct Out { @builtin(position) pos: vec4<f32>, @location(0) lum: f32, @location(1) zw: vec2<f32> };
+struct Fragment { @builtin(frag_depth) depth: f32, @location(0) bits: u32 };
 @vertex fn vs_main(@location(0) p: vec3<f32>, @location(1) lum: f32) -> Out {
-    return Out(view_proj * vec4<f32>(p, 1.0), lum);
+    let clip = view_proj * vec4<f32>(p, 1.0);
+    return Out(clip, lum, clip.zw);
 }
-@fragment fn fs_main(v: Out) -> @location(0) u32 {
-    return bitcast<u32>(v.lum);
+@fragment fn fs_main(v: Out) -> Fragment {
+    return Fragment(v.zw.x / v.zw.y, bitcast<u32>(v.lum));
 }
 "#;
 
