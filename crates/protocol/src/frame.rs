@@ -21,10 +21,10 @@ pub fn codec(max_frame: usize) -> LengthDelimitedCodec {
         .new_codec()
 }
 
-/// The decoder of every link: [`codec`], and a stream that ends inside a frame is an error
-/// (`UnexpectedEof`) even when it ends right after the length. `LengthDelimitedCodec` consumes
-/// the length before the body has come, so at that end its buffer is empty and the stream would
-/// read as a clean close.
+/// The decoder of every link: the frames of [`codec`], except that a stream ending inside a frame
+/// is an error (`UnexpectedEof`) even right after the length. `LengthDelimitedCodec` consumes the
+/// length before the body comes, so at that end its buffer is empty and the stream would read as
+/// a clean close (DESIGN.md §8: a malformed frame is an error, then the connection closes).
 pub struct FrameDecoder {
     codec: LengthDelimitedCodec,
     /// A length was read and its body has not been returned yet.
