@@ -13,13 +13,13 @@ use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
 use tokio_util::codec::{FramedRead, FramedWrite, LengthDelimitedCodec};
 
 use crate::error::ProtocolError;
-use crate::frame::{WireMessage, codec, decode, decode_message, encode};
+use crate::frame::{FrameDecoder, WireMessage, codec, decode, decode_message, encode};
 use crate::handshake::{Hello, HelloReply, PROTOCOL_VERSION, Role};
 use crate::types::Fingerprint;
 
 /// Reads typed messages `M`, one per frame.
 pub struct MessageReader<R, M> {
-    inner: FramedRead<R, LengthDelimitedCodec>,
+    inner: FramedRead<R, FrameDecoder>,
     _msg: PhantomData<fn() -> M>,
 }
 
@@ -33,7 +33,7 @@ pub struct MessageWriter<W, M> {
 impl<R: AsyncRead + Unpin, M: WireMessage> MessageReader<R, M> {
     pub fn new(io: R, max_frame: usize) -> Self {
         MessageReader {
-            inner: FramedRead::new(io, codec(max_frame)),
+            inner: FramedRead::new(io, FrameDecoder::new(max_frame)),
             _msg: PhantomData,
         }
     }
@@ -110,10 +110,8 @@ fn map_codec_error(e: io::Error, max: usize) -> ProtocolError {
     // LengthDelimitedCodec reports an oversized frame as InvalidData before reading its body.
     if e.kind() == io::ErrorKind::InvalidData {
         ProtocolError::FrameTooLarge { max }
-    } else if e.kind() == io::ErrorKind::UnexpectedEof
-        || e.to_string() == "bytes remaining on stream"
-    {
-        // tokio-util reports a stream that ends inside a frame with this message.
+    } else if e.kind() == io::ErrorKind::UnexpectedEof {
+        // FrameDecoder's report of a stream that ends inside a frame.
         ProtocolError::Truncated
     } else {
         ProtocolError::Io(e)

@@ -25,6 +25,6 @@ pub use builtin::BUILTIN_NAMES;
 pub use error::SceneError;
 pub use fingerprint::hex as fingerprint_hex;
 pub use model::{Effects, LoadReport, Material, Mesh, Scattering, Scene, Triangle};
-pub use scene_file::{load, load_scene_file};
+pub use scene_file::{Disk, SceneFiles, load, load_scene_file, load_scene_file_from};
 pub use settings::{QualitySetting, SceneSettings, Sky, Sun, ViewpointSetting};
 pub use visibility::{VisibilityEstimator, visible_base_triangles};
