@@ -13,13 +13,13 @@ use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
 use tokio_util::codec::{FramedRead, FramedWrite, LengthDelimitedCodec};
 
 use crate::error::ProtocolError;
-use crate::frame::{WireMessage, codec, decode, decode_message, encode};
+use crate::frame::{FrameDecoder, WireMessage, codec, decode, decode_message, encode};
 use crate::handshake::{Hello, HelloReply, PROTOCOL_VERSION, Role};
 use crate::types::Fingerprint;
 
 /// Reads typed messages `M`, one per frame.
 pub struct MessageReader<R, M> {
-    inner: FramedRead<R, LengthDelimitedCodec>,
+    inner: FramedRead<R, FrameDecoder>,
     _msg: PhantomData<fn() -> M>,
 }
 
@@ -33,7 +33,7 @@ pub struct MessageWriter<W, M> {
 impl<R: AsyncRead + Unpin, M: WireMessage> MessageReader<R, M> {
     pub fn new(io: R, max_frame: usize) -> Self {
         MessageReader {
-            inner: FramedRead::new(io, codec(max_frame)),
+            inner: FramedRead::new(io, FrameDecoder::new(max_frame)),
             _msg: PhantomData,
         }
     }
@@ -53,11 +53,7 @@ impl<R: AsyncRead + Unpin, M: WireMessage> MessageReader<R, M> {
     async fn recv_frame(&mut self) -> Result<bytes::BytesMut, ProtocolError> {
         match self.inner.next().await {
             Some(Ok(frame)) => Ok(frame),
-            Some(Err(e)) => {
-                let partial_frame = !self.inner.read_buffer().is_empty();
-                let max = self.inner.decoder().max_frame_length();
-                Err(map_codec_error(e, max, partial_frame))
-            }
+            Some(Err(e)) => Err(map_codec_error(e, self.inner.decoder().max_frame_length())),
             None if self.inner.read_buffer().is_empty() => Err(ProtocolError::Closed),
             None => Err(ProtocolError::Truncated),
         }
@@ -93,15 +89,15 @@ impl<W: AsyncWrite + Unpin, M: Serialize> MessageWriter<W, M> {
     }
 }
 
-/// `partial_frame`: the read buffer still holds part of a frame.
-fn map_codec_error(e: io::Error, max: usize, partial_frame: bool) -> ProtocolError {
-    match e.kind() {
-        // LengthDelimitedCodec reports an oversized frame as InvalidData before reading its body.
-        io::ErrorKind::InvalidData => ProtocolError::FrameTooLarge { max },
-        io::ErrorKind::UnexpectedEof => ProtocolError::Truncated,
-        // tokio-util reports a stream that ends inside a frame as `Other`, its bytes still held.
-        io::ErrorKind::Other if partial_frame => ProtocolError::Truncated,
-        _ => ProtocolError::Io(e),
+fn map_codec_error(e: io::Error, max: usize) -> ProtocolError {
+    // LengthDelimitedCodec reports an oversized frame as InvalidData before reading its body.
+    if e.kind() == io::ErrorKind::InvalidData {
+        ProtocolError::FrameTooLarge { max }
+    } else if e.kind() == io::ErrorKind::UnexpectedEof {
+        // FrameDecoder's report of a stream that ends inside a frame.
+        ProtocolError::Truncated
+    } else {
+        ProtocolError::Io(e)
     }
 }
 

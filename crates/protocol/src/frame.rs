@@ -2,8 +2,11 @@
 //! stable, documented wire format (varint integers, little-endian floats), so bulk data such as
 //! triangles and radiance stays compact without a hand-written encoding.
 
+use std::io;
+
+use bytes::BytesMut;
 use serde::{Serialize, de::DeserializeOwned};
-use tokio_util::codec::LengthDelimitedCodec;
+use tokio_util::codec::{Decoder, LengthDelimitedCodec};
 
 use crate::error::ProtocolError;
 use crate::variant_count::variant_count;
@@ -17,6 +20,55 @@ pub fn codec(max_frame: usize) -> LengthDelimitedCodec {
         .length_field_length(4)
         .max_frame_length(max_frame)
         .new_codec()
+}
+
+/// The decoder of every link: the frames of [`codec`], except that a stream ending inside a frame
+/// is an error (`UnexpectedEof`) even right after the length. `LengthDelimitedCodec` consumes the
+/// length before the body comes, so at that end its buffer is empty and the stream would read as
+/// a clean close (DESIGN.md §8: a malformed frame is an error, then the connection closes).
+pub struct FrameDecoder {
+    codec: LengthDelimitedCodec,
+    /// A length was read and its body has not been returned yet.
+    inside_frame: bool,
+}
+
+impl FrameDecoder {
+    pub fn new(max_frame: usize) -> FrameDecoder {
+        FrameDecoder {
+            codec: codec(max_frame),
+            inside_frame: false,
+        }
+    }
+
+    pub fn max_frame_length(&self) -> usize {
+        self.codec.max_frame_length()
+    }
+}
+
+impl Decoder for FrameDecoder {
+    type Item = BytesMut;
+    type Error = io::Error;
+
+    fn decode(&mut self, src: &mut BytesMut) -> io::Result<Option<BytesMut>> {
+        let buffered = src.len();
+        let frame = self.codec.decode(src)?;
+        if frame.is_some() {
+            self.inside_frame = false;
+        } else if src.len() < buffered {
+            self.inside_frame = true;
+        }
+        Ok(frame)
+    }
+
+    fn decode_eof(&mut self, src: &mut BytesMut) -> io::Result<Option<BytesMut>> {
+        match self.decode(src)? {
+            None if self.inside_frame || !src.is_empty() => Err(io::Error::new(
+                io::ErrorKind::UnexpectedEof,
+                "the stream ended inside a frame",
+            )),
+            frame => Ok(frame),
+        }
+    }
 }
 
 /// Encodes one message into a payload (without the length prefix).

@@ -35,6 +35,13 @@ async fn truncated_frame() {
     assert!(matches!(r, Err(ProtocolError::Truncated)), "{r:?}");
 }
 
+/// The codec has consumed the length when the stream ends: still a truncated frame, not a close.
+#[tokio::test]
+async fn a_stream_ending_right_after_a_length_is_truncated() {
+    let r = read_raw(vec![0, 0, 0, 9]).await;
+    assert!(matches!(r, Err(ProtocolError::Truncated)), "{r:?}");
+}
+
 #[tokio::test]
 async fn clean_close_is_closed() {
     assert!(matches!(read_raw(vec![]).await, Err(ProtocolError::Closed)));

@@ -26,5 +26,5 @@ pub use cpu_visibility::{VisibilityEstimator, visible_base_triangles};
 pub use error::SceneError;
 pub use fingerprint::hex as fingerprint_hex;
 pub use model::{Effects, LoadReport, Material, Mesh, Scattering, Scene, Triangle};
-pub use scene_file::{load, load_scene_file};
+pub use scene_file::{Disk, SceneFiles, load, load_scene_file, load_scene_file_from};
 pub use settings::{QualitySetting, SceneSettings, Sky, Sun, ViewpointSetting};

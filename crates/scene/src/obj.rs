@@ -13,6 +13,7 @@ use crate::builder::SceneBuilder;
 use crate::error::SceneError;
 use crate::model::{Material, Scene};
 use crate::obj_check::{check_mtl, check_obj};
+use crate::scene_file::{SceneFiles, read_text};
 use crate::settings::SceneSettings;
 
 /// What a face with no (or an unknown) material gets, and every face when the MTL is missing.
@@ -20,11 +21,16 @@ fn default_material() -> Material {
     Material::diffuse("default", Vec3::splat(0.7))
 }
 
-pub fn load_obj(path: &Path, settings: SceneSettings) -> Result<Scene, SceneError> {
-    let text = read_text(path)?;
+pub fn load_obj(
+    files: &dyn SceneFiles,
+    path: &Path,
+    settings: SceneSettings,
+) -> Result<Scene, SceneError> {
+    let text = read_text(files, path)?;
     let summary = check_obj(path, &text)?;
     let mut builder = SceneBuilder::new(settings);
-    let libraries = read_material_libraries(path, &summary.material_libraries, &mut builder)?;
+    let libraries =
+        read_material_libraries(files, path, &summary.material_libraries, &mut builder)?;
     let options = tobj::LoadOptions {
         triangulate: true,
         ignore_points: true,
@@ -63,18 +69,10 @@ pub fn load_obj(path: &Path, settings: SceneSettings) -> Result<Scene, SceneErro
     builder.build()
 }
 
-fn read_text(path: &Path) -> Result<String, SceneError> {
-    let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    // Comments in OBJ files are not always UTF-8; geometry always is ASCII.
-    Ok(String::from_utf8_lossy(&bytes).into_owned())
-}
-
 /// Reads and checks each `mtllib` (relative to the OBJ); a missing one is a warning, not an
 /// error: its faces get the default material.
 fn read_material_libraries(
+    files: &dyn SceneFiles,
     obj: &Path,
     names: &[String],
     builder: &mut SceneBuilder,
@@ -83,16 +81,12 @@ fn read_material_libraries(
     let mut libraries = HashMap::new();
     for name in names {
         let path = dir.join(name);
-        match std::fs::read(&path) {
-            Ok(bytes) => {
-                let text = String::from_utf8_lossy(&bytes).into_owned();
+        match read_text(files, &path) {
+            Ok(text) => {
                 check_mtl(&path, &text)?;
                 libraries.insert(PathBuf::from(name), text);
             }
-            Err(e) => builder.warn(format!(
-                "{}: {e}; its materials are replaced by a default one",
-                path.display()
-            )),
+            Err(e) => builder.warn(format!("{e}; its materials are replaced by a default one")),
         }
     }
     Ok(libraries)
