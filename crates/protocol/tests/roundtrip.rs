@@ -90,7 +90,7 @@ fn from_renderer() -> impl Strategy<Value = FromRenderer> {
         (
             any::<u64>(),
             quality(),
-            prop::collection::vec((v3(), any::<u8>()), 0..50),
+            prop::collection::vec((v3(), any::<u8>(), 0.0f32..1e6, any::<u32>()), 0..50),
             any::<u64>()
         )
             .prop_map(|(batch_id, quality, vals, micros)| FromRenderer::Radiance(
@@ -98,6 +98,8 @@ fn from_renderer() -> impl Strategy<Value = FromRenderer> {
                     batch_id,
                     quality,
                     rgb: vals.iter().map(|v| v.0).collect(),
+                    luminance_variance: vals.iter().map(|v| v.2).collect(),
+                    paths: vals.iter().map(|v| v.3).collect(),
                     flags: vals.iter().map(|v| v.1).collect(),
                     micros,
                 }
@@ -180,6 +182,8 @@ fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
                     leaves,
                     cached_samples,
                     renderers,
+                    converged: leaves % 2 == 0,
+                    rejected_points: cached_samples / 3,
                 })
             }
         ),

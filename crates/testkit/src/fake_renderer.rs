@@ -88,6 +88,8 @@ async fn serve(listener: TcpListener, scene: Scene, shading: Shading, fault: Fau
                 batch_id: batch.batch_id,
                 quality: batch.quality,
                 rgb,
+                luminance_variance: vec![0.0; batch.points.len()],
+                paths: vec![batch.quality.paths; batch.points.len()],
                 flags: vec![0; batch.points.len()],
                 micros: 1,
             };
