@@ -511,7 +511,11 @@ async fn a_resting_viewer_gets_more_paths_until_converged_then_nothing() {
     // After the stated end the renderer is left alone.
     let settled = log.lock().unwrap().len();
     tokio::time::sleep(Duration::from_millis(500)).await;
-    assert_eq!(log.lock().unwrap().len(), settled, "requests after convergence");
+    assert_eq!(
+        log.lock().unwrap().len(),
+        settled,
+        "requests after convergence"
+    );
     sma.stop().await.unwrap();
 }
 

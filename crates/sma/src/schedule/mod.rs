@@ -501,6 +501,8 @@ impl Schedule {
             queued = self.requests.queued(),
             in_flight = self.requests.in_flight_keys(),
             pending_steps = self.pending.len(),
+            converged = self.converged,
+            rejected = self.rejected_points,
             renderers = self.renderers,
             viewers = self.viewers.len(),
             "stats"
