@@ -72,8 +72,11 @@ fn lies(honest: Role, wrong: Role, fingerprint: Option<[u8; 32]>) -> Vec<(Vec<u8
 /// Tells every lie to `addr`; each must be refused with its reason.
 async fn refused_with_reasons(addr: &str, lies: Vec<(Vec<u8>, &'static str)>) {
     for (said, reason) in lies {
-        let got = refusal(addr, &said)
+        // Without a handshake deadline the silent peer would be held open for good: the guard
+        // turns that hang into a failure.
+        let got = tokio::time::timeout(WAIT, refusal(addr, &said))
             .await
+            .unwrap_or_else(|_| panic!("lie expecting {reason:?} held open"))
             .unwrap_or_else(|e| panic!("lie expecting {reason:?}: {e:#}"));
         assert!(got.contains(reason), "expected {reason:?} in {got:?}");
     }
