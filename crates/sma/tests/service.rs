@@ -558,6 +558,8 @@ async fn a_nan_point_is_asked_again_and_never_shown_black() {
         &shown_coverage(&scene, &probe, &camera),
     );
     assert_eq!(differs, 0, "every visible triangle is shown");
+    sma.stop().await.unwrap();
+}
 
 /// Follows `probe`'s epochs until `done`, checking at every one, not only the idle ones, that the
 /// table is a conforming set (no overlap, no T-junction) and, from the first epoch in which
