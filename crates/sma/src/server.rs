@@ -81,7 +81,7 @@ pub async fn start(
         max_frame: config.max_frame,
     };
     let schedule = Schedule::new(config.schedule, &scene, mesh, gpu, pool);
-    tracing::info!(adapter = %schedule.adapter(), scene = %scene.name, "visibility device");
+    tracing::debug!(adapter = %schedule.adapter(), scene = %scene.name, "visibility device");
     let listener = TcpListener::bind(&config.listen)
         .await
         .with_context(|| format!("listening on {}", config.listen))?;

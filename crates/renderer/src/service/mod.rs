@@ -55,14 +55,14 @@ impl Service {
                 _ = &mut shutdown => break,
                 accepted = listener.accept() => match accepted {
                     Ok((stream, peer)) => {
-                        tracing::info!(%peer, "SMA connected");
+                        tracing::debug!(%peer, "SMA connected");
                         let service = Arc::clone(&service);
                         let stop = stop_rx.clone();
                         connections.spawn(async move {
                             if let Err(e) = connection::handle(stream, service, stop).await {
                                 tracing::warn!(%peer, "connection ended: {e}");
                             } else {
-                                tracing::info!(%peer, "connection closed");
+                                tracing::debug!(%peer, "connection closed");
                             }
                         });
                     }

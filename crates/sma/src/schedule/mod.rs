@@ -414,8 +414,9 @@ impl Schedule {
             leaves: self.mesh.leaf_count() as u64,
             cached_samples: self.cache.len() as u64,
             renderers: self.renderers as u32,
+            converged: false,
         };
-        tracing::info!(
+        tracing::debug!(
             samples = self.samples,
             samples_per_sec = format!("{rate:.0}"),
             leaves = stats.leaves,
@@ -429,8 +430,12 @@ impl Schedule {
             viewers = self.viewers.len(),
             "stats"
         );
+        let idle = self.requests.queued() == 0 && self.requests.in_flight_keys() == 0;
         for viewer in self.viewers.values() {
-            viewer.send(SmaToViewer::Stats(stats));
+            viewer.send(SmaToViewer::Stats(Stats {
+                converged: idle && viewer.wait.is_exhausted(),
+                ..stats
+            }));
         }
     }
 }
