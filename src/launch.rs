@@ -151,7 +151,7 @@ async fn run_async(args: LaunchConfig) -> anyhow::Result<()> {
     let mut viewer = spawn(&viewer, Stdio::piped())?;
     let progress = viewer.stdout.take().context("the viewer's stdout")?;
     let progress = std::fs::File::from(progress.into_owned_fd()?);
-    let progress = std::thread::spawn(move || progress_bar::show(progress));
+    let progress = std::thread::spawn(move || crate::progress_bar::show(progress));
 
     let (outcome, interrupted) = tokio::select! {
         status = viewer.wait() => (status.map(|s| s.success()), false),

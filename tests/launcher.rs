@@ -113,9 +113,15 @@ fn no_arguments_runs_headless_writes_snapshots_and_leaves_nothing_behind() {
     );
     let said = |words: &str| lines.iter().any(|l| l.contains(words));
     assert!(said("running headless"), "no word of the headless run");
-    assert!(said("snapshots go to out/run-"), "no word of where the snapshots go");
+    assert!(
+        said("snapshots go to out/run-"),
+        "no word of where the snapshots go"
+    );
     assert!(said("first picture"), "no word of the first picture");
-    assert!(!stderr.contains('\x1b'), "colour codes in a log that is not a terminal");
+    assert!(
+        !stderr.contains('\x1b'),
+        "colour codes in a log that is not a terminal"
+    );
     let shots = snapshots(dir.path());
     assert!(
         shots.len() >= 5,

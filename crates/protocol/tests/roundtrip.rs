@@ -15,13 +15,12 @@ fn v3() -> impl Strategy<Value = [f32; 3]> {
 }
 
 fn sky() -> impl Strategy<Value = SkyInfo> {
-    let sun = (v3(), v3(), finite()).prop_map(|(direction, radiance, angular_diameter_deg)| {
-        SunInfo {
+    let sun =
+        (v3(), v3(), finite()).prop_map(|(direction, radiance, angular_diameter_deg)| SunInfo {
             direction,
             radiance,
             angular_diameter_deg,
-        }
-    });
+        });
     (v3(), prop::option::of(sun)).prop_map(|(radiance, sun)| SkyInfo { radiance, sun })
 }
 fn side() -> impl Strategy<Value = Side> {
@@ -158,15 +157,15 @@ fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
         )
             .prop_map(
                 |(name, fingerprint, min, max, viewpoints, criteria, sky, (paths, bounces))| {
-                SmaToViewer::SceneInfo(SceneInfo {
-                    name,
-                    fingerprint,
-                    bounds: Bounds { min, max },
-                    viewpoints,
-                    criteria,
-                    sky,
-                    quality: Quality { paths, bounces },
-                })
+                    SmaToViewer::SceneInfo(SceneInfo {
+                        name,
+                        fingerprint,
+                        bounds: Bounds { min, max },
+                        viewpoints,
+                        criteria,
+                        sky,
+                        quality: Quality { paths, bounces },
+                    })
                 }
             ),
         prop::collection::vec(shown(), 0..40)

@@ -272,7 +272,8 @@ impl Headless<'_> {
         };
         let gpu = (&self.gpu.device, &self.gpu.queue);
         let panel = &mut self.panel;
-        let mut paint = |encoder: &mut wgpu::CommandEncoder, target: (&wgpu::TextureView, [u32; 2])| {
+        let mut paint = |encoder: &mut wgpu::CommandEncoder,
+                         target: (&wgpu::TextureView, [u32; 2])| {
             if let Some(panel) = panel.as_mut() {
                 panel.paint(gpu, encoder, target, fixed_screen(target.1), &facts);
             }

@@ -120,7 +120,10 @@ impl Offscreen {
             settings,
         );
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        paint(&mut encoder, (&self.display.view, [self.width, self.height]));
+        paint(
+            &mut encoder,
+            (&self.display.view, [self.width, self.height]),
+        );
         gpu.queue.submit([encoder.finish()]);
         let display = self.read(gpu, &self.display)?;
         let linear = self.read(gpu, &self.linear)?;

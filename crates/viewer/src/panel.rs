@@ -75,7 +75,11 @@ impl<'a> Facts<'a> {
         });
         Facts {
             scene: scene.map(|s| s.name.as_str()),
-            sma: if state.connected { sma } else { "connecting…" },
+            sma: if state.connected {
+                sma
+            } else {
+                "connecting…"
+            },
             activity: state.activity(),
             samples: state.epoch.map_or(0, |e| e.samples),
             samples_per_sec: state.stats.samples_per_sec,

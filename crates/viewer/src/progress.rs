@@ -41,7 +41,9 @@ impl Progress {
     pub fn parse(line: &str) -> Option<Progress> {
         let fields = line.trim_end().strip_prefix(MARK)?;
         let (numbers, state) = fields.split_once(" state=")?;
-        let mut values = numbers.split(' ').map(|kv| kv.split_once('=').map(|(_, v)| v));
+        let mut values = numbers
+            .split(' ')
+            .map(|kv| kv.split_once('=').map(|(_, v)| v));
         let mut next = || values.next().flatten();
         Some(Progress {
             samples: next()?.parse().ok()?,
@@ -92,6 +94,9 @@ mod tests {
         };
         assert_eq!(Progress::parse(&p.line()), Some(p));
         assert_eq!(Progress::parse("viewer listening on 1.2.3.4:5"), None);
-        assert_eq!(Progress::parse("progress samples=x samples_per_sec=1 shown=2 state=s"), None);
+        assert_eq!(
+            Progress::parse("progress samples=x samples_per_sec=1 shown=2 state=s"),
+            None
+        );
     }
 }

@@ -288,7 +288,10 @@ impl App {
                 self.scale_speed(1.0 / SPEED_STEP);
                 None
             }
-            _ => DIGITS.iter().position(|&d| d == code).map(Action::Viewpoint),
+            _ => DIGITS
+                .iter()
+                .position(|&d| d == code)
+                .map(Action::Viewpoint),
         };
         if let Some(action) = action {
             self.apply(action);

@@ -229,8 +229,8 @@ fn assert_sky_pixels(png: &image::RgbImage, drawn: &Snapshot) {
     assert_close(at(W - 5, 50), sky, 1.0, "sky beside the triangles");
     assert_close(at(5, H - 5), [0.0; 3], 0.0, "below the horizon");
     // The sun 25° above the centre: tan 25° / tan 30° of the half height above it.
-    let sun_row = (H as f32 / 2.0 * (1.0 - 25f32.to_radians().tan() / 30f32.to_radians().tan()))
-        as u32;
+    let sun_row =
+        (H as f32 / 2.0 * (1.0 - 25f32.to_radians().tan() / 30f32.to_radians().tan())) as u32;
     assert_close(at(W / 2, sun_row), [255.0; 3], 0.0, "the sun's disc");
     let covered = |x: u32, y: u32| drawn.covered[(y * W + x) as usize];
     assert!(!covered(5, 5) && !covered(W / 2, sun_row) && !covered(5, H - 5));

@@ -113,7 +113,12 @@ fn mean_difference(
 }
 
 /// Waits until the screen shows `want` over `columns`; returns the last difference.
-fn wait_for_screen(what: &str, display: &str, want: &image::RgbaImage, columns: std::ops::Range<u32>) -> f64 {
+fn wait_for_screen(
+    what: &str,
+    display: &str,
+    want: &image::RgbaImage,
+    columns: std::ops::Range<u32>,
+) -> f64 {
     let mut last = f64::NAN;
     wait_for(what, || {
         let shot = screenshot(display)?;
@@ -173,14 +178,22 @@ fn the_window_shows_the_triangles_and_its_panel_hides_it_on_h_walks_and_jumps_on
         sky: common::SKY,
     };
     let want = render_offscreen_with(&gpu, &triangles, &camera, &settings).unwrap();
-    let beside = wait_for_screen("the triangles beside the panel", &display, &want.display, PANEL_PX..W);
+    let beside = wait_for_screen(
+        "the triangles beside the panel",
+        &display,
+        &want.display,
+        PANEL_PX..W,
+    );
     let shot = screenshot(&display).expect("a screenshot");
     let panel = mean_difference(&shot, &want.display, 0..PANEL_PX);
     eprintln!(
         "{TEST}: screen vs headless, mean difference {beside:.3} levels beside the panel, \
          {panel:.1} over it"
     );
-    assert!(panel > 10.0, "no panel over the left of the window ({panel:.1} levels)");
+    assert!(
+        panel > 10.0,
+        "no panel over the left of the window ({panel:.1} levels)"
+    );
 
     // No window manager runs to hand out the keyboard focus: give it to the window.
     let found = x_command(

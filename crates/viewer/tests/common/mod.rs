@@ -1,8 +1,8 @@
 //! The viewer tests' scene and triangles, for the SMA stand-in of `testkit::fake_sma`.
 #![allow(dead_code)] // each test binary uses its own part of this helper
 
-use protocol::types::{Bounds, Viewpoint};
 use protocol::renderer_link::Quality;
+use protocol::types::{Bounds, Viewpoint};
 use protocol::viewer_link::{SceneInfo, ShownTriangle, SkyInfo, SunInfo};
 pub use testkit::fake_sma::{Seen, StandIn};
 
