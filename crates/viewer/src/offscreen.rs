@@ -19,6 +19,9 @@ const LINEAR_FORMATS: [wgpu::TextureFormat; 2] = [
     wgpu::TextureFormat::Rgba16Float,
 ];
 
+/// Drawing recorded over the display image, given as a target view and its size in pixels.
+pub type PaintOver<'a> = dyn FnMut(&mut wgpu::CommandEncoder, (&wgpu::TextureView, [u32; 2])) + 'a;
+
 /// One snapshot of the viewer's image.
 pub struct Snapshot {
     /// Tone-mapped, sRGB-encoded (what the window shows).
@@ -109,7 +112,7 @@ impl Offscreen {
         camera: &Camera,
         depth: (f32, f32),
         settings: &DrawSettings,
-        paint: &mut dyn FnMut(&mut wgpu::CommandEncoder, (&wgpu::TextureView, [u32; 2])),
+        paint: &mut PaintOver,
     ) -> anyhow::Result<Snapshot> {
         self.draw_into(
             gpu,

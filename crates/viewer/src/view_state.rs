@@ -142,7 +142,6 @@ impl ViewState {
     }
 
     /// Δins and Δrem since the previous call.
-
     pub fn take_interval(&mut self) -> (u64, u64) {
         let counts = (self.interval_inserted, self.interval_removed);
         (self.interval_inserted, self.interval_removed) = (0, 0);
