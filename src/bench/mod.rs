@@ -6,6 +6,7 @@
 //!   sections of `bench report` (internals through each crate's `bench` feature);
 //! - [`convergence`] and [`accuracy`]: the end-to-end measurements of DESIGN.md §10, with
 //!   [`metrics`], [`plots`] and [`strips`];
+//! - [`ray_throughput`]: the ray-throughput table of the [`renderer`] section;
 //! - [`stats`] (medians, least squares) and [`machine`]: shared by all.
 
 pub mod accuracy;
@@ -14,6 +15,7 @@ pub mod machine;
 pub mod metrics;
 pub mod plots;
 pub mod protocol;
+pub mod ray_throughput;
 pub mod renderer;
 pub mod report;
 pub mod scene;

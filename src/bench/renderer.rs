@@ -7,33 +7,31 @@ use std::fmt::Write as _;
 use std::time::Instant;
 
 use anyhow::Context;
-use glam::{Vec3, Vec3A};
-use obvhs::cwbvh::CwBvh;
-use obvhs::ray::{Ray, RayHit};
-use obvhs::triangle::Triangle as BvhTriangle;
+use glam::Vec3;
 use protocol::Side;
 use protocol::renderer_link::{Quality, SampleKey, ShadeBatch, ShadePoint};
-use rayon::prelude::*;
 
 use renderer::internals::SceneBvh;
 use renderer::point::front_point_hit_by;
 use renderer::reference::camera_for;
-use renderer::sampling::{cosine_hemisphere, luminance, stream, uniform_cone, uniform2};
+use renderer::sampling::luminance;
 use renderer::shade_batch;
+use renderer::vector_level::VectorLevel;
 use renderer::world::World;
-use scene::bvh::{BuildPreset, build_cwbvh, bvh_triangles};
+use scene::bvh::BuildPreset;
 
+use super::ray_throughput::ray_throughput;
 use super::stats::{median, median_seconds};
 
 /// Sponza's scene file, relative to the repository root (it reads ../shared/scenes).
 pub const SPONZA: &str = "scenes/sponza.toml";
 
 /// Sizes of one benchmark run.
-struct Config {
-    runs: usize,
+pub(super) struct Config {
+    pub(super) runs: usize,
     /// Image whose pixels give the rays (primary rays and the points they hit).
-    width: u32,
-    height: u32,
+    pub(super) width: u32,
+    pub(super) height: u32,
     /// Shading points for samples per second.
     points: usize,
     /// Points, reference paths and path levels of the error/time table.
@@ -70,9 +68,10 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
     let mut md = String::from("## Renderer\n\n");
     writeln!(
         md,
-        "{} worker threads; built for {}; medians of {} runs{}.\n",
+        "{} worker threads; built for {}; ray queries at run time: {} (the best level this CPU runs); medians of {} runs{}.\n",
         rayon::current_num_threads(),
         cpu_level(),
+        VectorLevel::detected().name(),
         cfg.runs,
         if quick {
             " (quick: small sizes, figures indicative only)"
@@ -98,269 +97,22 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
         md += &hidden_vertices(sponza, cfg)?;
     }
     let bracara = World::new(scene::load("bracara").context("loading bracara")?);
-    let mut scenes: Vec<(&World, &str)> = Vec::new();
-    if let Some(s) = &sponza {
-        scenes.push((s, "S1"));
-    }
-    scenes.push((&bracara, "VR"));
-    md += &samples_per_second(&scenes, cfg)?;
+    let mut scenes: Vec<(World, &str)> = sponza.into_iter().map(|s| (s, "S1")).collect();
+    scenes.push((bracara, "VR"));
+    md += &samples_per_second(&mut scenes, cfg)?;
     for (world, view) in &scenes {
         md += &error_and_time(world, view, cfg)?;
     }
     Ok(md)
 }
 
-/// Which x86-64 level the code was compiled for (the throughput depends on it).
+/// Which x86-64 level the binary was compiled for (code outside the ray queries runs at it).
 fn cpu_level() -> &'static str {
     if cfg!(target_feature = "avx2") && cfg!(target_feature = "fma") {
         "x86-64-v3 or above (AVX2, FMA)"
     } else {
         "generic x86-64 (no AVX2)"
     }
-}
-
-/// Rays of one kind: origin, direction, tmax.
-struct Rays {
-    origin: Vec<Vec3>,
-    dir: Vec<Vec3>,
-    tmax: Vec<f32>,
-}
-
-impl Rays {
-    fn len(&self) -> usize {
-        self.origin.len()
-    }
-
-    /// The same rays reordered by direction octant, then Morton order of the origin, so rays
-    /// of one chunk traverse similar nodes.
-    fn ordered(&self, lo: Vec3, hi: Vec3) -> Rays {
-        let scale = 1023.0 / (hi - lo).max(Vec3::splat(1e-6));
-        let key = |i: usize| {
-            let q = ((self.origin[i] - lo) * scale)
-                .clamp(Vec3::ZERO, Vec3::splat(1023.0))
-                .as_uvec3();
-            let d = self.dir[i];
-            let octant = (d.x < 0.0) as u64 | ((d.y < 0.0) as u64) << 1 | ((d.z < 0.0) as u64) << 2;
-            // 32 bits: the octant above the top 29 bits of the Morton code.
-            octant << 29 | morton3(q.x, q.y, q.z) >> 1
-        };
-        // Keys computed once, sorted in parallel with the index in the low bits.
-        let mut keyed: Vec<u64> = (0..self.len())
-            .into_par_iter()
-            .map(|i| key(i) << 32 | i as u64)
-            .collect();
-        keyed.par_sort_unstable();
-        let idx: Vec<usize> = keyed.iter().map(|k| (k & 0xffff_ffff) as usize).collect();
-        Rays {
-            origin: idx.iter().map(|&i| self.origin[i]).collect(),
-            dir: idx.iter().map(|&i| self.dir[i]).collect(),
-            tmax: idx.iter().map(|&i| self.tmax[i]).collect(),
-        }
-    }
-}
-
-/// 30-bit Morton code of three 10-bit coordinates.
-fn morton3(x: u32, y: u32, z: u32) -> u64 {
-    fn spread(v: u32) -> u64 {
-        let mut v = v as u64 & 0x3ff;
-        v = (v | v << 16) & 0x0300_00ff;
-        v = (v | v << 8) & 0x0300_f00f;
-        v = (v | v << 4) & 0x030c_30c3;
-        (v | v << 2) & 0x0924_9249
-    }
-    spread(x) | spread(y) << 1 | spread(z) << 2
-}
-
-/// Primary rays of a view through pixel centres (8×8 tiles, as a renderer would issue them),
-/// then bounce and sun-shadow rays from the points they hit.
-fn view_rays(world: &World, view: &str, cfg: &Config) -> anyhow::Result<(Rays, Rays, Rays)> {
-    let cam = camera_for(world, view, cfg.width, cfg.height)?;
-    let mut primary = Rays {
-        origin: Vec::new(),
-        dir: Vec::new(),
-        tmax: Vec::new(),
-    };
-    for ty in (0..cfg.height).step_by(8) {
-        for tx in (0..cfg.width).step_by(8) {
-            for y in ty..(ty + 8).min(cfg.height) {
-                for x in tx..(tx + 8).min(cfg.width) {
-                    primary.origin.push(cam.eye_vec());
-                    primary
-                        .dir
-                        .push(cam.ray_direction(x as f32 + 0.5, y as f32 + 0.5));
-                    primary.tmax.push(f32::INFINITY);
-                }
-            }
-        }
-    }
-    let sun = world
-        .scene
-        .settings
-        .sun
-        .as_ref()
-        .and_then(|s| Vec3::from(s.direction).try_normalize())
-        .unwrap_or(Vec3::Y);
-    let mut bounce = Rays {
-        origin: Vec::new(),
-        dir: Vec::new(),
-        tmax: Vec::new(),
-    };
-    let mut shadow = Rays {
-        origin: Vec::new(),
-        dir: Vec::new(),
-        tmax: Vec::new(),
-    };
-    let mut rng = stream(42, 0);
-    for i in 0..primary.len() {
-        let Some(hit) = world
-            .bvh
-            .closest_hit(primary.origin[i], primary.dir[i], f32::INFINITY)
-        else {
-            continue;
-        };
-        let s = world.surface_at(primary.origin[i], primary.dir[i], hit);
-        let origin = world.offset.origin(s.position, s.normal);
-        bounce.origin.push(origin);
-        bounce
-            .dir
-            .push(cosine_hemisphere(s.normal, uniform2(&mut rng)));
-        bounce.tmax.push(f32::INFINITY);
-        let to_sun = uniform_cone(sun, 1e-5, uniform2(&mut rng));
-        if to_sun.dot(s.normal) > 0.0 {
-            shadow.origin.push(origin);
-            shadow.dir.push(to_sun);
-            shadow.tmax.push(f32::INFINITY);
-        }
-    }
-    Ok((primary, bounce, shadow))
-}
-
-/// The baseline: obvhs as its example uses it: default (medium) preset, the triangle list looked
-/// up through `primitive_indices`, closest hit for every ray, rays in the order they come.
-struct NaiveBvh {
-    bvh: CwBvh,
-    tris: Vec<BvhTriangle>,
-}
-
-impl NaiveBvh {
-    fn build(mesh: &scene::Mesh) -> NaiveBvh {
-        let tris = bvh_triangles(mesh);
-        let bvh = build_cwbvh(&tris, BuildPreset::Medium);
-        NaiveBvh { bvh, tris }
-    }
-
-    fn hits(&self, o: Vec3, d: Vec3, tmax: f32) -> bool {
-        let mut hit = RayHit::none();
-        let ray = Ray::new(Vec3A::from(o), Vec3A::from(d), 0.0, tmax);
-        self.bvh.ray_traverse(ray, &mut hit, |r, id| {
-            self.tris[self.bvh.primitive_indices[id] as usize].intersect(r)
-        })
-    }
-}
-
-const CHUNK: usize = 4096;
-
-type TraceFn<'a> = &'a (dyn Fn(Vec3, Vec3, f32) -> bool + Sync);
-
-/// Seconds to trace `rays` once with `trace`, in parallel chunks.
-fn trace_secs(rays: &Rays, trace: TraceFn) -> f64 {
-    let start = Instant::now();
-    let hits: usize = (0..rays.len())
-        .into_par_iter()
-        .with_min_len(CHUNK)
-        .filter(|&i| trace(rays.origin[i], rays.dir[i], rays.tmax[i]))
-        .count();
-    std::hint::black_box(hits);
-    start.elapsed().as_secs_f64()
-}
-
-/// Baseline, ours and ours-ordered timed in turn within each run, so a change of machine load
-/// (other processes) hits all three alike: median M rays/s of each, and the median of the
-/// per-run ratios of the other two to the baseline.
-fn compare(runs: usize, variants: [(&Rays, TraceFn); 3]) -> ([f64; 3], [f64; 2]) {
-    let per_run: Vec<[f64; 3]> = (0..runs)
-        .map(|_| variants.map(|(rays, trace)| rays.len() as f64 / trace_secs(rays, trace) / 1e6))
-        .collect();
-    let rates = [0, 1, 2].map(|k| median(per_run.iter().map(|r| r[k]).collect()));
-    let ratios = [1, 2].map(|k| median(per_run.iter().map(|r| r[k] / r[0]).collect()));
-    (rates, ratios)
-}
-
-fn ray_throughput(scene: &scene::Scene, view: &str, cfg: &Config) -> anyhow::Result<String> {
-    let ours_world = World::with_preset(scene.clone(), BuildPreset::Slow);
-    let naive = NaiveBvh::build(&scene.mesh);
-    let (primary, bounce, shadow) = view_rays(&ours_world, view, cfg)?;
-    let (lo, hi) = scene.mesh.bounds();
-    let sort_start = Instant::now();
-    let bounce_ordered = bounce.ordered(lo, hi);
-    let shadow_ordered = shadow.ordered(lo, hi);
-    let sort_ms = sort_start.elapsed().as_secs_f64() * 1e3;
-    let bvh: &SceneBvh = &ours_world.bvh;
-    let closest = |o, d, t| bvh.closest_hit(o, d, t).is_some();
-    let any = |o, d, t| bvh.occluded(o, d, t);
-    let naive_trace = |o, d, t| naive.hits(o, d, t);
-    let rows = [
-        (
-            "primary",
-            &primary,
-            compare(
-                cfg.runs,
-                [
-                    (&primary, &naive_trace),
-                    (&primary, &closest),
-                    (&primary, &closest),
-                ],
-            ),
-        ),
-        (
-            "bounce",
-            &bounce,
-            compare(
-                cfg.runs,
-                [
-                    (&bounce, &naive_trace),
-                    (&bounce, &closest),
-                    (&bounce_ordered, &closest),
-                ],
-            ),
-        ),
-        (
-            "shadow (sun)",
-            &shadow,
-            compare(
-                cfg.runs,
-                [
-                    (&shadow, &naive_trace),
-                    (&shadow, &any),
-                    (&shadow_ordered, &any),
-                ],
-            ),
-        ),
-    ];
-    let mut md = String::new();
-    writeln!(
-        md,
-        "### Ray throughput, Sponza view {view} ({}×{} primary rays; M rays/s)\n",
-        cfg.width, cfg.height
-    )?;
-    writeln!(
-        md,
-        "Baseline: obvhs one ray at a time, default (medium) preset, triangles through `primitive_indices`, closest hit for every ray. Ours: slow preset (spatial splits), triangles stored in BVH order, early-exit shadow query; \"ordered\" adds sorting the rays by direction octant and Morton order of origin (primary rays are already in 8×8 pixel tiles; sorting took {sort_ms:.0} ms for all bounce and shadow rays, not included). The three are timed in turn within each run; ratios are medians of the per-run ratios.\n"
-    )?;
-    writeln!(
-        md,
-        "| rays | count | baseline | ours | ours, ordered | ours / baseline | ours ordered / baseline |"
-    )?;
-    writeln!(md, "|---|---:|---:|---:|---:|---:|---:|")?;
-    for (name, rays, ([base, ours, ordered], [r_ours, r_ordered])) in rows {
-        writeln!(
-            md,
-            "| {name} | {} | {base:.2} | {ours:.2} | {ordered:.2} | {r_ours:.2}× | {r_ordered:.2}× |",
-            rays.len()
-        )?;
-    }
-    md.push('\n');
-    Ok(md)
 }
 
 fn bvh_build_times(scene: &scene::Scene, cfg: &Config) -> String {
@@ -416,11 +168,15 @@ fn visible_points(world: &World, view: &str, n: usize) -> anyhow::Result<Vec<Sha
     Ok(points.into_iter().step_by(step).take(n).collect())
 }
 
-fn samples_per_second(scenes: &[(&World, &str)], cfg: &Config) -> anyhow::Result<String> {
-    let mut md = String::from(
-        "### Shading samples per second (points of the view's visible surfaces)\n\n| scene | view | quality | points | samples/s | rays/sample |\n|---|---|---|---:|---:|---:|\n",
+/// Samples per second of the full estimator with the ray queries at the baseline and at the best
+/// vector level, timed in turn within each run: medians, and the median per-run ratio.
+fn samples_per_second(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Result<String> {
+    let best = VectorLevel::detected();
+    let name = best.name();
+    let mut md = format!(
+        "### Shading samples per second (points of the view's visible surfaces)\n\n| scene | view | quality | points | samples/s, baseline | samples/s, {name} | {name} / baseline | rays/sample |\n|---|---|---|---:|---:|---:|---:|---:|\n",
     );
-    for (world, view) in scenes {
+    for (world, view) in scenes.iter_mut() {
         let points = visible_points(world, view, cfg.points)?;
         for (label, quality) in [
             ("interactive (64 paths, 2 bounces)", Quality::INTERACTIVE),
@@ -433,13 +189,25 @@ fn samples_per_second(scenes: &[(&World, &str)], cfg: &Config) -> anyhow::Result
                 points: points.clone(),
             };
             let mut rays = 0;
-            let secs = median_seconds(cfg.runs, || rays = shade_batch(world, &batch).1.total());
+            let per_run: Vec<[f64; 2]> = (0..cfg.runs)
+                .map(|_| {
+                    [VectorLevel::Baseline, best].map(|level| {
+                        world.bvh.set_vector_level(level);
+                        let start = Instant::now();
+                        rays = shade_batch(world, &batch).1.total();
+                        points.len() as f64 / start.elapsed().as_secs_f64()
+                    })
+                })
+                .collect();
+            world.bvh.set_vector_level(best);
+            let [portable, fastest] =
+                [0, 1].map(|k| median(per_run.iter().map(|r| r[k]).collect()));
+            let ratio = median(per_run.iter().map(|r| r[1] / r[0]).collect());
             writeln!(
                 md,
-                "| {} | {view} | {label} | {} | {:.0} | {:.0} |",
+                "| {} | {view} | {label} | {} | {portable:.0} | {fastest:.0} | {ratio:.2}× | {:.0} |",
                 world.scene.name,
                 points.len(),
-                points.len() as f64 / secs,
                 rays as f64 / points.len() as f64
             )?;
         }
@@ -570,18 +338,4 @@ fn error_and_time(world: &World, view: &str, cfg: &Config) -> anyhow::Result<Str
     }
     md.push('\n');
     Ok(md)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn morton_interleaves_bits() {
-        assert_eq!(morton3(1, 0, 0), 1);
-        assert_eq!(morton3(0, 1, 0), 2);
-        assert_eq!(morton3(0, 0, 1), 4);
-        assert_eq!(morton3(3, 0, 0), 0b1001);
-        assert!(morton3(1023, 1023, 1023) < 1 << 30);
-    }
 }

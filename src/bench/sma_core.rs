@@ -12,7 +12,8 @@ use rand::{RngExt, SeedableRng};
 use sma::cache::{CachedSample, ShadingCache};
 use sma::criteria::synthetic::{Shading, Synthetic};
 use sma::criteria::{
-    Criterion, CriterionInput, CriterionKind, CriterionSettings, NldOs, NldPx, make_criterion,
+    Criterion, CriterionInput, CriterionKind, CriterionSettings, Metric, NldOs, NldPx,
+    make_criterion,
 };
 use sma::mesh::{MeshParams, NodeId, SubdivisionMesh, grid_mesh};
 use sma::visible_set::{VisibleLeaf, VisibleSet};
@@ -32,6 +33,7 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
 fn sample(rgb: [f32; 3]) -> CachedSample {
     CachedSample {
         rgb,
+        luminance_variance: 0.0,
         quality: Quality::INTERACTIVE,
         view_dependent: false,
         eye: None,
@@ -100,7 +102,7 @@ fn write_criterion_speed(md: &mut String, runs: usize) -> anyhow::Result<()> {
                 .collect(),
         )
     };
-    let scan = time(&|| Box::new(NldOs::new(&full_scan)));
+    let scan = time(&|| Box::new(NldOs::new(&full_scan, Metric::NoiseAware)));
     let px = time(&|| Box::new(NldPx::new(&CriterionSettings::default())));
     writeln!(
         md,

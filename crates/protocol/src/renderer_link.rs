@@ -101,8 +101,14 @@ pub enum FromRenderer {
 pub struct Radiance {
     pub batch_id: u64,
     pub quality: Quality,
-    /// One value per point of the batch, in order.
+    /// The mean radiance of each point's paths, one per point of the batch, in order. With the
+    /// two lists below, each point's answer is an estimate with its uncertainty (DESIGN.md §5).
     pub rgb: Vec<Rgb>,
+    /// The sample variance of the luminance (Rec. 709) of each point's paths.
+    pub luminance_variance: Vec<f32>,
+    /// The paths each point's estimate averages (`quality.paths`, or 0 for a point that could
+    /// not be shaded).
+    pub paths: Vec<u32>,
     /// One `point_flags` byte per point.
     pub flags: Vec<u8>,
     /// Renderer-side time for the batch, microseconds (for the cost figures of §5.4).

@@ -63,9 +63,13 @@ pub struct Stats {
     pub leaves: u64,
     pub cached_samples: u64,
     pub renderers: u32,
-    /// This viewer's view has nothing left to do: its criterion found nothing more to refine and
-    /// no shade request is queued or in flight.
+    /// Every viewer's view is at its stated end (DESIGN.md §5): each visible sample's displayed
+    /// standard error is below the threshold or at the ladder's cap, and the criterion finds
+    /// nothing to subdivide. Nothing more is computed until a camera moves.
     pub converged: bool,
+    /// Renderer answers rejected so far (NaN, infinite or negative radiance or variance, no
+    /// paths): never cached nor shown, asked for again.
+    pub rejected_points: u64,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

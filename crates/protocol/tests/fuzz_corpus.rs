@@ -180,6 +180,8 @@ fn renderer_link_seeds() -> Vec<(String, Vec<u8>)> {
                 batch_id: 42,
                 quality: Quality::DIRECT,
                 rgb: vec![[0.1, 0.2, 0.3], [1e6, 0.0, f32::INFINITY]],
+                luminance_variance: vec![0.01, f32::NAN],
+                paths: vec![16, 0],
                 flags: vec![0, 1 | 8],
                 micros: 1234,
             }),
@@ -306,6 +308,7 @@ fn viewer_link_seeds() -> Vec<(String, Vec<u8>)> {
                 cached_samples: 80,
                 renderers: 2,
                 converged: true,
+                rejected_points: 3,
             }),
         ),
         (

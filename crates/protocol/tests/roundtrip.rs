@@ -100,7 +100,7 @@ fn from_renderer() -> impl Strategy<Value = FromRenderer> {
         (
             any::<u64>(),
             quality(),
-            prop::collection::vec((v3(), any::<u8>()), 0..50),
+            prop::collection::vec((v3(), any::<u8>(), 0.0f32..1e6, any::<u32>()), 0..50),
             any::<u64>()
         )
             .prop_map(|(batch_id, quality, vals, micros)| FromRenderer::Radiance(
@@ -108,6 +108,8 @@ fn from_renderer() -> impl Strategy<Value = FromRenderer> {
                     batch_id,
                     quality,
                     rgb: vals.iter().map(|v| v.0).collect(),
+                    luminance_variance: vals.iter().map(|v| v.2).collect(),
+                    paths: vals.iter().map(|v| v.3).collect(),
                     flags: vals.iter().map(|v| v.1).collect(),
                     micros,
                 }
@@ -189,24 +191,18 @@ fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
             samples: c[5],
             outstanding: c[6],
         })),
-        (
-            finite(),
-            any::<u64>(),
-            any::<u64>(),
-            any::<u32>(),
-            any::<bool>()
-        )
-            .prop_map(
-                |(samples_per_sec, leaves, cached_samples, renderers, converged)| {
-                    SmaToViewer::Stats(Stats {
-                        samples_per_sec,
-                        leaves,
-                        cached_samples,
-                        renderers,
-                        converged,
-                    })
-                }
-            ),
+        (finite(), any::<u64>(), any::<u64>(), any::<u32>()).prop_map(
+            |(samples_per_sec, leaves, cached_samples, renderers)| {
+                SmaToViewer::Stats(Stats {
+                    samples_per_sec,
+                    leaves,
+                    cached_samples,
+                    renderers,
+                    converged: leaves % 2 == 0,
+                    rejected_points: cached_samples / 3,
+                })
+            }
+        ),
         ("[a-z-]{0,8}", any::<bool>())
             .prop_map(|(criterion, paused)| SmaToViewer::Refinement { criterion, paused }),
         ".*".prop_map(|message| SmaToViewer::Error { message }),

@@ -1,16 +1,24 @@
 //! Ray tracing core: an obvhs compressed wide BVH (CWBVH) over the scene's triangles, a closest-hit
 //! query and an early-exit occlusion query (DESIGN.md §7). Intersection is passed to obvhs as a
 //! closure, obvhs style.
+//!
+//! Each query exists once per [`VectorLevel`]. Target features do not reach into a function that
+//! is not inlined, and obvhs's `ray_traverse` is not (it is large): compiled inside a
+//! `#[target_feature]` function it stayed baseline code. So the queries run obvhs's own exported
+//! `traverse!` loop, whose node and triangle tests are `#[inline(always)]`, in bodies inlined into
+//! one entry point per level.
 
 use std::time::{Duration, Instant};
 
-use glam::Vec3;
+use glam::{UVec2, Vec3};
 use obvhs::cwbvh::CwBvh;
 use obvhs::ray::{Ray, RayHit};
 use obvhs::rt_triangle::RtTriangle;
 use scene::Mesh;
 pub use scene::bvh::BuildPreset;
 use scene::bvh::{build_cwbvh, bvh_triangles};
+
+use crate::vector_level::VectorLevel;
 
 /// The closest hit of a ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -28,6 +36,8 @@ pub struct SceneBvh {
     /// Scene triangle of each BVH primitive.
     prim_triangle: Vec<u32>,
     build_time: Duration,
+    /// Only ever a level the CPU has (`set_vector_level` checks it).
+    level: VectorLevel,
 }
 
 impl SceneBvh {
@@ -45,7 +55,19 @@ impl SceneBvh {
             prims,
             prim_triangle,
             build_time: start.elapsed(),
+            level: VectorLevel::selected(),
         }
+    }
+
+    pub fn vector_level(&self) -> VectorLevel {
+        self.level
+    }
+
+    /// Runs the queries at `level` from now on (benchmarks and tests compare levels on one BVH).
+    /// Panics when the CPU lacks it.
+    pub fn set_vector_level(&mut self, level: VectorLevel) {
+        assert!(level.available(), "this CPU lacks {}", level.name());
+        self.level = level;
     }
 
     /// Wall time of `build`, triangle conversion included.
@@ -57,32 +79,97 @@ impl SceneBvh {
     /// its units.
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
         let ray = Ray::new(origin.into(), dir.into(), 0.0, tmax);
-        let mut hit = RayHit::none();
-        if self
-            .bvh
-            .ray_traverse(ray, &mut hit, |ray, id| self.prims[id].intersect(ray))
-        {
-            Some(Hit {
-                triangle: self.prim_triangle[hit.primitive_id as usize],
-                t: hit.t,
-            })
-        } else {
-            None
+        match self.level {
+            // SAFETY: `level` is V3 only where the CPU has every feature of `x86_64_v3`.
+            #[cfg(target_arch = "x86_64")]
+            VectorLevel::V3 => unsafe { x86_64_v3::closest_hit(self, ray) },
+            _ => self.closest_hit_inline(ray),
         }
     }
 
     /// True when something lies on the segment `origin + t dir`, t in (0, tmax); stops at the
-    /// first hit found (obvhs' `ray_traverse_miss` returns true on a miss).
+    /// first hit found.
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         let ray = Ray::new(origin.into(), dir.into(), 0.0, tmax);
-        !self
-            .bvh
-            .ray_traverse_miss(ray, |ray, id| self.prims[id].intersect(ray))
+        match self.level {
+            // SAFETY: as in `closest_hit`.
+            #[cfg(target_arch = "x86_64")]
+            VectorLevel::V3 => unsafe { x86_64_v3::occluded(self, ray) },
+            _ => self.occluded_inline(ray),
+        }
+    }
+
+    /// `closest_hit`'s body, inlined into each level's entry point: obvhs's `traverse!` loop over
+    /// its CWBVH nodes, as in `CwBvh::ray_traverse`.
+    #[inline(always)]
+    fn closest_hit_inline(&self, ray: Ray) -> Option<Hit> {
+        let mut traverse_ray = ray;
+        let mut hit = RayHit::none();
+        let mut state = self.bvh.new_traversal(ray.direction);
+        let mut node;
+        obvhs::traverse!(
+            self.bvh,
+            node,
+            state,
+            node.intersect_ray(&traverse_ray, state.oct_inv4),
+            {
+                let t = self.prims[state.primitive_id as usize].intersect(&traverse_ray);
+                if t < traverse_ray.tmax {
+                    hit.primitive_id = state.primitive_id;
+                    hit.t = t;
+                    traverse_ray.tmax = t;
+                }
+            }
+        );
+        (hit.t < ray.tmax).then(|| Hit {
+            triangle: self.prim_triangle[hit.primitive_id as usize],
+            t: hit.t,
+        })
+    }
+
+    /// `occluded`'s body, inlined like `closest_hit_inline`; stops at the first hit, as in
+    /// `CwBvh::ray_traverse_miss`.
+    #[inline(always)]
+    fn occluded_inline(&self, ray: Ray) -> bool {
+        let mut state = self.bvh.new_traversal(ray.direction);
+        let mut node;
+        let mut occluded = false;
+        'traversal: {
+            obvhs::traverse!(
+                self.bvh,
+                node,
+                state,
+                node.intersect_ray(&ray, state.oct_inv4),
+                {
+                    if self.prims[state.primitive_id as usize].intersect(&ray) < ray.tmax {
+                        occluded = true;
+                        break 'traversal;
+                    }
+                }
+            );
+        }
+        occluded
     }
 
     /// Number of BVH primitive references (more than triangles when the preset splits).
     pub fn primitive_count(&self) -> usize {
         self.prims.len()
+    }
+}
+
+/// The queries compiled for `x86-64-v3`. The feature list is `vector_level::v3_detected`'s.
+#[cfg(target_arch = "x86_64")]
+mod x86_64_v3 {
+    use super::{Hit, Ray, SceneBvh};
+
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,movbe,f16c")]
+    pub(super) unsafe fn closest_hit(bvh: &SceneBvh, ray: Ray) -> Option<Hit> {
+        bvh.closest_hit_inline(ray)
+    }
+
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,movbe,f16c")]
+    pub(super) unsafe fn occluded(bvh: &SceneBvh, ray: Ray) -> bool {
+        bvh.occluded_inline(ray)
     }
 }
 

@@ -12,6 +12,7 @@ use tokio::net::TcpListener;
 
 use crate::reference::{ReferenceSettings, render_to_files};
 use crate::service::Service;
+use crate::vector_level::{self, VectorLevel};
 use crate::world::World;
 
 #[derive(Parser, Debug, Clone)]
@@ -99,6 +100,10 @@ impl std::str::FromStr for BounceDepth {
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     conventions::logging::init();
+    // A malformed or unavailable forced level is a plain error here, not the panic of the first
+    // BVH built.
+    VectorLevel::choose(std::env::var(vector_level::VAR).ok().as_deref())
+        .map_err(anyhow::Error::msg)?;
     match cli.command {
         Command::Serve {
             scene,
@@ -140,6 +145,7 @@ fn load_world(spec: &str) -> anyhow::Result<World> {
         bvh_ms = world.bvh.build_time().as_secs_f64() * 1e3,
         total_ms = start.elapsed().as_secs_f64() * 1e3,
         effects = ?world.effects(),
+        vector_level = world.bvh.vector_level().name(),
         "scene ready"
     );
     Ok(world)

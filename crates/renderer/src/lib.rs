@@ -7,6 +7,7 @@
 //! - [`shade`]: points and batches at a quality, deterministic per (seed, index);
 //! - [`service`]: the TCP server of the renderer link;
 //! - [`reference`] and [`tonemap`]: reference images (EXR + tone-mapped PNG);
+//! - [`vector_level`]: the CPU's vector instructions the ray queries use, chosen at run time;
 //! - [`cli`]: `renderer serve` and `renderer reference`, the only module that parses arguments.
 
 pub(crate) mod bvh;
@@ -22,6 +23,7 @@ pub mod sampling;
 pub mod service;
 pub(crate) mod shade;
 pub mod tonemap;
+pub mod vector_level;
 pub mod world;
 
 pub use counters::{RayCounts, RayKind};

@@ -14,10 +14,15 @@ use crate::point::locate;
 use crate::sampling::{Rng, stream};
 use crate::world::{Surface, World};
 
-/// The answer for one point.
+/// The answer for one point: an estimate with its uncertainty (DESIGN.md §5).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Shaded {
+    /// The mean of the paths, plus the point's own emission.
     pub rgb: Vec3,
+    /// The sample variance of the paths' luminance (0 with fewer than two paths).
+    pub luminance_variance: f32,
+    /// Paths averaged; 0 when the point could not be shaded.
+    pub paths: u32,
     /// `protocol::renderer_link::point_flags` bits.
     pub flags: u8,
 }
@@ -36,6 +41,8 @@ pub fn shade_point(
         Err(_) => {
             return Shaded {
                 rgb: Vec3::ZERO,
+                luminance_variance: 0.0,
+                paths: 0,
                 flags: point_flags::INVALID_POINT,
             };
         }
@@ -53,18 +60,51 @@ pub fn shade_point(
     let wo = outgoing_direction(&s, p.eye.map(Vec3::from));
     let paths = quality.paths.max(1);
     let mut sum = Vec3::ZERO;
+    let mut luminance = PathLuminance::default();
     for _ in 0..paths {
         let l = path_radiance(world, s, wo, quality.bounces, rng, counts);
         if l.is_finite() && l.min_element() >= 0.0 {
             sum += l;
+            luminance.add(conventions::luminance(l.to_array()));
         } else {
+            // Counted as a black path, so the mean stays over `paths`.
+            luminance.add(0.0);
             flags |= point_flags::NON_FINITE_DISCARDED;
         }
     }
     let emitted = world.emission(s.triangle, -s.normal);
     Shaded {
         rgb: emitted + sum / paths as f32,
+        luminance_variance: luminance.variance(),
+        paths,
         flags,
+    }
+}
+
+/// Running sum and sum of squares of path luminances, in f64 so that 1,000 paths of a bright
+/// point do not cancel into a negative variance.
+#[derive(Default)]
+struct PathLuminance {
+    n: u32,
+    sum: f64,
+    sum_sq: f64,
+}
+
+impl PathLuminance {
+    fn add(&mut self, l: f32) {
+        let l = f64::from(l);
+        self.n += 1;
+        self.sum += l;
+        self.sum_sq += l * l;
+    }
+
+    /// The unbiased sample variance.
+    fn variance(&self) -> f32 {
+        if self.n < 2 {
+            return 0.0;
+        }
+        let n = f64::from(self.n);
+        ((self.sum_sq - self.sum * self.sum / n) / (n - 1.0)).max(0.0) as f32
     }
 }
 
@@ -100,6 +140,8 @@ pub fn shade_batch(world: &World, batch: &ShadeBatch) -> (Radiance, RayCounts) {
         batch_id: batch.batch_id,
         quality: batch.quality,
         rgb: results.iter().map(|(s, _)| s.rgb.to_array()).collect(),
+        luminance_variance: results.iter().map(|(s, _)| s.luminance_variance).collect(),
+        paths: results.iter().map(|(s, _)| s.paths).collect(),
         flags: results.iter().map(|(s, _)| s.flags).collect(),
         micros: start.elapsed().as_micros() as u64,
     };

@@ -1,14 +1,14 @@
-//! The object-space vertex shading cache (DESIGN.md §5): per (vertex, side) RGB radiance, the
-//! sample's quality and when it was last seen; which leaves have all their samples; a memory
-//! budget with eviction of what has long been out of view.
+//! The object-space vertex shading cache (DESIGN.md §5): per (vertex, side) an estimate of the
+//! radiance with its uncertainty (`sample::Estimate`), when it was last seen; which leaves have
+//! all their samples; a memory budget with eviction of what has long been out of view.
 //!
 //! Storage is dense: a slot per (vertex, side) indexing a packed sample array, so the per-leaf
-//! lookups of NLD_OS are two array reads, not hashing (the target is 10 M leaves/s, BENCHMARKS.md). A sample is
-//! packed into 20 bytes (target: <= 100 bytes per leaf, mesh and cache included): its quality is
-//! an index into a small table of the qualities seen, and the eye, which only view-dependent
-//! samples need, lives in a side table. A view-dependent sample keeps a few eyes there, each
-//! with its radiance: viewers looking at one mirror from different places each read the one
-//! nearest their eye, instead of retaking each other's forever (several viewers: thesis §2.2).
+//! lookups of NLD_OS are two array reads, not hashing. A sample is packed into 28 bytes: mean
+//! RGB, luminance variance, paths, the time it was last seen, its bounce depth and whether it is
+//! view-dependent; the eye, which only view-dependent samples need, lives in a side table. A
+//! view-dependent sample keeps a few eyes there, each with its own estimate: viewers looking at
+//! one mirror from different places each read the one nearest their eye, instead of retaking
+//! each other's forever (several viewers: thesis §2.2).
 
 use std::collections::HashMap;
 
@@ -17,13 +17,18 @@ use protocol::Side;
 use protocol::renderer_link::{Quality, SampleKey};
 
 use crate::mesh::{NodeId, SubdivisionMesh};
+use crate::sample::{Depth, Estimate, Merge};
 use crate::visible_set::VisibleSet;
 use conventions::luminance;
 
 /// A sample as callers build and read it; stored packed (`PackedSample`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CachedSample {
+    /// Mean radiance of its paths.
     pub rgb: [f32; 3],
+    /// Sample variance of its paths' luminance.
+    pub luminance_variance: f32,
+    /// Paths averaged so far, and the bounce depth they were traced at.
     pub quality: Quality,
     /// Glossy or mirror: valid for `eye` only; ages as the eye moves (DESIGN.md §5).
     pub view_dependent: bool,
@@ -35,6 +40,17 @@ pub struct CachedSample {
     pub last_seen: u64,
 }
 
+impl CachedSample {
+    pub fn estimate(&self) -> Estimate {
+        Estimate {
+            rgb: self.rgb,
+            luminance_variance: self.luminance_variance,
+            paths: self.quality.paths,
+            depth: Depth::of(self.quality.bounces),
+        }
+    }
+}
+
 /// `last_seen` as stored. The scheduler passes its count of visibility passes (frames), not a
 /// clock: at 1,000 passes a second `u32` lasts 49 days of walkthrough. Beyond it every time
 /// saturates to `u32::MAX`, which only makes eviction treat all later frames as one.
@@ -44,41 +60,51 @@ fn stamp(time: u64) -> Stamp {
     Stamp::try_from(time).unwrap_or(Stamp::MAX)
 }
 
-/// `sample` packed with its interned `quality`, seen no earlier than `seen`.
-fn pack(sample: &CachedSample, quality: u8, seen: Stamp) -> PackedSample {
-    PackedSample {
-        rgb: sample.rgb,
-        last_seen: seen.max(stamp(sample.last_seen)),
-        quality,
-        view_dependent: sample.view_dependent,
-    }
-}
-
-/// What the sample array holds per sample: for a view-dependent one, its latest eye's values
+/// What the sample array holds per sample: for a view-dependent one, its latest eye's estimate
 /// (the eyes are in `ShadingCache::eyes`).
 #[derive(Clone, Copy, Debug)]
 struct PackedSample {
     rgb: [f32; 3],
+    luminance_variance: f32,
+    paths: u32,
     last_seen: Stamp,
-    /// Index into `ShadingCache::qualities`.
-    quality: u8,
+    depth: Depth,
     view_dependent: bool,
 }
 
-const _: () = assert!(size_of::<PackedSample>() == 20);
+const _: () = assert!(size_of::<PackedSample>() == 28);
 
-/// At most this many distinct qualities are interned (`PackedSample::quality` is a `u8`). The
-/// scheduler asks for a handful (first and full, DESIGN.md §7); past the limit a new quality is
-/// stored as the best interned one that is not better (see `ShadingCache::quality_index`).
-const MAX_QUALITIES: usize = u8::MAX as usize + 1;
+impl PackedSample {
+    fn new(e: &Estimate, view_dependent: bool, last_seen: Stamp) -> Self {
+        PackedSample {
+            rgb: e.rgb,
+            luminance_variance: e.luminance_variance,
+            paths: e.paths,
+            last_seen,
+            depth: e.depth,
+            view_dependent,
+        }
+    }
 
-/// One eye's radiance of a view-dependent sample.
+    fn estimate(&self) -> Estimate {
+        Estimate {
+            rgb: self.rgb,
+            luminance_variance: self.luminance_variance,
+            paths: self.paths,
+            depth: self.depth,
+        }
+    }
+
+    fn set(&mut self, e: &Estimate) {
+        *self = PackedSample::new(e, self.view_dependent, self.last_seen);
+    }
+}
+
+/// One eye's estimate of a view-dependent sample.
 #[derive(Clone, Copy, Debug)]
 struct EyeVariant {
     eye: Vec3,
-    rgb: [f32; 3],
-    /// Index into `ShadingCache::qualities`.
-    quality: u8,
+    estimate: Estimate,
 }
 
 /// Eyes kept per view-dependent sample: one per viewer looking at the surface, for a few
@@ -95,10 +121,10 @@ const EYE_ENTRY_BYTES: usize = 2 * (size_of::<(u32, Vec<EyeVariant>)>() + 1);
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CacheInsert {
     New,
-    /// Replaced a worse sample, or a view-dependent one taken from another eye.
+    /// Changed what a viewer sees: further paths added at the same depth, a deeper sample in
+    /// place of a shallower one, or a view-dependent one taken from another eye.
     Upgraded,
-    /// Not better than what is cached, not finite, or of a quality the full quality table has
-    /// nothing at or below for.
+    /// Shallower than what is cached, or not a valid estimate (`Estimate::is_valid`).
     Ignored,
 }
 
@@ -115,15 +141,16 @@ pub struct ShadingCache {
     slots: Vec<u32>,
     samples: Vec<PackedSample>,
     /// The slot of each sample, to re-point it when a removal moves the sample: four bytes
-    /// rather than a stored `SampleKey`'s eight (target: <= 100 bytes per leaf all included).
+    /// rather than a stored `SampleKey`'s eight (<= 110 bytes per leaf all included).
     owners: Vec<u32>,
-    /// The distinct qualities of the samples, indexed by `PackedSample::quality`; never shrinks.
-    qualities: Vec<Quality>,
     /// The eyes of each view-dependent sample that has one, by slot, latest last: slots stay
     /// put when a removal moves samples, so the table is never re-keyed.
     eyes: HashMap<u32, Vec<EyeVariant>>,
     /// Variants in `eyes`, for `bytes`.
     eye_variants: usize,
+    /// Slots whose renderer answers were rejected too often (`mark_failed`): never asked again,
+    /// shown with the mean of their leaves' other vertices.
+    failed: std::collections::HashSet<u32>,
 }
 
 fn slot_index(key: SampleKey) -> usize {
@@ -148,9 +175,9 @@ impl ShadingCache {
             slots: Vec::new(),
             samples: Vec::new(),
             owners: Vec::new(),
-            qualities: Vec::new(),
             eyes: HashMap::new(),
             eye_variants: 0,
+            failed: Default::default(),
         }
     }
 
@@ -168,17 +195,12 @@ impl ShadingCache {
     }
 
     fn unpack(&self, slot: usize, p: &PackedSample) -> CachedSample {
-        CachedSample {
-            rgb: p.rgb,
-            quality: self.qualities[usize::from(p.quality)],
-            view_dependent: p.view_dependent,
-            // Diffuse samples, nearly all of them, skip the hash lookup.
-            eye: p
-                .view_dependent
-                .then(|| self.eyes.get(&(slot as u32))?.last().map(|v| v.eye))
-                .flatten(),
-            last_seen: u64::from(p.last_seen),
-        }
+        // Diffuse samples, nearly all of them, skip the hash lookup.
+        let eye = p
+            .view_dependent
+            .then(|| self.eyes.get(&(slot as u32))?.last().map(|v| v.eye))
+            .flatten();
+        sample_of(&p.estimate(), p.view_dependent, eye, p.last_seen)
     }
 
     /// The sample as seen from `eye`: for a view-dependent one, the kept eye nearest to it;
@@ -190,13 +212,7 @@ impl ShadingCache {
             .filter(|_| p.view_dependent)
             .and_then(|eye| self.nearest_eye(slot, eye));
         Some(match nearest {
-            Some(v) => CachedSample {
-                rgb: v.rgb,
-                quality: self.qualities[usize::from(v.quality)],
-                view_dependent: true,
-                eye: Some(v.eye),
-                last_seen: u64::from(p.last_seen),
-            },
+            Some(v) => sample_of(&v.estimate, true, Some(v.eye), p.last_seen),
             None => self.unpack(slot, p),
         })
     }
@@ -234,108 +250,113 @@ impl ShadingCache {
         }
     }
 
-    /// The index of `quality` in the quality table, added if new. Once the table is full, the
-    /// best interned quality that is not better: a sample then never claims more work than it
-    /// had, so at worst it is asked for again (DESIGN.md §5). `None` if every interned
-    /// quality is better.
-    fn quality_index(&mut self, quality: Quality) -> Option<u8> {
-        if let Some(i) = self.qualities.iter().position(|&q| q == quality) {
-            return Some(i as u8);
-        }
-        if self.qualities.len() < MAX_QUALITIES {
-            self.qualities.push(quality);
-            return Some((self.qualities.len() - 1) as u8);
-        }
-        self.qualities
-            .iter()
-            .enumerate()
-            .filter(|(_, q)| q.rank() <= quality.rank())
-            .max_by_key(|(_, q)| q.rank())
-            .map(|(i, _)| i as u8)
-    }
-
-    /// Stores a sample unless a cached one is at least as good (`Quality::rank`). A
-    /// view-dependent sample is kept per eye: one from a new eye is added beside the others,
-    /// one from a kept eye replaces it only if better.
+    /// Merges a renderer's answer into the cache (`sample::Estimate::accumulate`): paths at the
+    /// cached depth are added to the estimate, a deeper answer replaces it, a shallower one is
+    /// ignored. A view-dependent sample is kept per eye: an answer from a new eye is added beside
+    /// the others (retaken), one from a kept eye merges with that eye's estimate.
     pub fn insert(&mut self, key: SampleKey, sample: CachedSample) -> CacheInsert {
-        if !sample.rgb.iter().all(|c| c.is_finite()) {
+        let new = sample.estimate();
+        if !new.is_valid() {
             return CacheInsert::Ignored;
         }
-        let Some(quality) = self.quality_index(sample.quality) else {
-            return CacheInsert::Ignored;
-        };
         let slot = slot_index(key);
         if slot >= self.slots.len() {
             self.slots.resize(slot + 1, NO_SLOT);
         }
+        self.failed.remove(&(slot as u32));
         let eye = sample.eye.filter(|_| sample.view_dependent);
-        let outcome = match self.slots[slot] {
-            NO_SLOT => {
-                self.slots[slot] = self.samples.len() as u32;
-                self.samples.push(pack(&sample, quality, 0));
-                self.owners.push(slot as u32);
-                CacheInsert::New
+        let s = self.slots[slot];
+        if s == NO_SLOT {
+            self.slots[slot] = self.samples.len() as u32;
+            let seen = stamp(sample.last_seen);
+            self.samples
+                .push(PackedSample::new(&new, sample.view_dependent, seen));
+            self.owners.push(slot as u32);
+            self.set_eye(slot, eye, new);
+            return CacheInsert::New;
+        }
+        let s = s as usize;
+        self.samples[s].view_dependent = sample.view_dependent;
+        let Some(eye) = eye else {
+            let mut kept = self.samples[s].estimate();
+            if kept.accumulate(&new) == Merge::Kept {
+                return CacheInsert::Ignored;
             }
-            s => {
-                let old = self.samples[s as usize];
-                if !self.replaces(slot, &old, &sample, eye) {
-                    return CacheInsert::Ignored;
-                }
-                self.samples[s as usize] = pack(&sample, quality, old.last_seen);
-                CacheInsert::Upgraded
-            }
+            self.samples[s].set(&kept);
+            self.drop_eyes(slot);
+            return CacheInsert::Upgraded;
         };
-        match eye {
-            Some(eye) => {
-                let rgb = sample.rgb;
-                self.add_eye(slot, EyeVariant { eye, rgb, quality });
+        let mut merged = new;
+        if let Some(variants) = self.eyes.get_mut(&(slot as u32))
+            && let Some(i) = variants.iter().position(|v| v.eye == eye)
+        {
+            let mut kept = variants[i].estimate;
+            if kept.accumulate(&new) == Merge::Kept {
+                return CacheInsert::Ignored;
             }
+            merged = kept;
+            variants.remove(i);
+            self.eye_variants -= 1;
+        }
+        self.samples[s].set(&merged);
+        self.set_eye(slot, Some(eye), merged);
+        CacheInsert::Upgraded
+    }
+
+    /// Records the eye of a slot's latest estimate (view-dependent samples only).
+    fn set_eye(&mut self, slot: usize, eye: Option<Vec3>, estimate: Estimate) {
+        match eye {
+            Some(eye) => self.add_eye(slot, EyeVariant { eye, estimate }),
             None => self.drop_eyes(slot),
         }
-        outcome
     }
 
-    /// Whether `sample` replaces the cached `old` of `slot` (taking out the variant of its eye,
-    /// which the caller adds back as the latest).
-    fn replaces(
-        &mut self,
-        slot: usize,
-        old: &PackedSample,
-        sample: &CachedSample,
-        eye: Option<Vec3>,
-    ) -> bool {
-        let rank = sample.quality.rank();
-        let better = |q: u8| rank > self.qualities[usize::from(q)].rank();
-        let Some(eye) = eye else {
-            return better(old.quality);
-        };
-        let kept = self.eyes.get(&(slot as u32)).and_then(|variants| {
-            let i = variants.iter().position(|v| v.eye == eye)?;
-            Some((i, variants[i].quality))
-        });
-        match kept {
-            None => true,
-            Some((_, q)) if !better(q) => false,
-            Some((i, _)) => {
-                self.eyes.get_mut(&(slot as u32)).expect("found").remove(i);
-                self.eye_variants -= 1;
-                true
-            }
-        }
+    /// The estimate of a key as seen from `eye` (see [`Self::get_seen_from`]).
+    pub fn estimate(&self, key: SampleKey, eye: Option<Vec3>) -> Option<Estimate> {
+        let slot = slot_index(key);
+        let p = self.packed(slot)?;
+        let nearest = eye
+            .filter(|_| p.view_dependent)
+            .and_then(|eye| self.nearest_eye(slot, eye));
+        Some(nearest.map_or_else(|| p.estimate(), |v| v.estimate))
     }
 
-    /// The radiance of a leaf's three vertices on `side`, if all are cached.
+    /// The estimates of a leaf's three vertices on `side`, if all are cached.
+    pub fn leaf_estimates(
+        &self,
+        mesh: &SubdivisionMesh,
+        leaf: NodeId,
+        side: Side,
+    ) -> Option<[Estimate; 3]> {
+        let [a, b, c] = mesh
+            .node(leaf)
+            .vertices
+            .map(|vertex| self.packed(slot_index(SampleKey { vertex, side })));
+        Some([a?.estimate(), b?.estimate(), c?.estimate()])
+    }
+
+    /// Gives up on a key whose answers were rejected too often: it counts as known from now on
+    /// (never asked again), and leaves show it with the mean of their other vertices, never black
+    /// (DESIGN.md §8: bad input loses nothing else). A later valid answer clears the mark.
+    pub fn mark_failed(&mut self, key: SampleKey) {
+        self.failed.insert(slot_index(key) as u32);
+    }
+
+    pub fn is_failed(&self, key: SampleKey) -> bool {
+        self.failed.contains(&(slot_index(key) as u32))
+    }
+
+    /// The radiance of a leaf's three vertices on `side`, if all are cached (a failed vertex
+    /// takes the mean of the others).
     pub fn leaf_radiance(
         &self,
         mesh: &SubdivisionMesh,
         leaf: NodeId,
         side: Side,
     ) -> Option<[[f32; 3]; 3]> {
-        let [a, b, c] = mesh
-            .node(leaf)
-            .vertices
-            .map(|vertex| self.packed(slot_index(SampleKey { vertex, side })));
-        Some([a?.rgb, b?.rgb, c?.rgb])
+        self.leaf_radiance_with(mesh, leaf, side, |key| {
+            self.packed(slot_index(key)).map(|p| p.rgb)
+        })
     }
 
     /// [`Self::leaf_radiance`] as seen from `eye`: view-dependent vertices give the radiance of
@@ -347,14 +368,43 @@ impl ShadingCache {
         side: Side,
         eye: Vec3,
     ) -> Option<[[f32; 3]; 3]> {
-        let [a, b, c] = mesh
-            .node(leaf)
-            .vertices
-            .map(|vertex| self.get_seen_from(SampleKey { vertex, side }, Some(eye)));
-        Some([a?.rgb, b?.rgb, c?.rgb])
+        self.leaf_radiance_with(mesh, leaf, side, |key| {
+            self.get_seen_from(key, Some(eye)).map(|s| s.rgb)
+        })
     }
 
-    /// The keys of a leaf on `side` that have no sample yet.
+    fn leaf_radiance_with(
+        &self,
+        mesh: &SubdivisionMesh,
+        leaf: NodeId,
+        side: Side,
+        rgb_of: impl Fn(SampleKey) -> Option<[f32; 3]>,
+    ) -> Option<[[f32; 3]; 3]> {
+        let keys = mesh
+            .node(leaf)
+            .vertices
+            .map(|vertex| SampleKey { vertex, side });
+        let rgb = keys.map(&rgb_of);
+        if rgb.iter().all(Option::is_some) {
+            return Some(rgb.map(|c| c.expect("all cached")));
+        }
+        if keys
+            .iter()
+            .zip(&rgb)
+            .any(|(&k, c)| c.is_none() && !self.is_failed(k))
+        {
+            return None;
+        }
+        let known: Vec<[f32; 3]> = rgb.iter().flatten().copied().collect();
+        if known.is_empty() {
+            return None;
+        }
+        let n = known.len() as f32;
+        let mean = std::array::from_fn(|i| known.iter().map(|c| c[i]).sum::<f32>() / n);
+        Some(rgb.map(|c| c.unwrap_or(mean)))
+    }
+
+    /// The keys of a leaf on `side` that have no sample yet (and have not failed).
     pub fn missing_keys<'a>(
         &'a self,
         mesh: &'a SubdivisionMesh,
@@ -365,7 +415,7 @@ impl ShadingCache {
             .vertices
             .into_iter()
             .map(move |vertex| SampleKey { vertex, side })
-            .filter(|&key| self.packed(slot_index(key)).is_none())
+            .filter(|&key| self.packed(slot_index(key)).is_none() && !self.is_failed(key))
     }
 
     pub fn touch(&mut self, key: SampleKey, now: u64) {
@@ -438,13 +488,12 @@ impl ShadingCache {
     }
 
     /// Bytes charged against the budget: the slot table, the packed samples and their owners,
-    /// the eye side table and the quality table.
+    /// and the eye side table.
     pub fn bytes(&self) -> usize {
         self.slots.len() * size_of::<u32>()
             + self.samples.len() * (size_of::<PackedSample>() + size_of::<u32>())
             + self.eyes.len() * EYE_ENTRY_BYTES
             + self.eye_variants * size_of::<EyeVariant>()
-            + self.qualities.len() * size_of::<Quality>()
     }
 
     pub fn budget_bytes(&self) -> usize {
@@ -483,6 +532,18 @@ impl ShadingCache {
             return 0.0;
         };
         *lum.select_nth_unstable_by(rank, f32::total_cmp).1
+    }
+}
+
+/// A cached sample as callers read it.
+fn sample_of(e: &Estimate, view_dependent: bool, eye: Option<Vec3>, seen: Stamp) -> CachedSample {
+    CachedSample {
+        rgb: e.rgb,
+        luminance_variance: e.luminance_variance,
+        quality: e.quality(),
+        view_dependent,
+        eye,
+        last_seen: u64::from(seen),
     }
 }
 

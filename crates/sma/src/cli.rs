@@ -102,6 +102,14 @@ pub struct Cli {
     // away, or minutes of standing elsewhere.
     #[arg(long, default_value_t = defaults().schedule.coarsen_after_passes)]
     pub coarsen_after_passes: u64,
+    /// The quality ladder's last rung: samples get paths by fours past the scene's quality
+    /// while the viewer rests, up to this many paths each.
+    #[arg(long, default_value_t = defaults().schedule.max_paths)]
+    pub max_paths: u32,
+    /// A sample stops getting paths once its standard error is below this many displayed
+    /// units (0..1 after tone map and sRGB; default one 8-bit step).
+    #[arg(long, default_value_t = defaults().schedule.display_error)]
+    pub display_error: f32,
     /// Shading cache budget, MiB.
     #[arg(long, default_value_t = defaults().schedule.cache_budget_bytes >> 20)]
     pub cache_mib: usize,
@@ -186,6 +194,8 @@ impl Cli {
             cache_budget_bytes: self.cache_mib << 20,
             coarsen_after_passes: self.coarsen_after_passes,
             seed: self.seed,
+            max_paths: self.max_paths,
+            display_error: self.display_error,
         }
     }
 }

@@ -66,6 +66,12 @@ pub struct ScheduleConfig {
     pub coarsen_after_passes: u64,
     /// Seed of the criteria's random streams.
     pub seed: u64,
+    /// The quality ladder's last rung: paths per sample (DESIGN.md §5).
+    pub max_paths: u32,
+    /// A visible sample whose standard error, in displayed units (Drago, sRGB, 0..1), is below
+    /// this gets no more paths: the view has converged when every one is (or is at the cap)
+    /// and the criterion finds nothing to subdivide.
+    pub display_error: f32,
 }
 
 impl Default for ScheduleConfig {
@@ -86,6 +92,10 @@ impl Default for ScheduleConfig {
             cache_budget_bytes: 1024 << 20,
             coarsen_after_passes: 300,
             seed: 1,
+            // 64 × 4 × 4: two rungs past the interactive preset, a quarter of its noise.
+            max_paths: 1024,
+            // One step of an 8-bit display.
+            display_error: 1.0 / 255.0,
         }
     }
 }

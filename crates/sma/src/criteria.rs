@@ -67,18 +67,24 @@ pub enum CriterionKind {
     Rnd,
     /// NLD_IS, §4.3.3.
     NldIs,
-    /// NLD_OS, §4.3.4.
+    /// NLD_OS, §4.3.4, noise-aware (DESIGN.md §6).
     NldOs,
-    /// NLD_PX: NLD_OS ranked by eq. 3.4's priority.
+    /// NLD_PX: noise-aware NLD_OS ranked by eq. 3.4's priority.
     NldPx,
+    /// NLD_IS with the thesis's eq. 4.5 unchanged, to measure beside the noise-aware one.
+    NldIsThesis,
+    /// NLD_OS with the thesis's eq. 4.6 unchanged.
+    NldOsThesis,
 }
 
 impl CriterionKind {
-    pub const ALL: [CriterionKind; 4] = [
+    pub const ALL: [CriterionKind; 6] = [
         CriterionKind::Rnd,
         CriterionKind::NldIs,
         CriterionKind::NldOs,
         CriterionKind::NldPx,
+        CriterionKind::NldIsThesis,
+        CriterionKind::NldOsThesis,
     ];
 
     pub fn name(self) -> &'static str {
@@ -87,6 +93,8 @@ impl CriterionKind {
             CriterionKind::NldIs => "nld-is",
             CriterionKind::NldOs => "nld-os",
             CriterionKind::NldPx => "nld-px",
+            CriterionKind::NldIsThesis => "nld-is-thesis",
+            CriterionKind::NldOsThesis => "nld-os-thesis",
         }
     }
 
@@ -173,8 +181,10 @@ pub fn make_criterion(
 ) -> Box<dyn Criterion> {
     match kind {
         CriterionKind::Rnd => Box::new(Rnd::new(settings, seed)),
-        CriterionKind::NldIs => Box::new(NldIs::new(settings)),
-        CriterionKind::NldOs => Box::new(NldOs::new(settings)),
+        CriterionKind::NldIs => Box::new(NldIs::new(settings, Metric::NoiseAware)),
+        CriterionKind::NldOs => Box::new(NldOs::new(settings, Metric::NoiseAware)),
+        CriterionKind::NldIsThesis => Box::new(NldIs::new(settings, Metric::Thesis)),
+        CriterionKind::NldOsThesis => Box::new(NldOs::new(settings, Metric::Thesis)),
         CriterionKind::NldPx => Box::new(NldPx::new(settings)),
     }
 }
@@ -184,13 +194,50 @@ fn is_large(pixels: u32, visible: &VisibleSet, fraction: f32) -> bool {
     f64::from(pixels) > f64::from(fraction) * visible.image_pixels() as f64
 }
 
-/// S of eq. 4.6 over a leaf's three cached vertex samples, `None` while one is missing.
-fn leaf_nld(input: &CriterionInput, leaf: NodeId, side: protocol::Side) -> Option<f32> {
-    let rgb = input.cache.leaf_radiance(input.mesh, leaf, side)?;
-    Some(crate::nld::nld3(
-        rgb.map(conventions::luminance),
-        input.l_white,
-    ))
+/// Which S the NLD criteria compute.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Metric {
+    /// Eq. 4.3 on radiance luminance over L_max, as in the thesis: a difference between two
+    /// noisy samples reads as shading variation.
+    Thesis,
+    /// `nld::noise_aware_nld` in displayed units: what the samples' standard errors explain is
+    /// discounted (DESIGN.md §6, beyond the thesis).
+    NoiseAware,
+}
+
+/// S over a leaf's three cached vertex samples by `metric`, `None` while one is missing.
+fn leaf_nld(
+    input: &CriterionInput,
+    leaf: NodeId,
+    side: protocol::Side,
+    metric: Metric,
+) -> Option<f32> {
+    let estimates = input.cache.leaf_estimates(input.mesh, leaf, side)?;
+    Some(match metric {
+        Metric::Thesis => crate::nld::nld3(
+            estimates.map(|e| conventions::luminance(e.rgb)),
+            input.l_white,
+        ),
+        Metric::NoiseAware => crate::nld::noise_aware_nld(&estimates.map(|e| {
+            (
+                e.display_luminance(input.l_white),
+                e.display_standard_error(input.l_white),
+            )
+        })),
+    })
+}
+
+/// The displayed standard error of a leaf: the mean of its vertices' (0 while one is missing).
+fn leaf_display_error(input: &CriterionInput, leaf: NodeId, side: protocol::Side) -> f32 {
+    input
+        .cache
+        .leaf_estimates(input.mesh, leaf, side)
+        .map_or(0.0, |e| {
+            e.iter()
+                .map(|e| e.display_standard_error(input.l_white))
+                .sum::<f32>()
+                / 3.0
+        })
 }
 
 #[cfg(test)]

@@ -24,6 +24,7 @@ pub mod cache;
 pub mod criteria;
 pub mod mesh;
 pub(crate) mod nld;
+pub mod sample;
 pub mod visible_set;
 
 pub mod cli;

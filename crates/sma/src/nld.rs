@@ -26,6 +26,32 @@ pub fn nld3(l: [f32; 3], l_white: f32) -> f32 {
     clamp_unit((pairs / (2.0 * l_white * l_white)).sqrt())
 }
 
+/// How many combined standard errors a difference between two samples must exceed before the
+/// noise-aware metric counts it as shading variation: two, so that about 95 % of the differences
+/// pure noise makes are discounted entirely.
+pub const NOISE_Z: f32 = 2.0;
+
+/// The noise-aware S (DESIGN.md §6, beyond the thesis): eq. 4.3 over values in displayed units
+/// (tone-mapped and sRGB-encoded, 0..1, so L_max is 1), each with its standard error in those
+/// units, where a pair's difference counts only by what exceeds [`NOISE_Z`] of their combined
+/// standard error. Equal to eq. 4.3 on displayed values when the errors are 0.
+pub fn noise_aware_nld(values: &[(f32, f32)]) -> f32 {
+    let n = values.len();
+    if n < 2 {
+        return 0.0;
+    }
+    let mut pairs = 0.0f64;
+    for (i, &(a, ea)) in values.iter().enumerate() {
+        for &(b, eb) in &values[i + 1..] {
+            let explained = NOISE_Z * (ea * ea + eb * eb).sqrt();
+            let excess = ((a - b).abs() - explained).max(0.0);
+            pairs += f64::from(excess).powi(2);
+        }
+    }
+    let norm = ((n * n) / 4) as f64;
+    clamp_unit((pairs / norm).sqrt() as f32)
+}
+
 /// [0, 1], NaN to 0.
 fn clamp_unit(s: f32) -> f32 {
     if s >= 0.0 { s.min(1.0) } else { 0.0 }
@@ -57,6 +83,22 @@ mod tests {
             .sum();
         let expected = (pairs / (6.0 * 1.0f32)).sqrt();
         assert!((nld_metric(&l, 1.0) - expected).abs() < 1e-6);
+    }
+
+    #[test]
+    fn noise_explains_small_differences_but_not_large_ones() {
+        assert_eq!(
+            noise_aware_nld(&[(0.4, 0.05), (0.5, 0.05)]),
+            0.0,
+            "0.1 < 2 × 0.07"
+        );
+        let s = noise_aware_nld(&[(0.2, 0.01), (0.8, 0.01)]);
+        assert!(
+            (s - (0.6 - 2.0 * 0.02f32.sqrt() * 0.1)).abs() < 1e-3,
+            "S = {s}"
+        );
+        let exact = noise_aware_nld(&[(0.1, 0.0), (0.7, 0.0), (0.3, 0.0)]);
+        assert!((exact - nld3([0.1, 0.7, 0.3], 1.0)).abs() < 1e-6);
     }
 
     proptest! {

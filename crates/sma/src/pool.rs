@@ -286,18 +286,20 @@ impl Dispatcher {
     }
 }
 
-/// A reply must carry one value and one flag byte per point, all finite.
+/// A reply must carry one value, variance, path count and flag byte per point. What the values
+/// are is judged per point by the schedule: one bad point does not cost the batch's others.
 fn checked(batch: &ShadeBatch, radiance: Radiance) -> Result<Radiance, String> {
     let n = batch.points.len();
-    if radiance.rgb.len() != n || radiance.flags.len() != n {
+    let lengths = [
+        radiance.rgb.len(),
+        radiance.luminance_variance.len(),
+        radiance.paths.len(),
+        radiance.flags.len(),
+    ];
+    if lengths.iter().any(|&l| l != n) {
         return Err(format!(
-            "reply holds {} values and {} flags for {n} points",
-            radiance.rgb.len(),
-            radiance.flags.len()
+            "reply holds {lengths:?} values, variances, path counts and flags for {n} points"
         ));
-    }
-    if radiance.rgb.iter().flatten().any(|v| !v.is_finite()) {
-        return Err("reply holds non-finite radiance".into());
     }
     Ok(radiance)
 }

@@ -479,3 +479,84 @@ async fn two_viewers_share_one_cache_and_a_bad_frame_closes_only_its_viewer() {
     assert!(a.refinement.iter().any(|(c, _)| c == "rnd"));
     sma.stop().await.unwrap();
 }
+
+/// The stated end of DESIGN.md §5: a resting viewer's noisy samples get more paths, rung by rung
+/// up to the ladder's cap, the SMA then says `converged` and asks for nothing more.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_resting_viewer_gets_more_paths_until_converged_then_nothing() {
+    if !gpu_available() {
+        return;
+    }
+    let scene = diffuse_wall();
+    let (renderer, log) = fake_renderer(scene.clone(), Fault::Noisy).await;
+    let mut config = config(vec![renderer], true);
+    config.schedule.max_paths = 4 * Quality::INTERACTIVE.paths;
+    config.schedule.stats_every = Duration::from_millis(100);
+    let (sma, mut probe) = start_with_probe(&config, &scene).await;
+    let camera = probe.view("front", W, H).await.unwrap();
+    probe.complete(camera.seq, WAIT).await.unwrap();
+    let stats = probe.until_converged(WAIT).await.unwrap();
+    assert!(stats.converged);
+    let rung = Quality {
+        paths: 3 * Quality::INTERACTIVE.paths,
+        ..Quality::INTERACTIVE
+    };
+    let requests: Vec<Quality> = log.lock().unwrap().iter().map(|r| r.1).collect();
+    let climbed = requests.iter().filter(|q| **q == rung).count();
+    assert!(climbed > 0, "no sample got the ladder's next rung");
+    assert!(
+        requests.iter().all(|q| q.paths <= rung.paths),
+        "a request went past the cap"
+    );
+    // After the stated end the renderer is left alone.
+    let settled = log.lock().unwrap().len();
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    assert_eq!(
+        log.lock().unwrap().len(),
+        settled,
+        "requests after convergence"
+    );
+    sma.stop().await.unwrap();
+}
+
+/// A reply with one NaN point keeps its other points; that point is asked for again, a few
+/// times, then given up on, and its triangles are shown with their other vertices' radiance,
+/// never black.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_nan_point_is_asked_again_and_never_shown_black() {
+    if !gpu_available() {
+        return;
+    }
+    let scene = diffuse_wall();
+    // A corner of the wall, seen from the front.
+    let poisoned = scene.mesh.triangles[2].vertices[0];
+    let (renderer, log) = fake_renderer(scene.clone(), Fault::NanAt(poisoned)).await;
+    let (sma, mut probe) = start_with_probe(&config(vec![renderer], false), &scene).await;
+    let camera = probe.view("front", W, H).await.unwrap();
+    probe.complete(camera.seq, WAIT).await.unwrap();
+    let asked = log
+        .lock()
+        .unwrap()
+        .iter()
+        .filter(|r| r.0.vertex == poisoned)
+        .count();
+    assert!(
+        (3..=6).contains(&asked),
+        "the NaN point was asked for {asked} times"
+    );
+    assert!(!probe.table.is_empty());
+    for t in probe.table.values() {
+        for rgb in t.radiance {
+            assert!(
+                rgb.iter().all(|c| c.is_finite()) && rgb.iter().any(|&c| c > 0.0),
+                "a shown vertex is {rgb:?}"
+            );
+        }
+    }
+    let differs = differing(
+        &scene_coverage(&scene, &camera),
+        &shown_coverage(&scene, &probe, &camera),
+    );
+    assert_eq!(differs, 0, "every visible triangle is shown");
+    sma.stop().await.unwrap();
+}

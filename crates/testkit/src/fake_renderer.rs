@@ -23,6 +23,11 @@ pub enum Fault {
     None,
     Die(usize),
     Drop(usize),
+    /// Every answer says its paths scattered by half its luminance (variance `(L / 2)²`), so
+    /// the SMA has noise to take paths against; the means stay exact.
+    Noisy,
+    /// The points of this mesh vertex are answered NaN, every other point as usual.
+    NanAt(u32),
 }
 
 /// Where `point` lies in the world.
@@ -72,22 +77,32 @@ async fn serve(listener: TcpListener, scene: Scene, shading: Shading, fault: Fau
             log.lock()
                 .expect("log lock")
                 .extend(batch.points.iter().map(|p| (p.key, batch.quality, p.eye)));
-            let rgb = batch
+            let rgb: Vec<[f32; 3]> = batch
                 .points
                 .iter()
-                .map(|p| {
-                    shading(
+                .map(|p| match fault {
+                    Fault::NanAt(vertex) if p.key.vertex == vertex => [f32::NAN; 3],
+                    _ => shading(
                         position(&scene, p),
                         p.side,
                         batch.quality,
                         p.eye.map(Vec3::from),
-                    )
+                    ),
+                })
+                .collect();
+            let luminance_variance = rgb
+                .iter()
+                .map(|c| match fault {
+                    Fault::Noisy => (0.5 * conventions::luminance(*c)).powi(2),
+                    _ => 0.0,
                 })
                 .collect();
             let reply = Radiance {
                 batch_id: batch.batch_id,
                 quality: batch.quality,
                 rgb,
+                luminance_variance,
+                paths: vec![batch.quality.paths; batch.points.len()],
                 flags: vec![0; batch.points.len()],
                 micros: 1,
             };

@@ -11,7 +11,7 @@ use glam::Vec3;
 use protocol::connection::{TcpReader, TcpWriter, connect_handshake};
 use protocol::frame::DEFAULT_MAX_FRAME;
 use protocol::viewer_link::{
-    Camera, Epoch, SceneInfo, ShownTriangle, SmaToViewer, TriangleId, ViewerToSma,
+    Camera, Epoch, SceneInfo, ShownTriangle, SmaToViewer, Stats, TriangleId, ViewerToSma,
 };
 use protocol::{Hello, Role, split_tcp};
 use tokio::net::TcpStream;
@@ -25,6 +25,8 @@ pub struct Probe {
     pub epochs: Vec<Epoch>,
     /// `Refinement` replies, in order.
     pub refinement: Vec<(String, bool)>,
+    /// The latest `Stats`.
+    pub stats: Option<Stats>,
     next_seq: u64,
 }
 
@@ -54,6 +56,7 @@ impl Probe {
             l_white: None,
             epochs: Vec::new(),
             refinement: Vec::new(),
+            stats: None,
             next_seq: 0,
         })
     }
@@ -85,49 +88,74 @@ impl Probe {
     /// Applies messages up to and including the next `Epoch`, checking the table.
     pub async fn next_epoch(&mut self) -> anyhow::Result<Epoch> {
         loop {
-            match self.reader.recv().await? {
-                SmaToViewer::Insert { triangles } => {
-                    for t in triangles {
-                        if self.table.insert(t.id, t.clone()).is_some() {
-                            bail!("duplicate insert of triangle {}", t.id);
-                        }
-                    }
-                }
-                SmaToViewer::Remove { ids } => {
-                    for id in ids {
-                        if self.table.remove(&id).is_none() {
-                            bail!("remove of unknown triangle {id}");
-                        }
-                    }
-                }
-                SmaToViewer::Update { triangles } => {
-                    for r in triangles {
-                        let t = self
-                            .table
-                            .get_mut(&r.id)
-                            .with_context(|| format!("update of unknown {}", r.id))?;
-                        t.radiance = r.radiance;
-                    }
-                }
-                SmaToViewer::ToneMap { l_white } => self.l_white = Some(l_white),
-                SmaToViewer::Epoch(epoch) => {
-                    if epoch.shown != self.table.len() as u64 {
-                        bail!(
-                            "epoch says {} shown, the table holds {}",
-                            epoch.shown,
-                            self.table.len()
-                        );
-                    }
-                    self.epochs.push(epoch);
-                    return Ok(epoch);
-                }
-                SmaToViewer::Refinement { criterion, paused } => {
-                    self.refinement.push((criterion, paused))
-                }
-                SmaToViewer::Stats(_) | SmaToViewer::SceneInfo(_) => {}
-                SmaToViewer::Error { message } => bail!("the SMA reported an error: {message}"),
+            let message = self.reader.recv().await?;
+            if let Some(epoch) = self.apply(message)? {
+                return Ok(epoch);
             }
         }
+    }
+
+    /// Reads until a `Stats` says the SMA has converged, within `timeout`.
+    pub async fn until_converged(&mut self, timeout: Duration) -> anyhow::Result<Stats> {
+        tokio::time::timeout(timeout, async {
+            loop {
+                let message = self.reader.recv().await?;
+                self.apply(message)?;
+                if let Some(stats) = self.stats.filter(|s| s.converged) {
+                    return Ok(stats);
+                }
+            }
+        })
+        .await
+        .with_context(|| format!("not converged within {timeout:?}; last {:?}", self.stats))?
+    }
+
+    /// Applies one message to the table; the epoch it closes, if it is one.
+    fn apply(&mut self, message: SmaToViewer) -> anyhow::Result<Option<Epoch>> {
+        match message {
+            SmaToViewer::Insert { triangles } => {
+                for t in triangles {
+                    if self.table.insert(t.id, t.clone()).is_some() {
+                        bail!("duplicate insert of triangle {}", t.id);
+                    }
+                }
+            }
+            SmaToViewer::Remove { ids } => {
+                for id in ids {
+                    if self.table.remove(&id).is_none() {
+                        bail!("remove of unknown triangle {id}");
+                    }
+                }
+            }
+            SmaToViewer::Update { triangles } => {
+                for r in triangles {
+                    let t = self
+                        .table
+                        .get_mut(&r.id)
+                        .with_context(|| format!("update of unknown {}", r.id))?;
+                    t.radiance = r.radiance;
+                }
+            }
+            SmaToViewer::ToneMap { l_white } => self.l_white = Some(l_white),
+            SmaToViewer::Epoch(epoch) => {
+                if epoch.shown != self.table.len() as u64 {
+                    bail!(
+                        "epoch says {} shown, the table holds {}",
+                        epoch.shown,
+                        self.table.len()
+                    );
+                }
+                self.epochs.push(epoch);
+                return Ok(Some(epoch));
+            }
+            SmaToViewer::Refinement { criterion, paused } => {
+                self.refinement.push((criterion, paused))
+            }
+            SmaToViewer::Stats(stats) => self.stats = Some(stats),
+            SmaToViewer::SceneInfo(_) => {}
+            SmaToViewer::Error { message } => bail!("the SMA reported an error: {message}"),
+        }
+        Ok(None)
     }
 
     /// Epochs until one satisfies `done`, within `timeout`.

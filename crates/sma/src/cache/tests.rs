@@ -6,6 +6,7 @@ use rand::{RngExt, SeedableRng};
 fn sample(l: f32, quality: Quality, seen: u64) -> CachedSample {
     CachedSample {
         rgb: [l; 3],
+        luminance_variance: 0.25,
         quality,
         view_dependent: false,
         eye: None,
@@ -20,38 +21,54 @@ fn key(vertex: u32) -> SampleKey {
     }
 }
 
+/// Same depth: the paths add up (DESIGN.md §5); deeper: replaces; shallower or invalid: ignored.
 #[test]
-fn only_better_or_new_eye_samples_replace() {
+fn same_depth_accumulates_deeper_replaces_shallower_is_ignored() {
     let mut cache = ShadingCache::new(1 << 20);
     assert_eq!(
-        cache.insert(key(3), sample(1.0, Quality::INTERACTIVE, 0)),
+        cache.insert(key(3), sample(1.0, Quality::DIRECT, 0)),
         CacheInsert::New
     );
     assert_eq!(
-        cache.insert(key(3), sample(2.0, Quality::DIRECT, 0)),
-        CacheInsert::Ignored
-    );
-    assert_eq!(
         cache.insert(key(3), sample(2.0, Quality::INTERACTIVE, 0)),
-        CacheInsert::Ignored
-    );
-    assert_eq!(
-        cache.insert(key(3), sample(f32::NAN, Quality::INTERACTIVE, 0)),
-        CacheInsert::Ignored
-    );
-    let better = Quality {
-        paths: 256,
-        bounces: Some(2),
-    };
-    assert_eq!(
-        cache.insert(key(3), sample(2.0, better, 0)),
-        CacheInsert::Upgraded
+        CacheInsert::Upgraded,
+        "a 2-bounce answer replaces direct light"
     );
     assert_eq!(cache.get(key(3)).unwrap().rgb, [2.0; 3]);
+    assert_eq!(
+        cache.insert(key(3), sample(9.0, Quality::DIRECT, 0)),
+        CacheInsert::Ignored,
+        "direct light is never averaged into a 2-bounce estimate"
+    );
+    assert_eq!(
+        cache.insert(key(3), sample(4.0, Quality::INTERACTIVE, 0)),
+        CacheInsert::Upgraded
+    );
+    let s = cache.get(key(3)).unwrap();
+    assert_eq!(
+        (s.rgb, s.quality.paths),
+        ([3.0; 3], 128),
+        "64 + 64 paths averaged"
+    );
+    for bad in [f32::NAN, -1.0, f32::INFINITY] {
+        assert_eq!(
+            cache.insert(key(3), sample(bad, Quality::INTERACTIVE, 0)),
+            CacheInsert::Ignored
+        );
+    }
+    let no_paths = Quality {
+        paths: 0,
+        ..Quality::INTERACTIVE
+    };
+    assert_eq!(
+        cache.insert(key(4), sample(1.0, no_paths, 0)),
+        CacheInsert::Ignored
+    );
+    assert_eq!(cache.get(key(3)).unwrap().quality.paths, 128);
     let glossy = |eye| CachedSample {
         view_dependent: true,
         eye: Some(eye),
-        ..sample(1.0, better, 0)
+        ..sample(1.0, Quality::INTERACTIVE, 0)
     };
     assert_eq!(cache.insert(key(3), glossy(Vec3::X)), CacheInsert::Upgraded);
     assert_eq!(cache.insert(key(3), glossy(Vec3::Y)), CacheInsert::Upgraded);
@@ -63,6 +80,21 @@ fn only_better_or_new_eye_samples_replace() {
             })
             .is_none()
     );
+}
+
+/// An accumulated sample's standard error falls as batches of paths are added.
+#[test]
+fn the_standard_error_falls_as_paths_are_added() {
+    let mut cache = ShadingCache::new(1 << 20);
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
+    let mut errors = Vec::new();
+    for _ in 0..6 {
+        let l = 1.0 + rng.random_range(-0.2f32..0.2);
+        cache.insert(key(0), sample(l, Quality::INTERACTIVE, 0));
+        errors.push(cache.get(key(0)).unwrap().estimate().standard_error());
+    }
+    assert!(errors.windows(2).all(|w| w[1] < w[0]), "{errors:?}");
+    assert_eq!(cache.get(key(0)).unwrap().quality.paths, 6 * 64);
 }
 
 #[test]
@@ -195,7 +227,7 @@ fn eyes_follow_their_samples_through_eviction() {
 }
 
 /// Each eye keeps its own radiance; a reader gets the kept eye nearest to it; a fifth eye
-/// replaces the kept one nearest to it; a kept eye is replaced only by a better sample.
+/// replaces the kept one nearest to it; a kept eye merges further paths at its depth.
 #[test]
 fn view_dependent_samples_keep_one_radiance_per_eye() {
     let mut cache = ShadingCache::new(1 << 20);
@@ -220,12 +252,13 @@ fn view_dependent_samples_keep_one_radiance_per_eye() {
     assert_eq!(seen(&cache, 9.0).rgb, [12.0; 3]);
     assert_eq!(seen(&cache, 1.0).rgb, [0.0; 3]);
     assert_eq!(cache.eye_variants, MAX_EYES);
-    // The same eye again: ignored unless better.
+    // The same eye again: its paths add to that eye's estimate; a deeper one replaces it.
     let again = CachedSample {
         rgb: [5.0; 3],
         ..shaded(20.0, Quality::DIRECT)
     };
-    assert_eq!(cache.insert(key(1), again), CacheInsert::Ignored);
+    assert_eq!(cache.insert(key(1), again), CacheInsert::Upgraded);
+    assert_eq!(seen(&cache, 21.0).rgb, [12.5; 3]);
     let better = CachedSample {
         quality: Quality::INTERACTIVE,
         ..again
@@ -236,8 +269,8 @@ fn view_dependent_samples_keep_one_radiance_per_eye() {
     // A diffuse reading (no eye) and a diffuse sample: the latest, then no eyes at all.
     assert_eq!(cache.get_seen_from(key(1), None).unwrap().rgb, [5.0; 3]);
     let best = Quality {
-        paths: 2 * Quality::INTERACTIVE.paths,
-        ..Quality::INTERACTIVE
+        paths: Quality::INTERACTIVE.paths,
+        bounces: Some(3),
     };
     cache.insert(key(1), sample(7.0, best, 1));
     assert_eq!(seen(&cache, 9.0).rgb, [7.0; 3]);
@@ -257,26 +290,22 @@ fn last_seen_beyond_u32_saturates() {
     assert_eq!(cache.len(), 2);
 }
 
-/// Past 256 distinct qualities a new one is stored as the best interned one not above it,
-/// and a sample below them all is ignored.
+/// A key given up on counts as known, and its leaves show the mean of their other vertices.
 #[test]
-fn a_full_quality_table_rounds_down() {
-    let mut cache = ShadingCache::new(usize::MAX);
-    let direct = |paths| Quality {
-        paths,
-        bounces: Some(0),
-    };
-    for paths in 1..=MAX_QUALITIES as u32 {
-        assert_eq!(
-            cache.insert(key(paths), sample(1.0, direct(paths), 0)),
-            CacheInsert::New
-        );
-    }
-    cache.insert(key(0), sample(1.0, direct(1000), 0));
-    assert_eq!(cache.get(key(0)).unwrap().quality, direct(256));
+fn a_failed_key_is_shown_with_the_mean_of_the_others() {
+    let mesh = SubdivisionMesh::new(&crate::mesh::test_meshes::square(), Default::default());
+    let mut cache = ShadingCache::new(1 << 20);
+    let [a, b, c] = mesh.node(0).vertices;
+    cache.insert(key(a), sample(1.0, Quality::INTERACTIVE, 0));
+    cache.insert(key(b), sample(3.0, Quality::INTERACTIVE, 0));
+    assert!(cache.leaf_radiance(&mesh, 0, Side::Front).is_none());
+    assert_eq!(cache.missing_keys(&mesh, 0, Side::Front).count(), 1);
+    cache.mark_failed(key(c));
+    assert_eq!(cache.missing_keys(&mesh, 0, Side::Front).count(), 0);
     assert_eq!(
-        cache.insert(key(9999), sample(1.0, direct(0), 0)),
-        CacheInsert::Ignored
+        cache.leaf_radiance(&mesh, 0, Side::Front),
+        Some([[1.0; 3], [3.0; 3], [2.0; 3]])
     );
-    assert_eq!(cache.qualities.len(), MAX_QUALITIES);
+    cache.insert(key(c), sample(5.0, Quality::INTERACTIVE, 0));
+    assert!(!cache.is_failed(key(c)), "a valid answer clears the mark");
 }

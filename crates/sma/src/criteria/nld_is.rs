@@ -10,10 +10,14 @@
 
 use std::collections::{HashMap, HashSet, VecDeque};
 
-use super::{Criterion, CriterionInput, CriterionKind, CriterionSettings, LuminanceImage};
+use super::{
+    Criterion, CriterionInput, CriterionKind, CriterionSettings, LuminanceImage, Metric,
+    leaf_display_error,
+};
 use crate::mesh::NodeId;
 use crate::mesh::fast_hash::FastHash;
-use crate::nld::nld_metric;
+use crate::nld::{nld_metric, noise_aware_nld};
+use crate::sample::display;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Quad {
@@ -43,16 +47,32 @@ impl Quad {
         })
     }
 
-    /// S of eq. 4.5 over the corners that see geometry.
-    fn nld(self, image: &LuminanceImage, l_white: f32) -> f32 {
+    /// S of eq. 4.5 over the corners that see geometry, by `metric`; `error` gives the
+    /// displayed standard error of the leaf seen at a corner.
+    fn nld(
+        self,
+        image: &LuminanceImage,
+        l_white: f32,
+        metric: Metric,
+        error: &dyn Fn(NodeId) -> f32,
+    ) -> f32 {
         let (x1, y1) = (self.x + self.w - 1, self.y + self.h - 1);
-        let lum: Vec<f32> = [(self.x, self.y), (x1, self.y), (self.x, y1), (x1, y1)]
+        let corners = [(self.x, self.y), (x1, self.y), (self.x, y1), (x1, y1)]
             .into_iter()
             .map(|(x, y)| image.index(x, y))
-            .filter(|&i| image.ids[i] != LuminanceImage::NONE)
-            .map(|i| image.luminance[i])
-            .collect();
-        nld_metric(&lum, l_white)
+            .filter(|&i| image.ids[i] != LuminanceImage::NONE);
+        match metric {
+            Metric::Thesis => {
+                let lum: Vec<f32> = corners.map(|i| image.luminance[i]).collect();
+                nld_metric(&lum, l_white)
+            }
+            Metric::NoiseAware => {
+                let values: Vec<(f32, f32)> = corners
+                    .map(|i| (display(image.luminance[i], l_white), error(image.ids[i])))
+                    .collect();
+                noise_aware_nld(&values)
+            }
+        }
     }
 
     fn centre_id(self, image: &LuminanceImage) -> u32 {
@@ -61,6 +81,7 @@ impl Quad {
 }
 
 pub struct NldIs {
+    metric: Metric,
     fraction: f32,
     min_leaf_pixels: u32,
     queue: VecDeque<Quad>,
@@ -74,8 +95,9 @@ pub struct NldIs {
 }
 
 impl NldIs {
-    pub fn new(settings: &CriterionSettings) -> Self {
+    pub fn new(settings: &CriterionSettings, metric: Metric) -> Self {
         NldIs {
+            metric,
             fraction: settings.nld_is_fraction,
             min_leaf_pixels: settings.min_leaf_pixels,
             queue: VecDeque::new(),
@@ -89,7 +111,10 @@ impl NldIs {
 
 impl Criterion for NldIs {
     fn kind(&self) -> CriterionKind {
-        CriterionKind::NldIs
+        match self.metric {
+            Metric::NoiseAware => CriterionKind::NldIs,
+            Metric::Thesis => CriterionKind::NldIsThesis,
+        }
     }
 
     fn needs_image(&self) -> bool {
@@ -109,6 +134,17 @@ impl Criterion for NldIs {
             .iter()
             .map(|v| (v.leaf, v.pixels))
             .collect();
+        let sides: HashMap<NodeId, protocol::Side, FastHash> = input
+            .visible
+            .leaves
+            .iter()
+            .map(|v| (v.leaf, v.side))
+            .collect();
+        let error = |leaf: NodeId| {
+            sides
+                .get(&leaf)
+                .map_or(0.0, |&side| leaf_display_error(input, leaf, side))
+        };
         let budget =
             (f64::from(self.fraction) * f64::from(image.width) * f64::from(image.height)) as usize;
         let mut out = Vec::new();
@@ -132,7 +168,7 @@ impl Criterion for NldIs {
                 .collect();
             let best = children
                 .iter()
-                .map(|&c| (c, c.nld(image, input.l_white)))
+                .map(|&c| (c, c.nld(image, input.l_white, self.metric, &error)))
                 .fold(None, |best: Option<(Quad, f32)>, (c, s)| match best {
                     Some((_, b)) if b >= s => best,
                     _ => Some((c, s)),
@@ -194,7 +230,7 @@ mod tests {
     #[test]
     fn a_flat_image_selects_nothing_and_an_edge_is_found() {
         let flat = Synthetic::new(4, 64, Shading::Flat);
-        let mut is = NldIs::new(&CriterionSettings::default());
+        let mut is = NldIs::new(&CriterionSettings::default(), Metric::Thesis);
         assert!(is.select(&flat.input(), 50).is_empty());
 
         // On an 8-wide grid leaves lie up to 7 units from the line; quadrant centres of the
@@ -214,7 +250,7 @@ mod tests {
     #[test]
     fn passes_go_on_while_they_find_something() {
         let mut edge = Synthetic::new(4, 64, Shading::ShadowEdge);
-        let mut is = NldIs::new(&CriterionSettings::default());
+        let mut is = NldIs::new(&CriterionSettings::default(), Metric::Thesis);
         let first = is.select(&edge.input(), usize::MAX);
         assert!(!first.is_empty());
         edge.refine_and_shade(&first);
@@ -232,9 +268,9 @@ mod tests {
     #[test]
     fn calls_resume_where_the_last_one_stopped() {
         let edge = Synthetic::new(4, 64, Shading::ShadowEdge);
-        let mut whole = NldIs::new(&CriterionSettings::default());
+        let mut whole = NldIs::new(&CriterionSettings::default(), Metric::Thesis);
         let all = whole.select(&edge.input(), usize::MAX);
-        let mut parts = NldIs::new(&CriterionSettings::default());
+        let mut parts = NldIs::new(&CriterionSettings::default(), Metric::Thesis);
         let mut resumed = Vec::new();
         loop {
             let part = parts.select(&edge.input(), 3);

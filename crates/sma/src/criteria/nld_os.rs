@@ -9,12 +9,15 @@
 
 use std::collections::HashSet;
 
-use super::{Criterion, CriterionInput, CriterionKind, CriterionSettings, is_large, leaf_nld};
+use super::{
+    Criterion, CriterionInput, CriterionKind, CriterionSettings, Metric, is_large, leaf_nld,
+};
 use crate::mesh::NodeId;
 use crate::mesh::fast_hash::FastHash;
 
 pub struct NldOs {
     settings: CriterionSettings,
+    metric: Metric,
     s_ref: f32,
     cursor: usize,
     found_in_pass: bool,
@@ -32,9 +35,10 @@ enum PassEnd {
 }
 
 impl NldOs {
-    pub fn new(settings: &CriterionSettings) -> Self {
+    pub fn new(settings: &CriterionSettings, metric: Metric) -> Self {
         NldOs {
             settings: *settings,
+            metric,
             s_ref: settings.s_ref_start,
             cursor: 0,
             found_in_pass: false,
@@ -70,7 +74,10 @@ impl NldOs {
 
 impl Criterion for NldOs {
     fn kind(&self) -> CriterionKind {
-        CriterionKind::NldOs
+        match self.metric {
+            Metric::NoiseAware => CriterionKind::NldOs,
+            Metric::Thesis => CriterionKind::NldOsThesis,
+        }
     }
 
     fn needs_image(&self) -> bool {
@@ -104,7 +111,7 @@ impl Criterion for NldOs {
                 self.settings.large_triangle_fraction,
             ) {
                 true
-            } else if let Some(s) = leaf_nld(input, v.leaf, v.side) {
+            } else if let Some(s) = leaf_nld(input, v.leaf, v.side, self.metric) {
                 s > self.s_ref
             } else {
                 self.waiting_in_pass = true;
@@ -120,7 +127,7 @@ impl Criterion for NldOs {
     }
 
     fn reset(&mut self) {
-        *self = NldOs::new(&self.settings);
+        *self = NldOs::new(&self.settings, self.metric);
     }
 }
 
@@ -132,10 +139,13 @@ mod tests {
     #[test]
     fn a_flat_lit_region_is_left_alone() {
         let flat = Synthetic::new(6, 96, Shading::Flat);
-        let mut os = NldOs::new(&CriterionSettings {
-            large_triangle_fraction: 1.0,
-            ..Default::default()
-        });
+        let mut os = NldOs::new(
+            &CriterionSettings {
+                large_triangle_fraction: 1.0,
+                ..Default::default()
+            },
+            Metric::Thesis,
+        );
         for _ in 0..10 {
             assert!(os.select(&flat.input(), 100).is_empty());
         }
@@ -149,7 +159,7 @@ mod tests {
             large_triangle_fraction: 1.0,
             ..Default::default()
         };
-        let mut os = NldOs::new(&settings);
+        let mut os = NldOs::new(&settings, Metric::Thesis);
         for _ in 0..6 {
             let picked = os.select(&edge.input(), 16);
             assert!(
@@ -178,17 +188,54 @@ mod tests {
     #[test]
     fn the_large_triangle_rule_fires_on_a_flat_big_leaf() {
         let blob = Synthetic::new(1, 64, Shading::Flat);
-        let mut os = NldOs::new(&CriterionSettings::default());
+        let mut os = NldOs::new(&CriterionSettings::default(), Metric::Thesis);
         let picked = os.select(&blob.input(), 10);
         assert_eq!(
             picked.len(),
             2,
             "both halves of the one square cover half the image"
         );
-        let mut none = NldOs::new(&CriterionSettings {
+        let mut none = NldOs::new(
+            &CriterionSettings {
+                large_triangle_fraction: 1.0,
+                ..Default::default()
+            },
+            Metric::Thesis,
+        );
+        assert!(none.select(&blob.input(), 10).is_empty());
+    }
+
+    /// Noise is not shading: a flat patch whose samples scatter by their own standard error is
+    /// subdivided by eq. 4.6 as the thesis has it, and left alone by the noise-aware metric;
+    /// a real shadow edge is found by both.
+    #[test]
+    fn a_flat_noisy_patch_is_refined_by_the_thesis_metric_only() {
+        use crate::criteria::synthetic::{Shading, Synthetic};
+        let settings = CriterionSettings {
             large_triangle_fraction: 1.0,
             ..Default::default()
-        });
-        assert!(none.select(&blob.input(), 10).is_empty());
+        };
+        let noisy = Synthetic::noisy(12, 192, Shading::Flat, 0.5, 11);
+        let leaves = noisy.visible.leaves.len();
+        let select_all = |metric| {
+            let mut os = NldOs::new(&settings, metric);
+            (0..40)
+                .flat_map(|_| os.select(&noisy.input(), 1000))
+                .count()
+        };
+        let thesis = select_all(Metric::Thesis);
+        let aware = select_all(Metric::NoiseAware);
+        assert!(
+            thesis * 2 > leaves,
+            "eq. 4.6 reads the noise as shading: {thesis} of {leaves}"
+        );
+        assert!(
+            aware * 50 <= leaves,
+            "noise-aware: {aware} of {leaves} selected"
+        );
+
+        let edge = Synthetic::noisy(12, 192, Shading::ShadowEdge, 0.5, 11);
+        let picked = NldOs::new(&settings, Metric::NoiseAware).select(&edge.input(), 8);
+        assert!(!picked.is_empty() && picked.iter().all(|&l| edge.straddles_shadow(l)));
     }
 }

@@ -25,7 +25,9 @@
 
 use std::collections::HashSet;
 
-use super::{Criterion, CriterionInput, CriterionKind, CriterionSettings, is_large, leaf_nld};
+use super::{
+    Criterion, CriterionInput, CriterionKind, CriterionSettings, Metric, is_large, leaf_nld,
+};
 use crate::mesh::NodeId;
 use crate::mesh::fast_hash::FastHash;
 
@@ -65,7 +67,7 @@ impl Criterion for NldPx {
                     && !self.offered.contains(&v.leaf)
             })
             .filter_map(|v| {
-                let nld = leaf_nld(input, v.leaf, v.side)?;
+                let nld = leaf_nld(input, v.leaf, v.side, Metric::NoiseAware)?;
                 let weight = s.nld_px_epsilon + (1.0 - s.nld_px_epsilon) * nld;
                 let large = is_large(v.pixels, input.visible, s.large_triangle_fraction);
                 (nld > s.s_min || large).then_some((weight * v.pixels as f32, v.leaf))

@@ -94,6 +94,40 @@ impl Synthetic {
         }
     }
 
+    /// As [`Synthetic::new`], but every sample is a 64-path estimate whose paths scatter by
+    /// `relative_noise` of the luminance: its mean carries the noise of those paths, and its
+    /// variance says how much (DESIGN.md §5).
+    pub fn noisy(n: u32, res: u32, shading: Shading, relative_noise: f32, seed: u64) -> Self {
+        use rand::{RngExt, SeedableRng};
+        let mut s = Synthetic::new(n, res, shading);
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
+        let paths = Quality::INTERACTIVE.paths;
+        s.cache = ShadingCache::new(usize::MAX);
+        for vertex in 0..s.mesh.vertex_count() as u32 {
+            let l = shading.luminance(s.mesh.vertex(vertex).position.truncate(), n);
+            let per_path = relative_noise * l;
+            // Uniform noise of the mean's standard deviation: half-width sqrt(3) of it.
+            let half = 3f32.sqrt() * per_path / (paths as f32).sqrt();
+            let mean = l + rng.random_range(-half..=half);
+            let sample = CachedSample {
+                rgb: [mean; 3],
+                luminance_variance: per_path * per_path,
+                quality: Quality::INTERACTIVE,
+                view_dependent: false,
+                eye: None,
+                last_seen: 0,
+            };
+            s.cache.insert(
+                SampleKey {
+                    vertex,
+                    side: Side::Front,
+                },
+                sample,
+            );
+        }
+        s
+    }
+
     /// Refines the leaves (none below one pixel), shades the new vertices, re-projects.
     pub fn refine_and_shade(&mut self, leaves: &[NodeId]) {
         let world_per_pixel = self.n as f32 / self.res as f32;
@@ -153,6 +187,7 @@ impl Synthetic {
                 .luminance(self.mesh.vertex(vertex).position.truncate(), self.n);
             let sample = CachedSample {
                 rgb: [l; 3],
+                luminance_variance: 0.0,
                 quality: Quality::INTERACTIVE,
                 view_dependent: false,
                 eye: None,

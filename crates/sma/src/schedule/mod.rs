@@ -31,12 +31,12 @@ mod turns;
 mod viewers;
 mod waits;
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::time::Instant;
 
 use anyhow::Context;
 use glam::Vec3;
-use protocol::renderer_link::{Quality, point_flags};
+use protocol::renderer_link::{Quality, SampleKey, point_flags};
 use protocol::viewer_link::{SmaToViewer, Stats, ViewerToSma};
 use scene::Scene;
 use tokio::sync::{mpsc, watch};
@@ -50,14 +50,22 @@ use crate::viewer_link::{ViewerEvent, ViewerId};
 use crate::visibility::{Gpu, LuminancePass, Visibility};
 use coarsening::Coarsening;
 use pending::PendingRefinement;
-use plan::{Aging, NeedsInput, Qualities};
+use plan::{Aging, MorePaths, NeedsInput, Qualities};
 use requests::Requests;
 use turns::{Feed, RefineGate, TurnView};
 use viewers::{SyncInput, Viewer};
 use waits::Owed;
 
+/// Rejected answers for one key before the schedule stops asking for it.
+const MAX_REJECTIONS: u8 = 3;
+
 pub struct Schedule {
     config: ScheduleConfig,
+    /// Rejected answers per key not yet given up on, and all rejected answers.
+    rejections: HashMap<SampleKey, u8>,
+    rejected_points: u64,
+    /// Whether the last turn found every view at its stated end (`note_convergence`).
+    converged: bool,
     view_dependent: Vec<bool>,
     qualities: Qualities,
     aging: Aging,
@@ -93,10 +101,13 @@ impl Schedule {
             .map(|t| scene.material_of(t).is_view_dependent())
             .collect();
         let quality = scene.settings.quality;
-        let qualities = Qualities::new(Quality {
-            paths: quality.paths,
-            bounces: quality.bounces,
-        });
+        let qualities = Qualities::new(
+            Quality {
+                paths: quality.paths,
+                bounces: quality.bounces,
+            },
+            config.max_paths,
+        );
         let aging = Aging {
             max_angle_rad: config.view_angle_deg.to_radians(),
         };
@@ -104,6 +115,9 @@ impl Schedule {
         let visibility = Visibility::new(gpu, &mesh, scene.mesh.bounds());
         let coarsening = Coarsening::new(mesh.base_count(), config.coarsen_after_passes);
         Schedule {
+            rejections: HashMap::new(),
+            rejected_points: 0,
+            converged: false,
             coarsening,
             cache: ShadingCache::new(config.cache_budget_bytes),
             requests: Requests::new(config.seed),
@@ -231,20 +245,26 @@ impl Schedule {
         match event {
             PoolEvent::Shaded { batch, radiance } => {
                 self.requests.finished(&batch);
-                for ((point, rgb), flags) in
-                    batch.points.iter().zip(&radiance.rgb).zip(&radiance.flags)
-                {
+                for (i, point) in batch.points.iter().enumerate() {
                     let base = point.base_triangle as usize;
                     let view_dependent = self.view_dependent.get(base).copied().unwrap_or(false)
-                        || flags & point_flags::VIEW_DEPENDENT != 0;
+                        || radiance.flags[i] & point_flags::VIEW_DEPENDENT != 0;
                     let sample = CachedSample {
-                        rgb: *rgb,
-                        quality: radiance.quality,
+                        rgb: radiance.rgb[i],
+                        luminance_variance: radiance.luminance_variance[i],
+                        quality: Quality {
+                            paths: radiance.paths[i],
+                            bounces: radiance.quality.bounces,
+                        },
                         view_dependent,
                         eye: point.eye.map(Vec3::from),
                         last_seen: self.frame,
                     };
-                    self.cache.insert(point.key, sample);
+                    if sample.estimate().is_valid() {
+                        self.cache.insert(point.key, sample);
+                    } else {
+                        self.reject(point.key, &sample);
+                    }
                 }
                 let n = batch.points.len() as u64;
                 // New samples are new input for every criterion: one that had found nothing may
@@ -260,6 +280,27 @@ impl Schedule {
                 self.owed.queue_changed();
             }
             PoolEvent::Renderers { connected } => self.renderers = connected,
+        }
+    }
+
+    /// A point whose answer is not a valid estimate (NaN, infinite or negative radiance or
+    /// variance, no paths) is neither cached nor shown; it stays missing, so it is asked for
+    /// again, up to [`MAX_REJECTIONS`] times, after which the cache gives up on it.
+    fn reject(&mut self, key: SampleKey, sample: &CachedSample) {
+        self.rejected_points += 1;
+        let count = self.rejections.entry(key).or_insert(0);
+        *count += 1;
+        if *count >= MAX_REJECTIONS {
+            tracing::warn!(
+                ?key,
+                rgb = ?sample.rgb,
+                variance = sample.luminance_variance,
+                paths = sample.quality.paths,
+                "renderers answered this sample badly {MAX_REJECTIONS} times: it is shown with \
+                 the mean of its triangles' other vertices"
+            );
+            self.rejections.remove(&key);
+            self.cache.mark_failed(key);
         }
     }
 
@@ -279,7 +320,29 @@ impl Schedule {
         if let Some(id) = self.refinement_candidate() {
             self.refine_round(id)?;
         }
+        self.note_convergence();
         Ok(())
+    }
+
+    /// The stated end of DESIGN.md §5 for every viewer: its criterion finds nothing to subdivide
+    /// and no sample is wanted (every visible one is below the displayed-error threshold or at
+    /// the ladder's cap), nothing is in flight and no refinement step waits.
+    fn note_convergence(&mut self) {
+        let converged = !self.viewers.is_empty()
+            && self
+                .viewers
+                .values()
+                .all(|v| v.view.is_some() && v.criterion_dry && !v.wait.needs_pass())
+            && self.requests.outstanding() == 0
+            && self.pending.is_empty()
+            && !self.owed.any();
+        if converged && !self.converged {
+            tracing::info!(
+                samples = self.samples,
+                "converged: every visible sample is as good as it will get"
+            );
+        }
+        self.converged = converged;
     }
 
     fn run_passes(&mut self) -> anyhow::Result<()> {
@@ -327,9 +390,20 @@ impl Schedule {
                 view_dependent: &self.view_dependent,
                 qualities: self.qualities,
                 aging: self.aging,
+                more_paths: self.more_paths_for(viewer),
             }));
         }
         self.requests.replan(needs);
+    }
+
+    /// A viewer resting with nothing to subdivide gets more paths where its noise shows.
+    fn more_paths_for(&self, viewer: &Viewer) -> Option<MorePaths> {
+        let resting = viewer.criterion_dry || viewer.paused;
+        Some(MorePaths {
+            l_white: viewer.last_l_white?,
+            threshold: self.config.display_error,
+        })
+        .filter(|_| resting)
     }
 
     fn sync_viewers(&mut self) {
@@ -414,7 +488,8 @@ impl Schedule {
             leaves: self.mesh.leaf_count() as u64,
             cached_samples: self.cache.len() as u64,
             renderers: self.renderers as u32,
-            converged: false,
+            converged: self.converged,
+            rejected_points: self.rejected_points,
         };
         tracing::debug!(
             samples = self.samples,
@@ -426,16 +501,14 @@ impl Schedule {
             queued = self.requests.queued(),
             in_flight = self.requests.in_flight_keys(),
             pending_steps = self.pending.len(),
+            converged = self.converged,
+            rejected = self.rejected_points,
             renderers = self.renderers,
             viewers = self.viewers.len(),
             "stats"
         );
-        let idle = self.requests.queued() == 0 && self.requests.in_flight_keys() == 0;
         for viewer in self.viewers.values() {
-            viewer.send(SmaToViewer::Stats(Stats {
-                converged: idle && viewer.wait.is_exhausted(),
-                ..stats
-            }));
+            viewer.send(SmaToViewer::Stats(stats));
         }
     }
 }

@@ -42,23 +42,59 @@ pub fn targets(
     out
 }
 
-/// Sample qualities of progressive shading: a cheap direct-light one first where it is cheaper
-/// than the scene's, then the scene's (DESIGN.md §7).
+/// The quality ladder of progressive shading (DESIGN.md §5, §7): a cheap direct-light sample
+/// first where it is cheaper than the scene's, then the scene's quality, then four times the
+/// paths at each further rung, at the scene's depth, up to `cap_paths`.
 #[derive(Clone, Copy, Debug)]
 pub struct Qualities {
     pub first: Quality,
     pub full: Quality,
+    pub cap_paths: u32,
 }
 
+/// Paths grow by this factor from one rung to the next: each rung halves the standard error.
+const RUNG_FACTOR: u32 = 4;
+
 impl Qualities {
-    pub fn new(full: Quality) -> Self {
+    pub fn new(full: Quality, cap_paths: u32) -> Self {
         let first = if Quality::DIRECT.rank() < full.rank() {
             Quality::DIRECT
         } else {
             full
         };
-        Qualities { first, full }
+        Qualities {
+            first,
+            full,
+            cap_paths: cap_paths.max(full.paths),
+        }
     }
+
+    /// For a sample at the scene's depth with `paths` so far: the paths the next rung adds and
+    /// the total it reaches; `None` at the cap or off the scene's depth.
+    pub fn next_rung(&self, cached: Quality) -> Option<(Quality, Quality)> {
+        if cached.bounces != self.full.bounces || cached.paths >= self.cap_paths {
+            return None;
+        }
+        let mut total = self.full.paths.max(1);
+        while total <= cached.paths {
+            total = total.saturating_mul(RUNG_FACTOR);
+        }
+        let total = total.min(self.cap_paths);
+        let step = |paths| Quality {
+            paths,
+            bounces: self.full.bounces,
+        };
+        Some((step(total - cached.paths), step(total)))
+    }
+}
+
+/// When and how a resting viewer's samples get more paths.
+#[derive(Clone, Copy, Debug)]
+pub struct MorePaths {
+    /// L_white of the viewer's tone map.
+    pub l_white: f32,
+    /// A sample whose displayed standard error is below this needs no more paths.
+    pub threshold: f32,
 }
 
 /// How far a view-dependent sample's eye may move, as the angle seen from the vertex, before
@@ -85,6 +121,8 @@ pub struct NeedsInput<'a> {
     pub view_dependent: &'a [bool],
     pub qualities: Qualities,
     pub aging: Aging,
+    /// Set while the viewer rests and its criterion has found nothing to subdivide.
+    pub more_paths: Option<MorePaths>,
 }
 
 pub fn needs(input: &NeedsInput) -> Vec<Need> {
@@ -102,6 +140,9 @@ pub fn needs(input: &NeedsInput) -> Vec<Need> {
                 side: v.side,
             };
             need_key(input, key, refining, priority, &mut out);
+            if let Some(more) = &input.more_paths {
+                more_paths(input, more, key, v.pixels, &mut out);
+            }
         }
     }
     out
@@ -114,6 +155,9 @@ fn need_key(
     priority: f32,
     out: &mut Vec<Need>,
 ) {
+    if input.cache.is_failed(key) {
+        return;
+    }
     let mv = input.mesh.vertex(key.vertex);
     let view_dependent = input
         .view_dependent
@@ -132,6 +176,7 @@ fn need_key(
         out.push(Need {
             point,
             quality,
+            target: quality,
             urgency,
             priority,
             new_eye,
@@ -148,5 +193,73 @@ fn need_key(
             push(full, Urgency::Better, true);
         }
         Some(_) => {}
+    }
+}
+
+/// The next rung for a cached sample whose noise is still visible: priority is the displayed
+/// standard error times the pixels of the leaf, so paths go where they lower the displayed
+/// error most.
+fn more_paths(
+    input: &NeedsInput,
+    more: &MorePaths,
+    key: SampleKey,
+    pixels: u32,
+    out: &mut Vec<Need>,
+) {
+    let Some(sample) = input.cache.get_seen_from(key, Some(input.eye)) else {
+        return;
+    };
+    let error = sample.estimate().display_standard_error(more.l_white);
+    if error <= more.threshold {
+        return;
+    }
+    let Some((quality, target)) = input.qualities.next_rung(sample.quality) else {
+        return;
+    };
+    let mv = input.mesh.vertex(key.vertex);
+    out.push(Need {
+        point: ShadePoint {
+            key,
+            base_triangle: mv.base_triangle,
+            bary: mv.bary,
+            side: key.side,
+            eye: sample.eye.map(|e| e.to_array()),
+        },
+        quality,
+        target,
+        urgency: Urgency::Paths,
+        priority: error * pixels as f32,
+        new_eye: false,
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_ladder_climbs_by_four_at_the_scene_depth_up_to_its_cap() {
+        let q = Qualities::new(Quality::INTERACTIVE, 1024);
+        let at = |paths, bounces| Quality { paths, bounces };
+        assert_eq!(q.first, Quality::DIRECT);
+        assert_eq!(
+            q.next_rung(at(64, Some(2))),
+            Some((at(192, Some(2)), at(256, Some(2))))
+        );
+        assert_eq!(
+            q.next_rung(at(256, Some(2))),
+            Some((at(768, Some(2)), at(1024, Some(2))))
+        );
+        assert_eq!(q.next_rung(at(1024, Some(2))), None, "at the cap");
+        assert_eq!(
+            q.next_rung(at(16, Some(0))),
+            None,
+            "direct light is upgraded, not climbed"
+        );
+        let capped = Qualities::new(Quality::INTERACTIVE, 500);
+        assert_eq!(
+            capped.next_rung(at(256, Some(2))),
+            Some((at(244, Some(2)), at(500, Some(2))))
+        );
     }
 }

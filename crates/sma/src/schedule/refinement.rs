@@ -102,9 +102,15 @@ impl Schedule {
             .unwrap_or_default();
         if selected.is_empty() {
             viewer.wait.exhausted();
+            if !viewer.criterion_dry {
+                viewer.criterion_dry = true;
+                // Its samples may now get more paths.
+                self.owed.queue_changed();
+            }
             tracing::debug!(viewer = id, "criterion found nothing more to refine");
             return Ok(());
         }
+        viewer.criterion_dry = false;
         let pixels: HashMap<NodeId, u32> = view
             .visible
             .leaves

@@ -20,13 +20,19 @@ pub enum Urgency {
     /// A shown sample to upgrade to the scene's quality, or a view-dependent one to retake for
     /// the eye that moved (DESIGN.md §5, §7).
     Better,
+    /// More paths for a sample whose noise the person can still see, while its viewer rests and
+    /// its criterion finds nothing to subdivide (the quality ladder, DESIGN.md §5).
+    Paths,
 }
 
 /// One wanted sample.
 #[derive(Clone, Copy, Debug)]
 pub struct Need {
     pub point: ShadePoint,
+    /// What the batch traces: the scene's quality, or the paths a rung of the ladder adds.
     pub quality: Quality,
+    /// What the cached sample is to reach: `quality` itself, or for more paths the rung's total.
+    pub target: Quality,
     pub urgency: Urgency,
     /// Larger first: on-screen size weighted toward the image centre.
     pub priority: f32,
@@ -65,7 +71,7 @@ impl Requests {
                 .then(b.priority.total_cmp(&a.priority))
         });
         let mut seen = std::collections::HashSet::new();
-        needs.retain(|n| seen.insert((n.point.key, n.quality.rank())));
+        needs.retain(|n| seen.insert((n.point.key, n.target.rank())));
         self.queue = needs.into();
     }
 
@@ -114,7 +120,7 @@ impl Requests {
                 best: (0, 0),
                 count: 0,
             });
-            entry.best = entry.best.max(need.quality.rank());
+            entry.best = entry.best.max(need.target.rank());
             entry.count += 1;
             points.push(need.point);
         }
@@ -134,9 +140,9 @@ impl Requests {
     fn satisfied(&self, need: &Need, cache: &ShadingCache) -> bool {
         let eye = need.point.eye.map(Vec3::from);
         let cached = cache.get_seen_from(need.point.key, eye).is_some_and(|s| {
-            s.quality.rank() >= need.quality.rank() && (!need.new_eye || s.eye == eye)
+            s.quality.rank() >= need.target.rank() && (!need.new_eye || s.eye == eye)
         });
-        cached || self.in_flight_at(need.point.key, need.quality)
+        cached || self.in_flight_at(need.point.key, need.target)
     }
 
     /// A batch came back (answered or failed): its keys are no longer in flight for it.
@@ -174,6 +180,7 @@ mod tests {
         Need {
             point,
             quality,
+            target: quality,
             urgency,
             priority,
             new_eye: false,
@@ -222,6 +229,7 @@ mod tests {
             };
             let sample = CachedSample {
                 rgb: [1.0; 3],
+                luminance_variance: 0.0,
                 quality: Quality::INTERACTIVE,
                 view_dependent: false,
                 eye: None,

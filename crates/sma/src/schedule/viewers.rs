@@ -30,6 +30,9 @@ pub struct Viewer {
     pub display: Display,
     pub criterion: Box<dyn Criterion>,
     pub paused: bool,
+    /// The criterion's last round for this camera found nothing to subdivide: the view's
+    /// samples then get more paths where their noise shows (DESIGN.md §5, §6).
+    pub criterion_dry: bool,
     pub last_l_white: Option<f32>,
     last_outstanding: Option<u64>,
 }
@@ -58,6 +61,7 @@ impl Viewer {
             display: Display::default(),
             criterion,
             paused: false,
+            criterion_dry: false,
             last_l_white: None,
             last_outstanding: None,
         }
@@ -75,6 +79,7 @@ impl Viewer {
         self.camera_at = Instant::now();
         self.wait.camera_moved();
         self.criterion.reset();
+        self.criterion_dry = false;
     }
 
     /// Sends what changed for this viewer, closed by an `Epoch`; nothing when nothing changed,

@@ -1,0 +1,271 @@
+//! Ray throughput on Sponza for the renderer's section (DESIGN.md §10 costs): obvhs one ray at a
+//! time as the baseline, and our queries at each vector level the CPU runs, in the same run and
+//! build, so every figure is also a ratio.
+
+use std::fmt::Write as _;
+use std::time::Instant;
+
+use glam::{Vec3, Vec3A};
+use obvhs::cwbvh::CwBvh;
+use obvhs::ray::{Ray, RayHit};
+use obvhs::triangle::Triangle as BvhTriangle;
+use rayon::prelude::*;
+
+use renderer::internals::SceneBvh;
+use renderer::reference::camera_for;
+use renderer::sampling::{cosine_hemisphere, stream, uniform_cone, uniform2};
+use renderer::vector_level::VectorLevel;
+use renderer::world::World;
+use scene::bvh::{BuildPreset, build_cwbvh, bvh_triangles};
+
+use super::renderer::Config;
+use super::stats::median;
+
+/// Rays of one kind: origin, direction, tmax.
+struct Rays {
+    origin: Vec<Vec3>,
+    dir: Vec<Vec3>,
+    tmax: Vec<f32>,
+}
+
+impl Rays {
+    fn len(&self) -> usize {
+        self.origin.len()
+    }
+
+    /// The same rays reordered by direction octant, then Morton order of the origin, so rays
+    /// of one chunk traverse similar nodes.
+    fn ordered(&self, lo: Vec3, hi: Vec3) -> Rays {
+        let scale = 1023.0 / (hi - lo).max(Vec3::splat(1e-6));
+        let key = |i: usize| {
+            let q = ((self.origin[i] - lo) * scale)
+                .clamp(Vec3::ZERO, Vec3::splat(1023.0))
+                .as_uvec3();
+            let d = self.dir[i];
+            let octant = (d.x < 0.0) as u64 | ((d.y < 0.0) as u64) << 1 | ((d.z < 0.0) as u64) << 2;
+            // 32 bits: the octant above the top 29 bits of the Morton code.
+            octant << 29 | morton3(q.x, q.y, q.z) >> 1
+        };
+        // Keys computed once, sorted in parallel with the index in the low bits.
+        let mut keyed: Vec<u64> = (0..self.len())
+            .into_par_iter()
+            .map(|i| key(i) << 32 | i as u64)
+            .collect();
+        keyed.par_sort_unstable();
+        let idx: Vec<usize> = keyed.iter().map(|k| (k & 0xffff_ffff) as usize).collect();
+        Rays {
+            origin: idx.iter().map(|&i| self.origin[i]).collect(),
+            dir: idx.iter().map(|&i| self.dir[i]).collect(),
+            tmax: idx.iter().map(|&i| self.tmax[i]).collect(),
+        }
+    }
+}
+
+/// 30-bit Morton code of three 10-bit coordinates.
+fn morton3(x: u32, y: u32, z: u32) -> u64 {
+    fn spread(v: u32) -> u64 {
+        let mut v = v as u64 & 0x3ff;
+        v = (v | v << 16) & 0x0300_00ff;
+        v = (v | v << 8) & 0x0300_f00f;
+        v = (v | v << 4) & 0x030c_30c3;
+        (v | v << 2) & 0x0924_9249
+    }
+    spread(x) | spread(y) << 1 | spread(z) << 2
+}
+
+/// Primary rays of a view through pixel centres (8×8 tiles, as a renderer would issue them),
+/// then bounce and sun-shadow rays from the points they hit.
+fn view_rays(world: &World, view: &str, cfg: &Config) -> anyhow::Result<(Rays, Rays, Rays)> {
+    let cam = camera_for(world, view, cfg.width, cfg.height)?;
+    let mut primary = Rays {
+        origin: Vec::new(),
+        dir: Vec::new(),
+        tmax: Vec::new(),
+    };
+    for ty in (0..cfg.height).step_by(8) {
+        for tx in (0..cfg.width).step_by(8) {
+            for y in ty..(ty + 8).min(cfg.height) {
+                for x in tx..(tx + 8).min(cfg.width) {
+                    primary.origin.push(cam.eye_vec());
+                    primary
+                        .dir
+                        .push(cam.ray_direction(x as f32 + 0.5, y as f32 + 0.5));
+                    primary.tmax.push(f32::INFINITY);
+                }
+            }
+        }
+    }
+    let sun = world
+        .scene
+        .settings
+        .sun
+        .as_ref()
+        .and_then(|s| Vec3::from(s.direction).try_normalize())
+        .unwrap_or(Vec3::Y);
+    let mut bounce = Rays {
+        origin: Vec::new(),
+        dir: Vec::new(),
+        tmax: Vec::new(),
+    };
+    let mut shadow = Rays {
+        origin: Vec::new(),
+        dir: Vec::new(),
+        tmax: Vec::new(),
+    };
+    let mut rng = stream(42, 0);
+    for i in 0..primary.len() {
+        let Some(hit) = world
+            .bvh
+            .closest_hit(primary.origin[i], primary.dir[i], f32::INFINITY)
+        else {
+            continue;
+        };
+        let s = world.surface_at(primary.origin[i], primary.dir[i], hit);
+        let origin = world.offset.origin(s.position, s.normal);
+        bounce.origin.push(origin);
+        bounce
+            .dir
+            .push(cosine_hemisphere(s.normal, uniform2(&mut rng)));
+        bounce.tmax.push(f32::INFINITY);
+        let to_sun = uniform_cone(sun, 1e-5, uniform2(&mut rng));
+        if to_sun.dot(s.normal) > 0.0 {
+            shadow.origin.push(origin);
+            shadow.dir.push(to_sun);
+            shadow.tmax.push(f32::INFINITY);
+        }
+    }
+    Ok((primary, bounce, shadow))
+}
+
+/// The baseline: obvhs as its example uses it: default (medium) preset, the triangle list looked
+/// up through `primitive_indices`, closest hit for every ray, rays in the order they come.
+struct NaiveBvh {
+    bvh: CwBvh,
+    tris: Vec<BvhTriangle>,
+}
+
+impl NaiveBvh {
+    fn build(mesh: &scene::Mesh) -> NaiveBvh {
+        let tris = bvh_triangles(mesh);
+        let bvh = build_cwbvh(&tris, BuildPreset::Medium);
+        NaiveBvh { bvh, tris }
+    }
+
+    fn hits(&self, o: Vec3, d: Vec3, tmax: f32) -> bool {
+        let mut hit = RayHit::none();
+        let ray = Ray::new(Vec3A::from(o), Vec3A::from(d), 0.0, tmax);
+        self.bvh.ray_traverse(ray, &mut hit, |r, id| {
+            self.tris[self.bvh.primitive_indices[id] as usize].intersect(r)
+        })
+    }
+}
+
+const CHUNK: usize = 4096;
+
+type TraceFn<'a> = &'a (dyn Fn(Vec3, Vec3, f32) -> bool + Sync);
+
+/// Seconds to trace `rays` once with `trace`, in parallel chunks.
+fn trace_secs(rays: &Rays, trace: TraceFn) -> f64 {
+    let start = Instant::now();
+    let hits: usize = (0..rays.len())
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .filter(|&i| trace(rays.origin[i], rays.dir[i], rays.tmax[i]))
+        .count();
+    std::hint::black_box(hits);
+    start.elapsed().as_secs_f64()
+}
+
+/// The variants timed in turn within each run, so a change of machine load (other processes)
+/// hits all alike: median M rays/s of each, and the median of the per-run ratios to the first.
+fn compare<const N: usize>(runs: usize, variants: [(&Rays, TraceFn); N]) -> ([f64; N], [f64; N]) {
+    let per_run: Vec<[f64; N]> = (0..runs)
+        .map(|_| variants.map(|(rays, trace)| rays.len() as f64 / trace_secs(rays, trace) / 1e6))
+        .collect();
+    let rates = std::array::from_fn(|k| median(per_run.iter().map(|r| r[k]).collect()));
+    let ratios = std::array::from_fn(|k| median(per_run.iter().map(|r| r[k] / r[0]).collect()));
+    (rates, ratios)
+}
+
+pub(super) fn ray_throughput(
+    scene: &scene::Scene,
+    view: &str,
+    cfg: &Config,
+) -> anyhow::Result<String> {
+    let ours_world = World::with_preset(scene.clone(), BuildPreset::Slow);
+    let mut portable = SceneBvh::build(&scene.mesh, BuildPreset::Slow);
+    portable.set_vector_level(VectorLevel::Baseline);
+    let best = VectorLevel::detected();
+    let mut fastest = SceneBvh::build(&scene.mesh, BuildPreset::Slow);
+    fastest.set_vector_level(best);
+    let naive = NaiveBvh::build(&scene.mesh);
+    let (primary, bounce, shadow) = view_rays(&ours_world, view, cfg)?;
+    let (lo, hi) = scene.mesh.bounds();
+    let sort_start = Instant::now();
+    let bounce_ordered = bounce.ordered(lo, hi);
+    let shadow_ordered = shadow.ordered(lo, hi);
+    let sort_ms = sort_start.elapsed().as_secs_f64() * 1e3;
+    let closest_portable = |o, d, t| portable.closest_hit(o, d, t).is_some();
+    let closest = |o, d, t| fastest.closest_hit(o, d, t).is_some();
+    let any_portable = |o, d, t| portable.occluded(o, d, t);
+    let any = |o, d, t| fastest.occluded(o, d, t);
+    let naive_trace = |o, d, t| naive.hits(o, d, t);
+    let variants = |rays, ordered, closest_hit: bool| -> [(&Rays, TraceFn); 4] {
+        let (p, f): (TraceFn, TraceFn) = if closest_hit {
+            (&closest_portable, &closest)
+        } else {
+            (&any_portable, &any)
+        };
+        [(rays, &naive_trace), (rays, p), (rays, f), (ordered, f)]
+    };
+    let rows = [
+        ("primary", &primary, variants(&primary, &primary, true)),
+        ("bounce", &bounce, variants(&bounce, &bounce_ordered, true)),
+        (
+            "shadow (sun)",
+            &shadow,
+            variants(&shadow, &shadow_ordered, false),
+        ),
+    ];
+    let mut md = String::new();
+    writeln!(
+        md,
+        "### Ray throughput, Sponza view {view} ({}×{} primary rays; M rays/s)\n",
+        cfg.width, cfg.height
+    )?;
+    let best = best.name();
+    writeln!(
+        md,
+        "obvhs: one ray at a time, default (medium) preset, triangles through `primitive_indices`, closest hit for every ray, baseline instructions. Ours: slow preset (spatial splits), triangles stored in BVH order, early-exit shadow query, at the baseline vector level and at the best one this CPU runs ({best}), chosen at run time by the same binary; \"ordered\" adds sorting the rays by direction octant and Morton order of origin (primary rays are already in 8×8 pixel tiles; sorting took {sort_ms:.0} ms for all bounce and shadow rays, not included). All are timed in turn within each run; ratios are medians of the per-run ratios to obvhs.\n"
+    )?;
+    writeln!(
+        md,
+        "| rays | count | obvhs | ours, baseline | ours, {best} | ours, {best}, ordered | ours baseline / obvhs | ours {best} / obvhs | ordered / obvhs |"
+    )?;
+    writeln!(md, "|---|---:|---:|---:|---:|---:|---:|---:|---:|")?;
+    for (name, rays, variants) in rows {
+        let ([obvhs, portable, fastest, ordered], [_, r_portable, r_fastest, r_ordered]) =
+            compare(cfg.runs, variants);
+        writeln!(
+            md,
+            "| {name} | {} | {obvhs:.2} | {portable:.2} | {fastest:.2} | {ordered:.2} | {r_portable:.2}× | {r_fastest:.2}× | {r_ordered:.2}× |",
+            rays.len()
+        )?;
+    }
+    md.push('\n');
+    Ok(md)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn morton_interleaves_bits() {
+        assert_eq!(morton3(1, 0, 0), 1);
+        assert_eq!(morton3(0, 1, 0), 2);
+        assert_eq!(morton3(0, 0, 1), 4);
+        assert_eq!(morton3(3, 0, 0), 0b1001);
+        assert!(morton3(1023, 1023, 1023) < 1 << 30);
+    }
+}
