@@ -203,7 +203,8 @@ async fn stop_all(children: &mut [Child], ask_first: bool) {
         }
     }
     let deadline = tokio::time::Instant::now() + Duration::from_secs(3);
-    for child in children {
+    // Last started, first stopped: the SMA before its renderers, so it does not report them lost.
+    for child in children.iter_mut().rev() {
         if ask_first
             && tokio::time::timeout_at(deadline, child.wait())
                 .await
