@@ -154,7 +154,8 @@ impl ViewState {
 fn log_changes(old: Option<&Stats>, new: &Stats) {
     let was = old.copied().unwrap_or_default();
     if new.converged && !was.converged {
-        tracing::info!("converged: nothing more to refine or shade for this view");
+        // The SMA says so at info level itself; the panel shows it to the person at the viewer.
+        tracing::debug!("converged: nothing more to refine or shade for this view");
     }
     match old {
         None if new.renderers == 0 => {
