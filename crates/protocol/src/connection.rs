@@ -3,6 +3,7 @@
 
 use std::io;
 use std::marker::PhantomData;
+use std::time::Duration;
 
 use bytes::Bytes;
 use futures::{SinkExt, StreamExt};
@@ -12,9 +13,10 @@ use tokio::net::TcpStream;
 use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
 use tokio_util::codec::{FramedRead, FramedWrite, LengthDelimitedCodec};
 
+use crate::admission::HANDSHAKE_MAX_FRAME;
 use crate::error::ProtocolError;
 use crate::frame::{FrameDecoder, WireMessage, codec, decode, decode_message, encode};
-use crate::handshake::{Hello, HelloReply, PROTOCOL_VERSION, Role};
+use crate::handshake::{Hello, HelloReply, PROTOCOL_VERSION, Role, check_fingerprint};
 use crate::types::Fingerprint;
 
 /// Reads typed messages `M`, one per frame.
@@ -36,6 +38,15 @@ impl<R: AsyncRead + Unpin, M: WireMessage> MessageReader<R, M> {
             inner: FramedRead::new(io, FrameDecoder::new(max_frame)),
             _msg: PhantomData,
         }
+    }
+
+    /// The largest frame accepted from the next frame on.
+    pub fn max_frame(&self) -> usize {
+        self.inner.decoder().max_frame_length()
+    }
+
+    pub fn set_max_frame(&mut self, max_frame: usize) {
+        self.inner.decoder_mut().set_max_frame_length(max_frame);
     }
 
     /// The next message; `Err(Closed)` at a clean end of stream.
@@ -133,7 +144,7 @@ where
 {
     let ours = hello.fingerprint;
     writer.send_as(&hello).await?;
-    match reader.recv_as::<HelloReply>().await? {
+    match recv_handshake_frame::<_, _, HelloReply>(reader).await? {
         HelloReply::Welcome {
             role,
             version,
@@ -151,7 +162,7 @@ where
                     found: role,
                 });
             }
-            crate::handshake::check_fingerprint(ours.as_ref(), fingerprint.as_ref())?;
+            check_fingerprint(ours.as_ref(), fingerprint.as_ref())?;
             Ok(fingerprint)
         }
         HelloReply::Refused { reason } => Err(ProtocolError::Refused(reason)),
@@ -174,16 +185,19 @@ impl SceneCheck {
         }
     }
 
-    fn required(&self) -> Option<&Fingerprint> {
-        match self {
-            SceneCheck::Same(fp) => Some(fp),
-            SceneCheck::Tell(_) => None,
+    /// A viewer need not name a scene, but one that names another scene than ours is lying.
+    fn check(&self, theirs: Option<&Fingerprint>) -> Result<(), ProtocolError> {
+        match (self, theirs) {
+            (SceneCheck::Same(ours), theirs) => check_fingerprint(Some(ours), theirs),
+            (SceneCheck::Tell(ours), Some(theirs)) => check_fingerprint(Some(ours), Some(theirs)),
+            (SceneCheck::Tell(_), None) => Ok(()),
         }
     }
 }
 
-/// Accepting side: reads `Hello`, checks it, replies `Welcome` or `Refused` (then the caller
-/// closes).
+/// Accepting side: reads `Hello` (one frame of at most [`HANDSHAKE_MAX_FRAME`] bytes), checks
+/// it, replies `Welcome` or `Refused` (then the caller closes). No deadline: a server uses
+/// [`accept_handshake_within`].
 pub async fn accept_handshake<R, W, In, Out>(
     reader: &mut MessageReader<R, In>,
     writer: &mut MessageWriter<W, Out>,
@@ -197,8 +211,85 @@ where
     In: WireMessage,
     Out: Serialize,
 {
-    let hello = match reader.recv_as::<Hello>().await {
-        Ok(h) => h,
+    let hello = recv_handshake_frame(reader).await;
+    answer_hello(hello, writer, our_role, expected_peer, scene).await
+}
+
+/// [`accept_handshake`] that fails with `HandshakeTimeout` (and tells the peer so) unless the
+/// peer's `Hello` has come within `deadline`: a peer that never says a word is not held open.
+pub async fn accept_handshake_within<R, W, In, Out>(
+    reader: &mut MessageReader<R, In>,
+    writer: &mut MessageWriter<W, Out>,
+    our_role: Role,
+    expected_peer: Role,
+    scene: SceneCheck,
+    deadline: Duration,
+) -> Result<Hello, ProtocolError>
+where
+    R: AsyncRead + Unpin,
+    W: AsyncWrite + Unpin,
+    In: WireMessage,
+    Out: Serialize,
+{
+    let hello = tokio::time::timeout(deadline, recv_handshake_frame(reader))
+        .await
+        .unwrap_or(Err(ProtocolError::HandshakeTimeout { deadline }));
+    answer_hello(hello, writer, our_role, expected_peer, scene).await
+}
+
+/// Accepting side of a port that is full: reads the peer's `Hello` within `deadline` (so the
+/// refusal is read as a reply, not lost to a reset), then replies `Refused { reason }`.
+pub async fn refuse_handshake<R, W, In, Out>(
+    reader: &mut MessageReader<R, In>,
+    writer: &mut MessageWriter<W, Out>,
+    reason: String,
+    deadline: Duration,
+) where
+    R: AsyncRead + Unpin,
+    W: AsyncWrite + Unpin,
+    In: WireMessage,
+    Out: Serialize,
+{
+    let _ = tokio::time::timeout(deadline, recv_handshake_frame::<_, _, Hello>(reader)).await;
+    let _ = writer.send_as(&HelloReply::Refused { reason }).await;
+}
+
+/// The one frame of a handshake, read with the frame limit lowered to [`HANDSHAKE_MAX_FRAME`]
+/// (DESIGN.md §8): a peer that has not said who it is cannot announce a large frame.
+async fn recv_handshake_frame<R, In, T>(
+    reader: &mut MessageReader<R, In>,
+) -> Result<T, ProtocolError>
+where
+    R: AsyncRead + Unpin,
+    In: WireMessage,
+    T: DeserializeOwned,
+{
+    let after = reader.max_frame();
+    reader.set_max_frame(after.min(HANDSHAKE_MAX_FRAME));
+    let received = reader.recv_as::<T>().await;
+    reader.set_max_frame(after);
+    received
+}
+
+/// Checks a received `Hello` and answers it: `Welcome` when it passes, else `Refused` with why.
+async fn answer_hello<W, Out>(
+    hello: Result<Hello, ProtocolError>,
+    writer: &mut MessageWriter<W, Out>,
+    our_role: Role,
+    expected_peer: Role,
+    scene: SceneCheck,
+) -> Result<Hello, ProtocolError>
+where
+    W: AsyncWrite + Unpin,
+    Out: Serialize,
+{
+    let checked = hello.and_then(|hello| {
+        hello.check_identity(expected_peer)?;
+        scene.check(hello.fingerprint.as_ref())?;
+        Ok(hello)
+    });
+    let hello = match checked {
+        Ok(hello) => hello,
         Err(e) => {
             let _ = writer
                 .send_as(&HelloReply::Refused {
@@ -208,14 +299,6 @@ where
             return Err(e);
         }
     };
-    if let Err(e) = hello.check(expected_peer, scene.required()) {
-        let _ = writer
-            .send_as(&HelloReply::Refused {
-                reason: e.to_string(),
-            })
-            .await;
-        return Err(e);
-    }
     writer
         .send_as(&HelloReply::Welcome {
             role: our_role,

@@ -29,6 +29,8 @@ pub enum ProtocolError {
     RoleMismatch { expected: Role, found: Role },
     #[error("scene fingerprint mismatch: ours {ours}, peer's {theirs}")]
     FingerprintMismatch { ours: String, theirs: String },
+    #[error("no handshake within {deadline:?}")]
+    HandshakeTimeout { deadline: std::time::Duration },
     #[error("peer refused: {0}")]
     Refused(String),
     #[error("peer reported an error: {0}")]

@@ -43,6 +43,10 @@ impl FrameDecoder {
     pub fn max_frame_length(&self) -> usize {
         self.codec.max_frame_length()
     }
+
+    pub fn set_max_frame_length(&mut self, max_frame: usize) {
+        self.codec.set_max_frame_length(max_frame);
+    }
 }
 
 impl Decoder for FrameDecoder {

@@ -7,6 +7,7 @@
 //! - [`frame`]: length-delimited frames carrying postcard payloads, with a maximum size;
 //! - [`handshake`]: magic, protocol version, role and (renderer link) scene fingerprint;
 //! - [`renderer_link`] and [`viewer_link`]: the messages of each link;
+//! - [`admission`]: what a port allows a peer before its handshake, and how many it serves;
 //! - [`connection`]: a typed message reader and writer over any byte stream;
 //! - [`error`]: every way a peer can go wrong, as a value, never a panic;
 //! - [`camera`]: the wire's camera in the system's camera convention.
@@ -21,6 +22,7 @@
 //! assert_eq!(decode::<SmaToViewer>(&bytes).unwrap(), msg);
 //! ```
 
+pub mod admission;
 mod camera;
 pub mod connection;
 mod error;

@@ -3,10 +3,11 @@
 
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
+use protocol::admission::PortLimits;
 use protocol::frame::DEFAULT_MAX_FRAME;
 use tokio::net::TcpListener;
 
@@ -44,6 +45,12 @@ pub enum Command {
         /// Largest frame accepted or sent, bytes.
         #[arg(long, default_value_t = DEFAULT_MAX_FRAME)]
         max_frame: usize,
+        /// SMAs served at once; one past this is refused (DESIGN.md §8).
+        #[arg(long, default_value_t = PortLimits::default().max_connections)]
+        max_connections: usize,
+        /// An SMA that has not completed its handshake within this many milliseconds is closed.
+        #[arg(long, default_value_t = PortLimits::default().handshake_deadline.as_millis() as u64)]
+        handshake_deadline_ms: u64,
     },
     /// Render a named viewpoint per pixel with the same estimator: linear EXR plus a PNG beside it.
     Reference {
@@ -110,7 +117,15 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             listen,
             threads,
             max_frame,
-        } => serve(&scene, &listen, threads, max_frame),
+            max_connections,
+            handshake_deadline_ms,
+        } => {
+            let port = PortLimits {
+                max_connections,
+                handshake_deadline: Duration::from_millis(handshake_deadline_ms),
+            };
+            serve(&scene, &listen, threads, max_frame, port)
+        }
         Command::Reference {
             scene,
             view,
@@ -151,9 +166,16 @@ fn load_world(spec: &str) -> anyhow::Result<World> {
     Ok(world)
 }
 
-fn serve(spec: &str, listen: &str, threads: usize, max_frame: usize) -> anyhow::Result<()> {
+fn serve(
+    spec: &str,
+    listen: &str,
+    threads: usize,
+    max_frame: usize,
+    port: PortLimits,
+) -> anyhow::Result<()> {
     let world = Arc::new(load_world(spec)?);
-    let service = Service::new(world, threads, max_frame)?;
+    let mut service = Service::new(world, threads, max_frame)?;
+    service.port = port;
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()

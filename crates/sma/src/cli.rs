@@ -9,6 +9,7 @@ use std::time::Duration;
 use anyhow::Context;
 use clap::Parser;
 use clap::builder::{PossibleValuesParser, TypedValueParser};
+use protocol::admission::PortLimits;
 
 use crate::config::{ScheduleConfig, SmaConfig};
 use crate::criteria::{CriterionKind, CriterionSettings};
@@ -116,6 +117,12 @@ pub struct Cli {
     /// Largest protocol frame accepted or sent, bytes.
     #[arg(long, default_value_t = defaults().max_frame)]
     pub max_frame: usize,
+    /// Viewers served at once; one past this is refused (DESIGN.md §8).
+    #[arg(long, default_value_t = defaults().viewer_port.max_connections)]
+    pub max_viewers: usize,
+    /// A viewer that has not completed its handshake within this many milliseconds is closed.
+    #[arg(long, default_value_t = defaults().viewer_port.handshake_deadline.as_millis() as u64)]
+    pub handshake_deadline_ms: u64,
 
     /// NLD_OS: first S_ref (§4.3.4).
     #[arg(long, default_value_t = criterion_defaults().s_ref_start)]
@@ -156,6 +163,10 @@ impl Cli {
             listen: self.listen.clone(),
             renderers: self.renderers.clone(),
             max_frame: self.max_frame,
+            viewer_port: PortLimits {
+                max_connections: self.max_viewers,
+                handshake_deadline: Duration::from_millis(self.handshake_deadline_ms),
+            },
             mesh: MeshParams {
                 min_edge_length: self.min_edge_length,
                 weld_tolerance_rel: self.weld_tolerance,

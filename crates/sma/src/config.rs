@@ -4,6 +4,7 @@
 
 use std::time::Duration;
 
+use protocol::admission::PortLimits;
 use protocol::frame::DEFAULT_MAX_FRAME;
 
 use crate::criteria::{CriterionKind, CriterionSettings};
@@ -18,6 +19,8 @@ pub struct SmaConfig {
     pub renderers: Vec<String>,
     /// Largest frame accepted or sent.
     pub max_frame: usize,
+    /// Viewers served at once on `listen`, and their handshake deadline.
+    pub viewer_port: PortLimits,
     pub mesh: MeshParams,
     pub schedule: ScheduleConfig,
 }
@@ -28,6 +31,7 @@ impl Default for SmaConfig {
             listen: "127.0.0.1:7200".into(),
             renderers: Vec::new(),
             max_frame: DEFAULT_MAX_FRAME,
+            viewer_port: PortLimits::default(),
             mesh: MeshParams::default(),
             schedule: ScheduleConfig::default(),
         }

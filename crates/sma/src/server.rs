@@ -7,6 +7,7 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use anyhow::Context;
+use protocol::admission::{Admission, ConnectionLimit};
 use tokio::net::TcpListener;
 use tokio::sync::{mpsc, watch};
 
@@ -79,6 +80,7 @@ pub async fn start(
         scene_info: scene_info(&scene, config.schedule.criterion),
         fingerprint: scene.fingerprint,
         max_frame: config.max_frame,
+        handshake_deadline: config.viewer_port.handshake_deadline,
     };
     let schedule = Schedule::new(config.schedule, &scene, mesh, gpu, pool);
     tracing::debug!(adapter = %schedule.adapter(), scene = %scene.name, "visibility device");
@@ -89,6 +91,7 @@ pub async fn start(
     let (viewer_tx, viewer_rx) = mpsc::unbounded_channel();
     tokio::spawn(accept_viewers(
         listener,
+        ConnectionLimit::new(config.viewer_port.max_connections),
         link,
         viewer_tx,
         shutdown_rx.clone(),
@@ -124,10 +127,12 @@ fn spawn_schedule(
         .context("starting the schedule thread")
 }
 
-/// Accepts viewers until shutdown. Accept errors (e.g. out of file descriptors) are logged and
-/// retried after a pause rather than ending the server.
+/// Accepts viewers until shutdown, as many at once as `limit` admits; past it a viewer is
+/// refused (DESIGN.md §8). Accept errors (e.g. out of file descriptors) are logged and retried
+/// after a pause rather than ending the server.
 async fn accept_viewers(
     listener: TcpListener,
+    limit: ConnectionLimit,
     config: ViewerLinkConfig,
     events: mpsc::UnboundedSender<ViewerEvent>,
     mut shutdown: watch::Receiver<bool>,
@@ -139,17 +144,33 @@ async fn accept_viewers(
             _ = shutdown.changed() => return,
         };
         match accepted {
-            Ok((stream, _)) => {
-                let task = viewer_link::serve(
-                    stream,
-                    next_id,
-                    config.clone(),
-                    events.clone(),
-                    shutdown.clone(),
-                );
-                tokio::spawn(task);
-                next_id += 1;
-            }
+            Ok((stream, peer)) => match limit.admit() {
+                Admission::Serve(permit) => {
+                    let task = viewer_link::serve(
+                        stream,
+                        next_id,
+                        config.clone(),
+                        events.clone(),
+                        shutdown.clone(),
+                    );
+                    tokio::spawn(async move {
+                        task.await;
+                        drop(permit);
+                    });
+                    next_id += 1;
+                }
+                Admission::Refuse(permit) => {
+                    tracing::warn!(%peer, "refusing a viewer: {}", limit.full_reason());
+                    let task = viewer_link::refuse(stream, limit.full_reason(), config.clone());
+                    tokio::spawn(async move {
+                        task.await;
+                        drop(permit);
+                    });
+                }
+                Admission::Close => {
+                    tracing::warn!(%peer, "closing a connection at once: too many being refused");
+                }
+            },
             Err(e) => {
                 tracing::warn!(error = %e, "accepting a viewer failed");
                 tokio::time::sleep(Duration::from_millis(100)).await;

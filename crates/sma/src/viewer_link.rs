@@ -3,7 +3,9 @@
 //! camera no renderer could use, gets an `Error` reply and this connection closes; every other
 //! viewer is unaffected.
 
-use protocol::connection::{SceneCheck, accept_handshake};
+use std::time::Duration;
+
+use protocol::connection::{SceneCheck, accept_handshake_within, refuse_handshake};
 use protocol::viewer_link::{Camera, SceneInfo, SkyInfo, SmaToViewer, SunInfo, ViewerToSma};
 use protocol::{Fingerprint, ProtocolError, Role, split_tcp};
 use tokio::net::TcpStream;
@@ -39,6 +41,8 @@ pub struct ViewerLinkConfig {
     pub scene_info: SceneInfo,
     pub fingerprint: Fingerprint,
     pub max_frame: usize,
+    /// A viewer that has not completed its handshake by then is closed (DESIGN.md §8).
+    pub handshake_deadline: Duration,
 }
 
 /// Serves one viewer until it leaves, breaks the protocol, or the server shuts down.
@@ -54,15 +58,16 @@ pub async fn serve(
         .map(|a| a.to_string())
         .unwrap_or_default();
     let (mut reader, mut writer) = split_tcp::<ViewerToSma, SmaToViewer>(stream, config.max_frame);
-    let handshake = accept_handshake(
+    let handshake = accept_handshake_within(
         &mut reader,
         &mut writer,
         Role::Sma,
         Role::Viewer,
         SceneCheck::Tell(config.fingerprint),
+        config.handshake_deadline,
     );
     if let Err(e) = handshake.await {
-        tracing::info!(viewer = id, %peer, error = %e, "viewer handshake failed");
+        tracing::warn!(viewer = id, %peer, error = %e, "viewer handshake failed");
         return;
     }
     if writer
@@ -110,6 +115,12 @@ pub async fn serve(
     }
     let _ = events.send(ViewerEvent::Left { id });
     tracing::info!(viewer = id, %peer, "viewer left");
+}
+
+/// Tells a viewer that arrived past the connection bound that it is refused, then closes.
+pub async fn refuse(stream: TcpStream, reason: String, config: ViewerLinkConfig) {
+    let (mut reader, mut writer) = split_tcp::<ViewerToSma, SmaToViewer>(stream, config.max_frame);
+    refuse_handshake(&mut reader, &mut writer, reason, config.handshake_deadline).await;
 }
 
 /// Rejects messages that decode but that the SMA cannot act on.

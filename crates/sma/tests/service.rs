@@ -560,3 +560,149 @@ async fn a_nan_point_is_asked_again_and_never_shown_black() {
     assert_eq!(differs, 0, "every visible triangle is shown");
     sma.stop().await.unwrap();
 }
+
+/// Follows `probe`'s epochs until `done`, checking at every one, not only the idle ones, that the
+/// table is a conforming set (no overlap, no T-junction) and, from the first epoch in which
+/// `camera`'s view was complete on, that it covers what the base mesh covers from there
+/// (DESIGN.md §3 step 6, §4: the viewer never shows a hole).
+async fn epochs_without_holes(
+    probe: &mut Probe,
+    scene: &Scene,
+    camera: &Camera,
+    mut done: impl FnMut(&protocol::viewer_link::Epoch) -> bool,
+) -> protocol::viewer_link::Epoch {
+    let want = scene_coverage(scene, camera);
+    let mut complete = false;
+    loop {
+        let epoch = tokio::time::timeout(WAIT, probe.next_epoch())
+            .await
+            .expect("an epoch")
+            .unwrap();
+        if let Some(problem) = probe.conformity_problem() {
+            panic!("not conforming at {epoch:?}: {problem}");
+        }
+        complete |= epoch.camera_seq == camera.seq && epoch.outstanding == 0;
+        if complete {
+            let holes = differing(&want, &shown_coverage(scene, probe, camera));
+            // As above: a few edge pixels of midpoints rounded to f32 may flip.
+            assert!(
+                holes <= (W * H) as usize / 1000,
+                "{holes} pixels differ from the visible surface at {epoch:?}"
+            );
+        }
+        if epoch.camera_seq == camera.seq && done(&epoch) {
+            return epoch;
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn no_holes_at_any_epoch_while_refining_moving_and_coarsening() {
+    if !gpu_available() {
+        return;
+    }
+    let scene = diffuse_wall();
+    let (renderer, _) = fake_renderer(scene.clone(), Fault::None).await;
+    let mut config = config(vec![renderer], true);
+    config.schedule.coarsen_after_passes = 3;
+    let (sma, mut probe) = start_with_probe(&config, &scene).await;
+    let front = probe.view("front", W, H).await.unwrap();
+    let refined = epochs_without_holes(&mut probe, &scene, &front, |e| {
+        e.outstanding == 0 && e.shown >= 40
+    })
+    .await;
+    // Moving while refining: the side view refines on from what the front view left.
+    let side = probe.view("side", W, H).await.unwrap();
+    epochs_without_holes(&mut probe, &scene, &side, |e| {
+        e.outstanding == 0 && e.shown > refined.shown
+    })
+    .await;
+    // Looking away long enough coarsens everything back to the base mesh ...
+    probe.send(ViewerToSma::Pause).await.unwrap();
+    for _ in 0..4 {
+        let away = probe.view("away", W, H).await.unwrap();
+        epochs_without_holes(&mut probe, &scene, &away, |e| e.outstanding == 0).await;
+    }
+    let back = probe.view("front", W, H).await.unwrap();
+    let coarse = epochs_without_holes(&mut probe, &scene, &back, |e| e.outstanding == 0).await;
+    assert_eq!(coarse.shown, 4, "coarsened back to the base mesh");
+    // ... and refinement starts again from there.
+    probe.send(ViewerToSma::Resume).await.unwrap();
+    epochs_without_holes(&mut probe, &scene, &back, |e| {
+        e.outstanding == 0 && e.shown >= 40
+    })
+    .await;
+    sma.stop().await.unwrap();
+}
+
+fn black(_: Vec3, _: Side, _: Quality, _: Option<Vec3>) -> [f32; 3] {
+    [0.0; 3]
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_all_black_scene_is_shown_black_under_every_criterion_without_a_stall() {
+    if !gpu_available() {
+        return;
+    }
+    // L_max = 0: eq. 4.3 divides by L_max², the tone map by log(1 + L_white).
+    let scene = diffuse_wall();
+    let (renderer, _) = fake_renderer::start(scene.clone(), black, Fault::None).await;
+    let (sma, mut probe) = start_with_probe(&config(vec![renderer], true), &scene).await;
+    for criterion in probe.scene.criteria.clone() {
+        probe
+            .send(ViewerToSma::SetCriterion { name: criterion })
+            .await
+            .unwrap();
+        // Each view is answered in full while refinement runs on black samples.
+        for name in ["front", "side"] {
+            view_completely(&mut probe, name).await;
+        }
+        assert!(probe.table.values().all(|t| t.radiance == [[0.0; 3]; 3]));
+        assert!(probe.conformity_problem().is_none());
+    }
+    assert_eq!(probe.l_white, None, "no white point of 0 is ever sent");
+    sma.stop().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cameras_at_the_extremes_are_answered_in_full() {
+    if !gpu_available() {
+        return;
+    }
+    let scene = diffuse_wall();
+    let (renderer, _) = fake_renderer(scene.clone(), Fault::None).await;
+    let (sma, mut probe) = start_with_probe(&config(vec![renderer], true), &scene).await;
+    let at = |eye: [f32; 3], target: [f32; 3], fov_y_deg: f32| protocol::types::Viewpoint {
+        name: String::new(),
+        eye,
+        target,
+        up: [0.0, 1.0, 0.0],
+        fov_y_deg,
+    };
+    let cameras = [
+        // fov at 1° and at 170°.
+        at([0.3, 1.2, 4.0], [0.0, 0.8, 0.0], 1.0),
+        at([0.3, 1.2, 4.0], [0.0, 0.8, 0.0], 170.0),
+        // On the wall's surface, looking along it and away from it.
+        at([0.0, 1.0, 0.0], [1.0, 1.0, 0.0], 60.0),
+        at([0.0, 1.0, 0.0], [0.0, 1.0, 4.0], 60.0),
+        // On the floor, and under it (inside the ground) looking up through it.
+        at([0.5, 0.0, 2.0], [0.0, 0.8, 0.0], 60.0),
+        at([0.5, -0.5, 2.0], [0.0, 0.8, 0.0], 60.0),
+    ];
+    for viewpoint in cameras {
+        let camera = probe
+            .camera(Camera::from_viewpoint(&viewpoint, 0, W, H))
+            .await
+            .unwrap();
+        let epoch = probe
+            .complete(camera.seq, WAIT)
+            .await
+            .unwrap_or_else(|e| panic!("{viewpoint:?}: {e:#}"));
+        assert!(
+            probe.conformity_problem().is_none(),
+            "{viewpoint:?}: {epoch:?}"
+        );
+    }
+    sma.stop().await.unwrap();
+}

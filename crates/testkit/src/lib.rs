@@ -3,6 +3,7 @@
 //!
 //! - [`child`]: a server started as a child process, with the address it reports;
 //! - [`loopback`]: renderer(s) and SMA as child processes, and a headless viewer run against them;
+//! - [`liar`]: peers that lie before their handshake, and the refusal they get;
 //! - [`probe`]: a scripted viewer that checks every update the SMA sends;
 //! - [`fake_renderer`]: a renderer stand-in that shades a known function and logs requests;
 //! - [`fake_sma`]: an SMA stand-in that sends what a viewer test queues and reports what it hears;
@@ -14,5 +15,6 @@ pub mod fake_renderer;
 pub mod fake_sma;
 pub mod gpu;
 pub mod ground_truth;
+pub mod liar;
 pub mod loopback;
 pub mod probe;

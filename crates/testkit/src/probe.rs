@@ -206,6 +206,38 @@ impl Probe {
     /// Pairs of shown triangles whose interiors overlap (coplanar and intersecting): a parent
     /// shown with its child, or two sides of one leaf. Shared edges and corners do not count.
     pub fn overlaps(&self) -> Vec<(TriangleId, TriangleId)> {
+        self.pairs_where(coplanar_overlap)
+    }
+
+    /// Pairs (a, b) of shown coplanar triangles where a corner of `a` lies inside an edge of `b`:
+    /// a T-junction, the crack a partial refinement closure would show (DESIGN.md §4). Only
+    /// coplanar pairs are judged: a wall standing on a floor may have its foot on a floor edge
+    /// without being stitched to it, and no test of positions alone tells that apart from a crack
+    /// at a crease.
+    pub fn t_junctions(&self) -> Vec<(TriangleId, TriangleId)> {
+        self.pairs_where(|a, b| t_junction(a, b) || t_junction(b, a))
+    }
+
+    /// Why the table is not a conforming set of leaves (DESIGN.md §4: no overlap and no
+    /// T-junction between shown triangles), if it is not.
+    pub fn conformity_problem(&self) -> Option<String> {
+        let overlaps = self.overlaps();
+        let junctions = self.t_junctions();
+        (!overlaps.is_empty() || !junctions.is_empty()).then(|| {
+            format!(
+                "{} overlapping pairs (first {:?}), {} T-junctions (first {:?})",
+                overlaps.len(),
+                overlaps.first(),
+                junctions.len(),
+                junctions.first()
+            )
+        })
+    }
+
+    fn pairs_where(
+        &self,
+        related: impl Fn(&[Vec3; 3], &[Vec3; 3]) -> bool,
+    ) -> Vec<(TriangleId, TriangleId)> {
         let tris: Vec<(TriangleId, [Vec3; 3])> = self
             .table
             .values()
@@ -214,7 +246,7 @@ impl Probe {
         let mut out = Vec::new();
         for (i, (a_id, a)) in tris.iter().enumerate() {
             for (b_id, b) in &tris[i + 1..] {
-                if coplanar_overlap(a, b) {
+                if related(a, b) {
                     out.push((*a_id, *b_id));
                 }
             }
@@ -223,25 +255,53 @@ impl Probe {
     }
 }
 
-/// Whether two triangles lie in one plane and their interiors meet (separating-axis test in
-/// the plane, with a tolerance so that touching edges are not an overlap).
-fn coplanar_overlap(a: &[Vec3; 3], b: &[Vec3; 3]) -> bool {
-    let n = (a[1] - a[0]).cross(a[2] - a[0]);
+/// The tolerance of the geometric tests: a small fraction of the triangles' size, so that
+/// midpoints rounded to f32 still meet.
+fn tolerance(a: &[Vec3; 3], b: &[Vec3; 3]) -> f32 {
     let scale = (a[1] - a[0])
         .length()
         .max((b[1] - b[0]).length())
         .max(1e-12);
-    let Some(n) = n.try_normalize() else {
-        return false;
-    };
-    if b.iter().any(|p| (p - a[0]).dot(n).abs() > 1e-4 * scale) {
+    1e-4 * scale
+}
+
+/// `b`'s corners lie in `a`'s plane; the plane's unit normal when they do.
+fn common_plane(a: &[Vec3; 3], b: &[Vec3; 3]) -> Option<Vec3> {
+    let n = (a[1] - a[0]).cross(a[2] - a[0]).try_normalize()?;
+    let eps = tolerance(a, b);
+    b.iter()
+        .all(|p| (p - a[0]).dot(n).abs() <= eps)
+        .then_some(n)
+}
+
+/// Whether a corner of `a` lies strictly inside an edge of `b`, the two being coplanar.
+fn t_junction(a: &[Vec3; 3], b: &[Vec3; 3]) -> bool {
+    if common_plane(a, b).is_none() {
         return false;
     }
+    let eps = tolerance(a, b);
+    a.iter().any(|p| {
+        (0..3).any(|k| {
+            let (q, r) = (b[k], b[(k + 1) % 3]);
+            let edge = r - q;
+            let t = (p - q).dot(edge) / edge.length_squared().max(1e-24);
+            let inside = t * edge.length() > eps && (1.0 - t) * edge.length() > eps;
+            inside && (q + t * edge).distance(*p) <= eps
+        })
+    })
+}
+
+/// Whether two triangles lie in one plane and their interiors meet (separating-axis test in
+/// the plane, with a tolerance so that touching edges are not an overlap).
+fn coplanar_overlap(a: &[Vec3; 3], b: &[Vec3; 3]) -> bool {
+    let Some(n) = common_plane(a, b) else {
+        return false;
+    };
     let u = (a[1] - a[0]).normalize();
     let v = n.cross(u);
     let flat = |t: &[Vec3; 3]| t.map(|p| glam::Vec2::new((p - a[0]).dot(u), (p - a[0]).dot(v)));
     let (pa, pb) = (flat(a), flat(b));
-    let eps = 1e-4 * scale;
+    let eps = tolerance(a, b);
     for tri in [&pa, &pb] {
         for k in 0..3 {
             let e = tri[(k + 1) % 3] - tri[k];
@@ -284,5 +344,29 @@ mod tests {
         );
         assert!(!coplanar_overlap(&parent, &corner_only));
         assert!(!coplanar_overlap(&parent, &lifted), "another plane");
+    }
+
+    #[test]
+    fn a_corner_inside_a_coplanar_edge_is_a_t_junction() {
+        // A square's two halves; the lower one bisected at its hypotenuse's midpoint while the
+        // upper one is not: the midpoint lies inside the upper half's edge.
+        let upper = t([[2.0, 0.0, 0.0], [2.0, 2.0, 0.0], [0.0, 2.0, 0.0]]);
+        let lower_a = t([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 1.0, 0.0]]);
+        let lower_b = t([[0.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 2.0, 0.0]]);
+        let lower = t([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0]]);
+        assert!(t_junction(&lower_a, &upper));
+        assert!(t_junction(&lower_b, &upper));
+        assert!(
+            !t_junction(&upper, &lower_a),
+            "no corner of the upper half is inside"
+        );
+        assert!(
+            !t_junction(&lower, &upper),
+            "a shared whole edge is conforming"
+        );
+        assert!(!t_junction(&upper, &lower));
+        // The same corner beside a triangle in another plane (a wall's foot on a floor edge).
+        let wall = t([[1.0, 1.0, 0.0], [1.0, 1.0, 1.0], [0.0, 2.0, 1.0]]);
+        assert!(!t_junction(&wall, &upper));
     }
 }

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use protocol::ProtocolError;
-use protocol::connection::{SceneCheck, accept_handshake, split_tcp};
+use protocol::connection::{SceneCheck, accept_handshake_within, refuse_handshake, split_tcp};
 use protocol::handshake::Role;
 use protocol::renderer_link::{FromRenderer, ShadeBatch, ToRenderer};
 use tokio::net::TcpStream;
@@ -23,12 +23,13 @@ pub async fn handle(
 ) -> Result<(), ProtocolError> {
     let (mut reader, mut writer) = split_tcp::<ToRenderer, FromRenderer>(stream, service.max_frame);
     let fingerprint = service.world.scene.fingerprint;
-    accept_handshake(
+    accept_handshake_within(
         &mut reader,
         &mut writer,
         Role::Renderer,
         Role::Sma,
         SceneCheck::Same(fingerprint),
+        service.port.handshake_deadline,
     )
     .await?;
 
@@ -73,6 +74,18 @@ pub async fn handle(
         send_loop.abort();
     }
     outcome
+}
+
+/// Tells an SMA that arrived past the connection bound that it is refused, then closes.
+pub async fn refuse(stream: TcpStream, service: &Service, reason: String) {
+    let (mut reader, mut writer) = split_tcp::<ToRenderer, FromRenderer>(stream, service.max_frame);
+    refuse_handshake(
+        &mut reader,
+        &mut writer,
+        reason,
+        service.port.handshake_deadline,
+    )
+    .await;
 }
 
 /// A batch the renderer will not take (it is well-formed but asks for something unreasonable).

@@ -7,6 +7,7 @@ mod connection;
 use std::future::Future;
 use std::sync::Arc;
 
+use protocol::admission::{Admission, ConnectionLimit, PortLimits};
 use tokio::net::TcpListener;
 use tokio::sync::watch;
 use tokio::task::JoinSet;
@@ -23,6 +24,8 @@ pub struct Service {
     pub world: Arc<World>,
     pub pool: Arc<rayon::ThreadPool>,
     pub max_frame: usize,
+    /// SMAs served at once, and their handshake deadline (DESIGN.md §8).
+    pub port: PortLimits,
 }
 
 impl Service {
@@ -36,6 +39,7 @@ impl Service {
             world,
             pool: Arc::new(pool),
             max_frame,
+            port: PortLimits::default(),
         })
     }
 
@@ -49,23 +53,39 @@ impl Service {
         let service = Arc::new(self);
         let (stop_tx, stop_rx) = watch::channel(false);
         let mut connections = JoinSet::new();
+        let limit = ConnectionLimit::new(service.port.max_connections);
         tokio::pin!(shutdown);
         loop {
             tokio::select! {
                 _ = &mut shutdown => break,
                 accepted = listener.accept() => match accepted {
-                    Ok((stream, peer)) => {
-                        tracing::debug!(%peer, "SMA connected");
-                        let service = Arc::clone(&service);
-                        let stop = stop_rx.clone();
-                        connections.spawn(async move {
-                            if let Err(e) = connection::handle(stream, service, stop).await {
-                                tracing::warn!(%peer, "connection ended: {e}");
-                            } else {
-                                tracing::debug!(%peer, "connection closed");
-                            }
-                        });
-                    }
+                    Ok((stream, peer)) => match limit.admit() {
+                        Admission::Serve(permit) => {
+                            tracing::debug!(%peer, "SMA connected");
+                            let service = Arc::clone(&service);
+                            let stop = stop_rx.clone();
+                            connections.spawn(async move {
+                                if let Err(e) = connection::handle(stream, service, stop).await {
+                                    tracing::warn!(%peer, "connection ended: {e}");
+                                } else {
+                                    tracing::debug!(%peer, "connection closed");
+                                }
+                                drop(permit);
+                            });
+                        }
+                        Admission::Refuse(permit) => {
+                            let reason = limit.full_reason();
+                            tracing::warn!(%peer, "refusing an SMA: {reason}");
+                            let service = Arc::clone(&service);
+                            connections.spawn(async move {
+                                connection::refuse(stream, &service, reason).await;
+                                drop(permit);
+                            });
+                        }
+                        Admission::Close => {
+                            tracing::warn!(%peer, "closing a connection at once: too many being refused");
+                        }
+                    },
                     // Transient accept errors (e.g. too many open files) must not end the server.
                     Err(e) => tracing::warn!("accept failed: {e}"),
                 },
