@@ -16,6 +16,11 @@ use crate::launch::LaunchConfig;
     name = "walkthrough",
     version,
     about = "Interactive walkthroughs with progressive global illumination",
+    long_about = "Interactive walkthroughs with progressive global illumination. Without a \
+                  subcommand, runs a renderer, the SMA and a viewer on this machine: in a window \
+                  when a display is there, else headless, writing snapshots.",
+    after_help = "Renderer, SMA and viewers on several machines: see \"Running on three machines \
+                  of a LAN\" in the README.",
     args_conflicts_with_subcommands = true
 )]
 pub struct Cli {
@@ -44,7 +49,10 @@ pub enum Command {
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        None => crate::launch::run(cli.launch.config()),
+        None => {
+            conventions::logging::init();
+            crate::launch::run(cli.launch.config())
+        }
         Some(Command::Renderer(c)) => renderer::cli::run(c),
         Some(Command::Sma(c)) => sma::cli::run(c),
         Some(Command::Viewer(c)) => viewer::cli::run(c),
@@ -85,8 +93,10 @@ pub struct LaunchArgs {
     /// Number of renderer processes; the cores are shared among them.
     #[arg(long, default_value_t = 1)]
     pub renderers: usize,
+    /// Image width in pixels (window or snapshots).
     #[arg(long, default_value_t = 1024)]
     pub width: u32,
+    /// Image height in pixels.
     #[arg(long, default_value_t = 768)]
     pub height: u32,
     /// Stop after this many seconds (headless default: 20; a window runs until closed).

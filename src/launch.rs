@@ -2,6 +2,10 @@
 //! processes of this same binary, wired over loopback, on the built-in scene. In a window when a
 //! display is there; headless otherwise, writing snapshots into a folder. The servers bind port 0
 //! and report the port they got (`conventions::listening`), which the launcher passes on.
+//!
+//! The launcher's terminal shows the children's log lines (one format, `conventions::logging`)
+//! and one progress line that the viewer feeds through its stdout (`viewer::progress`): the
+//! launcher reads a line protocol instead of joining the SMA link itself.
 
 use std::path::PathBuf;
 use std::process::Stdio;
@@ -41,10 +45,6 @@ fn has_display() -> bool {
 /// How long a server may take to report its address (scene load, BVH build, wgpu start on Mesa).
 const START_TIMEOUT: Duration = Duration::from_secs(120);
 
-fn child(args: &[String]) -> anyhow::Result<Child> {
-    spawn(args, Stdio::inherit())
-}
-
 fn spawn(args: &[String], stdout: Stdio) -> anyhow::Result<Child> {
     let exe = std::env::current_exe().context("locating the walkthrough binary")?;
     Command::new(exe)
@@ -61,11 +61,12 @@ fn server(args: &[String]) -> anyhow::Result<Child> {
     spawn(args, Stdio::piped())
 }
 
-/// The address `server` reports; the rest of its stdout goes on to ours.
+/// The address `server` reports. Its stdout carries nothing else for a person (its log goes to
+/// stderr), so the rest is drained and dropped.
 fn listening_addr(server: &mut Child) -> anyhow::Result<String> {
     let stdout = server.stdout.take().context("the server's stdout")?;
     let stdout = std::fs::File::from(stdout.into_owned_fd()?);
-    let addr = conventions::listening::read_addr(stdout, std::io::stdout(), START_TIMEOUT)
+    let addr = conventions::listening::read_addr(stdout, std::io::sink(), START_TIMEOUT)
         .context("waiting for a server's address")?;
     Ok(addr.to_string())
 }
@@ -115,7 +116,7 @@ async fn run_async(args: LaunchConfig) -> anyhow::Result<()> {
     servers.push(sma);
 
     let headless = args.headless || !has_display();
-    let mut viewer = strings(&["viewer", "--connect", &sma_addr]);
+    let mut viewer = strings(&["viewer", "--connect", &sma_addr, "--progress"]);
     viewer.extend(strings(&[
         "--width",
         &args.width.to_string(),
@@ -131,9 +132,13 @@ async fn run_async(args: LaunchConfig) -> anyhow::Result<()> {
     if headless {
         let out = args.out.clone().unwrap_or_else(default_out_dir);
         std::fs::create_dir_all(&out)?;
-        println!(
-            "no display: running headless; snapshots go to {}",
-            out.display()
+        tracing::info!(
+            "{}: running headless",
+            if args.headless {
+                "--headless"
+            } else {
+                "no display"
+            }
         );
         viewer.extend(strings(&[
             "--headless",
@@ -143,12 +148,15 @@ async fn run_async(args: LaunchConfig) -> anyhow::Result<()> {
             &out.to_string_lossy(),
         ]));
     }
-    let mut viewer = child(&viewer)?;
+    let mut viewer = spawn(&viewer, Stdio::piped())?;
+    let progress = viewer.stdout.take().context("the viewer's stdout")?;
+    let progress = std::fs::File::from(progress.into_owned_fd()?);
+    let progress = std::thread::spawn(move || crate::progress_bar::show(progress));
 
     let (outcome, interrupted) = tokio::select! {
         status = viewer.wait() => (status.map(|s| s.success()), false),
         signal = termination_signal() => {
-            println!("{signal}: stopping the viewer, the SMA and the renderers…");
+            tracing::info!("{signal}: stopping the viewer, the SMA and the renderers…");
             (Ok(true), true)
         }
     };
@@ -156,6 +164,14 @@ async fn run_async(args: LaunchConfig) -> anyhow::Result<()> {
         servers.push(viewer);
     }
     stop_all(&mut servers, interrupted).await;
+    if let Ok(Some(last)) = progress.join() {
+        tracing::info!(
+            samples = last.samples,
+            shown = last.shown,
+            state = %last.state,
+            "the run is over"
+        );
+    }
     match outcome? {
         true => Ok(()),
         false => anyhow::bail!("the viewer exited with an error"),
@@ -187,7 +203,8 @@ async fn stop_all(children: &mut [Child], ask_first: bool) {
         }
     }
     let deadline = tokio::time::Instant::now() + Duration::from_secs(3);
-    for child in children {
+    // Last started, first stopped: the SMA before its renderers, so it does not report them lost.
+    for child in children.iter_mut().rev() {
         if ask_first
             && tokio::time::timeout_at(deadline, child.wait())
                 .await
@@ -196,7 +213,7 @@ async fn stop_all(children: &mut [Child], ask_first: bool) {
             continue;
         }
         if ask_first {
-            eprintln!("walkthrough: a child did not stop within 3 s: killing it");
+            tracing::warn!("a child did not stop within 3 s: killing it");
         }
         let _ = child.kill().await;
     }

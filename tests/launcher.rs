@@ -12,6 +12,9 @@ use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 const MARKER: &str = "WALKTHROUGH_LAUNCHER_TEST";
+/// What the default run may print besides the progress line: the headless notice, the
+/// connections, where snapshots go, the first picture, convergence, the end.
+const MAX_LINES: usize = 10;
 
 /// The launcher in `dir` (its default snapshot folder is relative), without a display.
 fn launcher(dir: &Path, marker: &str, args: &[&str]) -> Command {
@@ -20,6 +23,7 @@ fn launcher(dir: &Path, marker: &str, args: &[&str]) -> Command {
         .current_dir(dir)
         .env_remove("DISPLAY")
         .env_remove("WAYLAND_DISPLAY")
+        .env_remove("RUST_LOG")
         .env(MARKER, marker)
         .stdin(Stdio::null());
     cmd
@@ -92,15 +96,31 @@ fn no_arguments_runs_headless_writes_snapshots_and_leaves_nothing_behind() {
         .output()
         .expect("starting the launcher");
     let stdout = String::from_utf8_lossy(&output.stdout);
+    let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(
         output.status.success(),
-        "walkthrough exited with {}:\n{stdout}\n{}",
+        "walkthrough exited with {}:\n{stdout}\n{stderr}",
         output.status,
-        String::from_utf8_lossy(&output.stderr)
     );
+    // Not a terminal here: the progress line stays hidden, and what is left is all a person
+    // reads of the run (DESIGN.md §2: one command shows the system working).
+    let lines: Vec<&str> = stdout.lines().chain(stderr.lines()).collect();
     assert!(
-        stdout.contains("running headless"),
-        "no word of the headless run: {stdout}"
+        lines.len() <= MAX_LINES,
+        "{} lines, more than a handful:\n{}",
+        lines.len(),
+        lines.join("\n")
+    );
+    let said = |words: &str| lines.iter().any(|l| l.contains(words));
+    assert!(said("running headless"), "no word of the headless run");
+    assert!(
+        said("snapshots go to out/run-"),
+        "no word of where the snapshots go"
+    );
+    assert!(said("first picture"), "no word of the first picture");
+    assert!(
+        !stderr.contains('\x1b'),
+        "colour codes in a log that is not a terminal"
     );
     let shots = snapshots(dir.path());
     assert!(

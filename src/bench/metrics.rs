@@ -1,7 +1,10 @@
 //! The error of a viewer image against a view's ground truth, on the fixed terms of DESIGN.md §10:
 //! both linear images are tone-mapped the same way (Drago, eq. 4.2, with the ground truth's L_white,
 //! then sRGB), and the error is the mean LDR-FLIP (67 pixels per degree) and the RMSE over the
-//! pixels that see geometry. Pixels that see no geometry are left out of every error.
+//! pixels that see geometry. Pixels that see no geometry are left out of every error: the viewer
+//! draws the sky there (its EXR marks them with alpha 0), the ground truth the sky too (its alpha
+//! is the renderer's coverage), and the mask is the ground truth's coverage, so neither sky enters
+//! an error.
 
 use std::path::Path;
 

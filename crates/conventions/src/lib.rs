@@ -6,6 +6,7 @@
 //! - [`luminance`]: Rec. 709 luminance (DESIGN.md §6: one set of weights everywhere);
 //! - [`tone_map`]: Drago (eq. 4.2) and Reinhard (eq. 4.1) on luminance, colour kept, and sRGB
 //!   encoding (DESIGN.md §9); the viewer's WGSL restates them and a test holds it to these;
+//! - [`logging`]: the one log format of all processes (tracing, `RUST_LOG`, colour on a terminal);
 //! - [`listening`]: the `listening on ADDR` line a server prints once bound, and reading it back;
 //! - [`require_gpu`]: when a check that finds no wgpu adapter fails rather than skips.
 //!
@@ -13,6 +14,7 @@
 
 pub mod camera;
 pub mod listening;
+pub mod logging;
 pub mod luminance;
 pub mod require_gpu;
 pub mod tone_map;

@@ -14,6 +14,14 @@ pub enum ToneMap {
 }
 
 impl ToneMap {
+    /// The operator's name, as the viewer's panel and flags spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            ToneMap::Drago => "drago",
+            ToneMap::Reinhard => "reinhard",
+        }
+    }
+
     /// The other operator (the window's key toggles between them).
     pub fn next(self) -> ToneMap {
         match self {

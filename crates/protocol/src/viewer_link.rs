@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::frame::WireMessage;
+use crate::renderer_link::Quality;
 
 use crate::types::{Bounds, Fingerprint, Rgb, Vec3f, Viewpoint};
 
@@ -79,6 +80,30 @@ pub struct SceneInfo {
     pub viewpoints: Vec<Viewpoint>,
     /// Criteria the SMA offers, the active one first.
     pub criteria: Vec<String>,
+    /// What a ray that meets no geometry sees, so the viewer draws it behind the triangles
+    /// (DESIGN.md §7: the renderer's sky and sun).
+    pub sky: SkyInfo,
+    /// The quality the scene's samples aim at (paths per sample, bounce depth; DESIGN.md §7).
+    pub quality: Quality,
+}
+
+/// The scene's sky as the renderer lights with it: radiance over the upper hemisphere (+Y up,
+/// black below the horizon) and an optional sun disc.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SkyInfo {
+    /// Linear RGB radiance of the upper hemisphere; zero for a scene without a sky.
+    pub radiance: Rgb,
+    pub sun: Option<SunInfo>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SunInfo {
+    /// Unit direction toward the sun.
+    pub direction: Vec3f,
+    /// Linear RGB radiance of the disc.
+    pub radiance: Rgb,
+    /// Angular diameter of the disc, degrees.
+    pub angular_diameter_deg: f32,
 }
 
 /// viewer -> SMA.

@@ -15,7 +15,8 @@ use protocol::renderer_link::{
 };
 use protocol::types::{Bounds, Viewpoint};
 use protocol::viewer_link::{
-    Camera, Epoch, Recolour, SceneInfo, ShownTriangle, SmaToViewer, Stats, ViewerToSma,
+    Camera, Epoch, Recolour, SceneInfo, ShownTriangle, SkyInfo, SmaToViewer, Stats, SunInfo,
+    ViewerToSma,
 };
 use protocol::{Hello, HelloReply, PROTOCOL_VERSION, Role, Side};
 use serde::Serialize;
@@ -251,6 +252,18 @@ fn viewer_link_seeds() -> Vec<(String, Vec<u8>)> {
                     fov_y_deg: 39.3,
                 }],
                 criteria: vec!["nld-os".into(), "rnd".into()],
+                sky: SkyInfo {
+                    radiance: [0.6, 0.7, 1.0],
+                    sun: Some(SunInfo {
+                        direction: [0.0, 0.6, 0.8],
+                        radiance: [1.6e5, 1.5e5, 1.3e5],
+                        angular_diameter_deg: 0.53,
+                    }),
+                },
+                quality: Quality {
+                    paths: 64,
+                    bounces: Some(2),
+                },
             }),
         ),
         (

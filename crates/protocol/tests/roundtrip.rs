@@ -13,6 +13,16 @@ fn finite() -> impl Strategy<Value = f32> {
 fn v3() -> impl Strategy<Value = [f32; 3]> {
     [finite(), finite(), finite()]
 }
+
+fn sky() -> impl Strategy<Value = SkyInfo> {
+    let sun =
+        (v3(), v3(), finite()).prop_map(|(direction, radiance, angular_diameter_deg)| SunInfo {
+            direction,
+            radiance,
+            angular_diameter_deg,
+        });
+    (v3(), prop::option::of(sun)).prop_map(|(radiance, sun)| SkyInfo { radiance, sun })
+}
 fn side() -> impl Strategy<Value = Side> {
     prop_oneof![Just(Side::Front), Just(Side::Back)]
 }
@@ -143,17 +153,23 @@ fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
             v3(),
             v3(),
             prop::collection::vec(viewpoint(), 0..4),
-            prop::collection::vec("[a-z-]{1,8}", 0..4)
+            prop::collection::vec("[a-z-]{1,8}", 0..4),
+            sky(),
+            (1u32..1024, prop::option::of(0u32..8))
         )
-            .prop_map(|(name, fingerprint, min, max, viewpoints, criteria)| {
-                SmaToViewer::SceneInfo(SceneInfo {
-                    name,
-                    fingerprint,
-                    bounds: Bounds { min, max },
-                    viewpoints,
-                    criteria,
-                })
-            }),
+            .prop_map(
+                |(name, fingerprint, min, max, viewpoints, criteria, sky, (paths, bounces))| {
+                    SmaToViewer::SceneInfo(SceneInfo {
+                        name,
+                        fingerprint,
+                        bounds: Bounds { min, max },
+                        viewpoints,
+                        criteria,
+                        sky,
+                        quality: Quality { paths, bounces },
+                    })
+                }
+            ),
         prop::collection::vec(shown(), 0..40)
             .prop_map(|triangles| SmaToViewer::Insert { triangles }),
         prop::collection::vec(any::<u64>(), 0..100).prop_map(|ids| SmaToViewer::Remove { ids }),

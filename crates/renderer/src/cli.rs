@@ -19,7 +19,9 @@ use crate::world::World;
 #[derive(Parser, Debug, Clone)]
 #[command(
     name = "renderer",
-    about = "Path-tracing service for object-space shading requests, and reference images"
+    about = "Path-tracing service for object-space shading requests, and reference images",
+    after_help = "Renderer, SMA and viewers on several machines: see \"Running on three machines \
+                  of a LAN\" in the README."
 )]
 pub struct Cli {
     #[command(subcommand)]
@@ -52,13 +54,16 @@ pub enum Command {
     },
     /// Render a named viewpoint per pixel with the same estimator: linear EXR plus a PNG beside it.
     Reference {
+        /// Scene file (TOML) or built-in name ("bracara", "cornell").
         #[arg(long, default_value = "bracara")]
         scene: String,
         /// Viewpoint name from the scene.
         #[arg(long)]
         view: String,
+        /// Image width in pixels.
         #[arg(long, default_value_t = 1024)]
         width: u32,
+        /// Image height in pixels.
         #[arg(long, default_value_t = 768)]
         height: u32,
         /// Paths per pixel.
@@ -70,6 +75,7 @@ pub enum Command {
         /// Output EXR path; the PNG is written beside it.
         #[arg(long)]
         out: PathBuf,
+        /// Seed of the random stream (the same seed gives the same image).
         #[arg(long, default_value_t = 1)]
         seed: u64,
         /// Tone-mapping white for the PNG (default: the largest luminance among pixels that see
@@ -100,12 +106,7 @@ impl std::str::FromStr for BounceDepth {
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
-    let _ = tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
-        )
-        .with_writer(std::io::stderr)
-        .try_init();
+    conventions::logging::init();
     // A malformed or unavailable forced level is a plain error here, not the panic of the first
     // BVH built.
     VectorLevel::choose(std::env::var(vector_level::VAR).ok().as_deref())
@@ -153,7 +154,7 @@ fn load_world(spec: &str) -> anyhow::Result<World> {
     let start = Instant::now();
     let scene = scene::load(spec).with_context(|| format!("loading scene {spec:?}"))?;
     let world = World::new(scene);
-    tracing::info!(
+    tracing::debug!(
         scene = %world.scene.name,
         triangles = world.triangle_count(),
         bvh_ms = world.bvh.build_time().as_secs_f64() * 1e3,
@@ -186,7 +187,7 @@ fn serve(
         let addr = listener.local_addr()?;
         // The launcher and tests read this line to learn the port when `--listen` asks for port 0.
         conventions::listening::announce("renderer", addr)?;
-        tracing::info!(%addr, "renderer serving");
+        tracing::debug!(%addr, "renderer serving");
         service
             .serve(listener, async {
                 let _ = tokio::signal::ctrl_c().await;

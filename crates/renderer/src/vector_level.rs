@@ -70,7 +70,7 @@ impl VectorLevel {
         *SELECTED.get_or_init(|| {
             let forced = std::env::var(VAR).ok();
             let level = VectorLevel::choose(forced.as_deref()).unwrap_or_else(|e| panic!("{e}"));
-            tracing::info!(
+            tracing::debug!(
                 level = level.name(),
                 forced = forced.is_some(),
                 "ray traversal vector level"

@@ -37,7 +37,12 @@ fn criterion_parser() -> impl TypedValueParser<Value = CriterionKind> {
 #[derive(Parser, Debug, Clone)]
 #[command(
     name = "sma",
-    about = "Shading Management Agent: visibility, shading cache, refinement"
+    about = "Shading Management Agent: visibility, shading cache, refinement",
+    long_about = "Shading Management Agent (SMA): loads the scene, asks the renderers for samples \
+                  of what the viewers see, caches them and refines where shading varies. It \
+                  connects to renderers (--renderer) and accepts viewers (--listen).",
+    after_help = "Renderer, SMA and viewers on several machines: see \"Running on three machines \
+                  of a LAN\" in the README."
 )]
 pub struct Cli {
     /// Scene: a TOML scene file or a built-in name (bracara, cornell).
@@ -59,12 +64,13 @@ pub struct Cli {
     #[arg(long, default_value_t = defaults().schedule.seed)]
     pub seed: u64,
 
-    /// R: leaves a criterion may select per refinement round (§4.3.5). A round waits for its
-    /// samples and a visibility pass, so small rounds leave the renderers idle: in 10-s runs
-    /// (`bench convergence --sma-flags=--max-selections,…`) NLD_OS on bracara VT reached mean
-    /// FLIP 0.095 / 0.082 / 0.067 at 1 s with R = 64 / 256 / 1024, and RND on Sponza S1 0.132 /
-    /// 0.119 / 0.117 at 10 s; but with 1024 RND ran out of leaves to offer on VT after 5 s (0.072
-    /// against 0.057 with 256). A camera change is not held up: it re-plans the queue at once.
+    /// R: leaves a criterion may select per refinement round (§4.3.5).
+    // Why the default: a round waits for its samples and a visibility pass, so small rounds leave
+    // the renderers idle: in 10-s runs (`bench convergence --sma-flags=--max-selections,…`)
+    // NLD_OS on bracara VT reached mean FLIP 0.095 / 0.082 / 0.067 at 1 s with R = 64 / 256 /
+    // 1024, and RND on Sponza S1 0.132 / 0.119 / 0.117 at 10 s; but with 1024 RND ran out of
+    // leaves to offer on VT after 5 s (0.072 against 0.057 with 256). A camera change is not held
+    // up: it re-plans the queue at once.
     #[arg(long, default_value_t = defaults().schedule.max_selections)]
     pub max_selections: usize,
     /// No leaf covering fewer pixels is split (one sample per few pixels is the useful limit).
@@ -73,7 +79,7 @@ pub struct Cli {
     /// K: visibility is re-run after this many new samples.
     #[arg(long, default_value_t = defaults().schedule.revisit_samples)]
     pub revisit_samples: u64,
-    /// Points per shade batch.
+    /// Points per shade batch sent to a renderer.
     #[arg(long, default_value_t = defaults().schedule.batch_points)]
     pub batch_points: usize,
     /// Batches in flight per renderer.
@@ -88,12 +94,13 @@ pub struct Cli {
     /// A view-dependent sample is retaken once the eye has moved by this angle, seen from it.
     #[arg(long, default_value_t = defaults().schedule.view_angle_deg)]
     pub view_angle_deg: f32,
-    /// Seconds between stats lines.
+    /// Seconds between the statistics sent to viewers (and logged at debug level).
     #[arg(long, default_value_t = defaults().schedule.stats_every.as_secs_f32())]
     pub stats_secs: f32,
-    /// Subdivision of a base triangle no viewer has seen for this many visibility passes is
-    /// collapsed (0: never). Passes come with each camera change and every K samples, so this
-    /// is some seconds of walking away, or minutes of standing elsewhere.
+    /// Collapse the subdivision of a base triangle no viewer has seen for this many visibility
+    /// passes (0: never).
+    // Passes come with each camera change and every K samples, so this is some seconds of walking
+    // away, or minutes of standing elsewhere.
     #[arg(long, default_value_t = defaults().schedule.coarsen_after_passes)]
     pub coarsen_after_passes: u64,
     /// The quality ladder's last rung: samples get paths by fours past the scene's quality
@@ -107,7 +114,7 @@ pub struct Cli {
     /// Shading cache budget, MiB.
     #[arg(long, default_value_t = defaults().schedule.cache_budget_bytes >> 20)]
     pub cache_mib: usize,
-    /// Largest frame accepted or sent.
+    /// Largest protocol frame accepted or sent, bytes.
     #[arg(long, default_value_t = defaults().max_frame)]
     pub max_frame: usize,
     /// Viewers served at once; one past this is refused (DESIGN.md §8).
@@ -206,14 +213,7 @@ impl Cli {
 
 /// Runs the SMA until Ctrl-C (graceful: links closed, threads joined).
 pub fn run(cli: Cli) -> anyhow::Result<()> {
-    let _ = tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .with_writer(std::io::stderr)
-        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        .try_init();
+    conventions::logging::init();
     let runtime = tokio::runtime::Runtime::new().context("starting the async runtime")?;
     runtime.block_on(serve(cli))
 }

@@ -83,7 +83,7 @@ pub async fn start(
         handshake_deadline: config.viewer_port.handshake_deadline,
     };
     let schedule = Schedule::new(config.schedule, &scene, mesh, gpu, pool);
-    tracing::info!(adapter = %schedule.adapter(), scene = %scene.name, "visibility device");
+    tracing::debug!(adapter = %schedule.adapter(), scene = %scene.name, "visibility device");
     let listener = TcpListener::bind(&config.listen)
         .await
         .with_context(|| format!("listening on {}", config.listen))?;

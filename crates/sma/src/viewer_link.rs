@@ -6,7 +6,7 @@
 use std::time::Duration;
 
 use protocol::connection::{SceneCheck, accept_handshake_within, refuse_handshake};
-use protocol::viewer_link::{Camera, SceneInfo, SmaToViewer, ViewerToSma};
+use protocol::viewer_link::{Camera, SceneInfo, SkyInfo, SmaToViewer, SunInfo, ViewerToSma};
 use protocol::{Fingerprint, ProtocolError, Role, split_tcp};
 use tokio::net::TcpStream;
 use tokio::sync::{mpsc, watch};
@@ -188,5 +188,24 @@ pub fn scene_info(scene: &scene::Scene, active: CriterionKind) -> SceneInfo {
             })
             .collect(),
         criteria,
+        sky: sky_info(&scene.settings),
+        quality: protocol::renderer_link::Quality {
+            paths: scene.settings.quality.paths,
+            bounces: scene.settings.quality.bounces,
+        },
     }
+}
+
+/// The sky and sun a viewer draws behind the geometry, as the renderer lights with them.
+fn sky_info(settings: &scene::SceneSettings) -> SkyInfo {
+    let radiance = match settings.sky {
+        scene::Sky::None => [0.0; 3],
+        scene::Sky::Uniform { radiance } => radiance,
+    };
+    let sun = settings.sun.as_ref().map(|sun| SunInfo {
+        direction: glam::Vec3::from(sun.direction).normalize().to_array(),
+        radiance: sun.radiance,
+        angular_diameter_deg: sun.angular_diameter_deg,
+    });
+    SkyInfo { radiance, sun }
 }

@@ -28,10 +28,15 @@ impl From<ToneMapFlag> for ToneMap {
 #[derive(clap::Parser, Clone, Debug)]
 #[command(
     name = "viewer",
-    about = "Thin viewer: shows the SMA's triangles with Gouraud shading, in a window or headless"
+    about = "Thin viewer: shows the SMA's triangles with Gouraud shading, in a window or headless",
+    long_about = "Thin viewer: shows the triangles the Shading Management Agent (SMA) sends, with \
+                  Gouraud shading and tone mapping under the scene's sky, in a window (with a \
+                  panel of what the system is doing; H hides it) or headless, writing snapshots.",
+    after_help = "Renderer, SMA and viewers on several machines: see \"Running on three machines \
+                  of a LAN\" in the README."
 )]
 pub struct Cli {
-    /// The SMA's viewer address, host:port.
+    /// The SMA's viewer address, host:port (the SMA prints it as `listening on`).
     #[arg(long)]
     pub connect: String,
     /// Draw offscreen and write snapshots instead of opening a window.
@@ -40,8 +45,10 @@ pub struct Cli {
     /// Named viewpoint of the scene to start at (default: the scene's first).
     #[arg(long)]
     pub view: Option<String>,
+    /// Image width in pixels (the window's, or the snapshots').
     #[arg(long, default_value_t = 1024)]
     pub width: u32,
+    /// Image height in pixels.
     #[arg(long, default_value_t = 768)]
     pub height: u32,
     /// Headless: a snapshot every this many seconds, from t = 0 (the first camera sent).
@@ -63,6 +70,7 @@ pub struct Cli {
     /// Headless: a scripted walk (see `camera_path` for the format); t = 0 at the first camera.
     #[arg(long)]
     pub camera_path: Option<PathBuf>,
+    /// Tone-mapping operator at start (T switches it in the window).
     #[arg(long, value_enum, default_value_t = ToneMapFlag::Drago)]
     pub tonemap: ToneMapFlag,
     /// Overlay the triangle edges (the refinement mesh).
@@ -74,17 +82,18 @@ pub struct Cli {
     /// Ask the SMA not to refine (visible triangles are still shaded).
     #[arg(long)]
     pub no_refine: bool,
+    /// Print a `progress samples=… samples_per_sec=… shown=… state=…` line on stdout twice a
+    /// second, for a parent process that shows it (the launcher's progress bar).
+    #[arg(long)]
+    pub progress: bool,
+    /// Headless: draw the window's panel over the PNG snapshots (they are clean otherwise).
+    #[arg(long, requires = "headless")]
+    pub overlay: bool,
 }
 
 /// Runs the viewer until the window closes or the headless run ends.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
-    let _ = tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .with_writer(std::io::stderr)
-        .try_init();
+    conventions::logging::init();
     anyhow::ensure!(
         cli.width > 0 && cli.height > 0,
         "--width and --height must be positive"
@@ -116,6 +125,8 @@ impl Cli {
             wireframe: self.wireframe,
             criterion: self.criterion,
             no_refine: self.no_refine,
+            progress: self.progress,
+            overlay: self.overlay,
         }
     }
 }

@@ -34,4 +34,8 @@ pub struct ViewerConfig {
     pub criterion: Option<String>,
     /// Ask the SMA not to refine (visible triangles are still shaded).
     pub no_refine: bool,
+    /// Print the progress line (`crate::progress`) on stdout.
+    pub progress: bool,
+    /// Headless: draw the panel over the PNG snapshots.
+    pub overlay: bool,
 }

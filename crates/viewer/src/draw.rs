@@ -5,7 +5,7 @@
 use bytemuck::{Pod, Zeroable};
 use conventions::ToneMap;
 use glam::Vec3;
-use protocol::viewer_link::Camera;
+use protocol::viewer_link::{Camera, SkyInfo};
 
 use crate::table::{Extent, Vertex};
 use crate::vertex_buffer::GpuTriangles;
@@ -27,6 +27,8 @@ pub struct DrawSettings {
     /// The smallest luminance mapped to pure white, as the SMA last sent it (thesis §2.3).
     pub l_white: f32,
     pub wireframe: bool,
+    /// Drawn behind the geometry; the default is black (a scene without a sky).
+    pub sky: SkyInfo,
 }
 
 impl Default for DrawSettings {
@@ -35,6 +37,7 @@ impl Default for DrawSettings {
             tone_map: ToneMap::Drago,
             l_white: 1.0,
             wireframe: false,
+            sky: SkyInfo::default(),
         }
     }
 }
@@ -47,11 +50,41 @@ struct Uniforms {
     mode: u32,
     wireframe: u32,
     encode_srgb: u32,
+    right: [f32; 4],
+    up: [f32; 4],
+    forward: [f32; 4],
+    sky: [f32; 4],
+    sun_dir: [f32; 4],
+    sun_radiance: [f32; 4],
+}
+
+impl Uniforms {
+    /// The eye ray basis of `draw.wgsl`'s sky: right and up scaled to the image's half extent
+    /// at unit distance along the view direction.
+    fn set_sky(&mut self, camera: &Camera, sky: &SkyInfo) {
+        let rotation = camera.rotation();
+        let half_height = (0.5 * camera.fov_y_deg.to_radians()).tan();
+        let half_width = half_height * camera.aspect();
+        let w0 = |v: Vec3| v.extend(0.0).to_array();
+        self.right = w0(rotation * Vec3::X * half_width);
+        self.up = w0(rotation * Vec3::Y * half_height);
+        self.forward = w0(rotation * Vec3::NEG_Z);
+        self.sky = w0(Vec3::from(sky.radiance));
+        if let Some(sun) = &sky.sun {
+            let one_minus_cos = 1.0 - (0.5 * sun.angular_diameter_deg.to_radians()).cos();
+            self.sun_dir = Vec3::from(sun.direction)
+                .normalize()
+                .extend(one_minus_cos)
+                .to_array();
+            self.sun_radiance = w0(Vec3::from(sun.radiance));
+        }
+    }
 }
 
 /// One pipeline for one target format, with its uniforms.
 pub struct Drawer {
     pipeline: wgpu::RenderPipeline,
+    sky: wgpu::RenderPipeline,
     uniforms: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
     output: Output,
@@ -93,48 +126,12 @@ impl Drawer {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("draw"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: std::mem::size_of::<Vertex>() as u64,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
-                })],
-            },
-            // Surfaces are two-sided (DESIGN.md §5): no culling.
-            primitive: wgpu::PrimitiveState {
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Greater),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let sky = pipeline(device, &pipeline_layout, &shader, format, Pass::Sky);
+        let pipeline = pipeline(device, &pipeline_layout, &shader, format, Pass::Geometry);
         let encode_srgb = output == Output::Display && !format.is_srgb();
         Drawer {
             pipeline,
+            sky,
             uniforms,
             bind_group,
             output,
@@ -142,7 +139,7 @@ impl Drawer {
         }
     }
 
-    /// Records one frame: clear to black (pixels that see nothing), draw every live triangle.
+    /// Records one frame: the sky over the whole target, then every live triangle over it.
     #[allow(clippy::too_many_arguments)]
     pub fn draw(
         &self,
@@ -156,7 +153,7 @@ impl Drawer {
         settings: &DrawSettings,
     ) {
         let (near, far) = depth_range;
-        let uniforms = Uniforms {
+        let mut uniforms = Uniforms {
             // Reversed Z (near -> 1, far -> 0): with a float depth buffer the precision then
             // follows the float's own, so a tiny near plane costs nothing far away.
             view_proj: camera.view_projection(far, near).to_cols_array_2d(),
@@ -168,7 +165,9 @@ impl Drawer {
             },
             wireframe: u32::from(settings.wireframe),
             encode_srgb: u32::from(self.encode_srgb),
+            ..Zeroable::zeroed()
         };
+        uniforms.set_sky(camera, &settings.sky);
         queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&uniforms));
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("draw"),
@@ -193,13 +192,83 @@ impl Drawer {
             occlusion_query_set: None,
             multiview_mask: None,
         });
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.set_pipeline(&self.sky);
+        pass.draw(0..3, 0..1);
         if triangles.count() > 0 {
             pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &self.bind_group, &[]);
             pass.set_vertex_buffer(0, triangles.buffer().slice(..));
             pass.draw(0..3 * triangles.count(), 0..1);
         }
     }
+}
+
+/// The two pipelines of a frame.
+#[derive(Clone, Copy, PartialEq)]
+enum Pass {
+    /// Behind everything: no vertex buffer, no depth test or write.
+    Sky,
+    /// The triangle table, depth-tested (reversed Z: greater is nearer).
+    Geometry,
+}
+
+fn pipeline(
+    device: &wgpu::Device,
+    layout: &wgpu::PipelineLayout,
+    shader: &wgpu::ShaderModule,
+    format: wgpu::TextureFormat,
+    pass: Pass,
+) -> wgpu::RenderPipeline {
+    let geometry = pass == Pass::Geometry;
+    let vertex_layout = [Some(wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<Vertex>() as u64,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
+    })];
+    let (vertex_entry, fragment_entry) = if geometry {
+        ("vs_main", "fs_main")
+    } else {
+        ("vs_sky", "fs_sky")
+    };
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(if geometry { "draw" } else { "sky" }),
+        layout: Some(layout),
+        vertex: wgpu::VertexState {
+            module: shader,
+            entry_point: Some(vertex_entry),
+            compilation_options: Default::default(),
+            buffers: if geometry { &vertex_layout } else { &[] },
+        },
+        // Surfaces are two-sided (DESIGN.md §5): no culling.
+        primitive: wgpu::PrimitiveState {
+            cull_mode: None,
+            ..Default::default()
+        },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(geometry),
+            depth_compare: Some(if geometry {
+                wgpu::CompareFunction::Greater
+            } else {
+                wgpu::CompareFunction::Always
+            }),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: shader,
+            entry_point: Some(fragment_entry),
+            compilation_options: Default::default(),
+            targets: &[Some(wgpu::ColorTargetState {
+                format,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
 }
 
 /// A single-sample 2D texture: the shape of every target the viewer draws into.

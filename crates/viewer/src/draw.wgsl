@@ -10,6 +10,16 @@ struct Uniforms {
     wireframe: u32,
     // 1 when the target is not an sRGB format and the shader must encode itself.
     encode_srgb: u32,
+    // The eye ray through normalised device coordinates (x, y) is
+    // forward + x * right + y * up (right and up scaled by the half field of view).
+    right: vec4<f32>,
+    up: vec4<f32>,
+    forward: vec4<f32>,
+    // Sky radiance over the upper hemisphere (+Y), black below the horizon (DESIGN.md §7).
+    sky: vec4<f32>,
+    // Unit direction toward the sun; w: 1 - cos of the disc's angular radius (0: no sun).
+    sun_dir: vec4<f32>,
+    sun_radiance: vec4<f32>,
 };
 
 @group(0) @binding(0) var<uniform> u: Uniforms;
@@ -69,6 +79,44 @@ fn srgb_encode(c: vec3<f32>) -> vec3<f32> {
     return select(high, low, c <= vec3<f32>(0.0031308));
 }
 
+// The sky: one triangle over the whole target, drawn first without depth, so geometry covers it.
+// Its alpha is 0 in the linear image: the snapshot's coverage (pixels that see no geometry).
+struct SkyOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) ndc: vec2<f32>,
+};
+
+@vertex
+fn vs_sky(@builtin(vertex_index) index: u32) -> SkyOut {
+    let ndc = vec2<f32>(f32(index == 1u) * 4.0 - 1.0, f32(index == 2u) * 4.0 - 1.0);
+    return SkyOut(vec4<f32>(ndc, 0.0, 1.0), ndc);
+}
+
+fn sky_radiance(dir: vec3<f32>) -> vec3<f32> {
+    var radiance = select(vec3<f32>(0.0), u.sky.xyz, dir.y > 0.0);
+    if u.sun_dir.w > 0.0 && 1.0 - dot(dir, u.sun_dir.xyz) <= u.sun_dir.w {
+        radiance += u.sun_radiance.xyz;
+    }
+    return radiance;
+}
+
+@fragment
+fn fs_sky(in: SkyOut) -> @location(0) vec4<f32> {
+    let dir = normalize(u.forward.xyz + in.ndc.x * u.right.xyz + in.ndc.y * u.up.xyz);
+    let radiance = sky_radiance(dir);
+    if u.mode == 0u {
+        return vec4<f32>(radiance, 0.0);
+    }
+    return vec4<f32>(display(tone_map(radiance)), 1.0);
+}
+
+fn display(colour: vec3<f32>) -> vec3<f32> {
+    if u.encode_srgb == 1u {
+        return srgb_encode(colour);
+    }
+    return colour;
+}
+
 @fragment
 fn fs_main(in: VertexOut) -> FragmentOut {
     return FragmentOut(in.zw.x / in.zw.y, shade(in));
@@ -86,8 +134,5 @@ fn shade(in: VertexOut) -> vec4<f32> {
         let line = 1.0 - smoothstep(0.0, 1.5 * edge_width, edge);
         colour = mix(colour, vec3<f32>(0.1, 0.9, 0.3), 0.8 * line);
     }
-    if u.encode_srgb == 1u {
-        colour = srgb_encode(colour);
-    }
-    return vec4<f32>(colour, 1.0);
+    return vec4<f32>(display(colour), 1.0);
 }

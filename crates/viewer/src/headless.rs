@@ -14,7 +14,10 @@ use crate::config::ViewerConfig;
 use crate::draw::{DrawSettings, depth_range};
 use crate::gpu::Gpu;
 use crate::link::{Link, LinkEvent};
-use crate::offscreen::Offscreen;
+use crate::offscreen::{DISPLAY_FORMAT, Offscreen};
+use crate::overlay::{PanelPainter, fixed_screen};
+use crate::panel::Facts;
+use crate::progress::ProgressPrinter;
 use crate::session::{pick_viewpoint, preferences};
 use crate::snapshot_files::{SnapshotRecord, SnapshotWriter};
 use crate::vertex_buffer::GpuTriangles;
@@ -114,11 +117,15 @@ pub fn run(config: &ViewerConfig) -> anyhow::Result<()> {
         .map(|p| std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display())))
         .transpose()?;
     let gpu = Gpu::headless()?;
-    tracing::info!(adapter = %gpu.describe(), "headless viewer");
+    tracing::debug!(adapter = %gpu.describe(), "headless viewer");
+    tracing::info!("snapshots go to {}", config.out.display());
     let (tx, events) = mpsc::channel();
     let link = Link::spawn(config.connect.clone(), move |event| {
         let _ = tx.send(event);
     })?;
+    let panel = config
+        .overlay
+        .then(|| PanelPainter::new(&gpu.device, DISPLAY_FORMAT));
     let mut headless = Headless {
         offscreen: Offscreen::new(&gpu, config.width, config.height),
         triangles: GpuTriangles::new(&gpu),
@@ -137,6 +144,8 @@ pub fn run(config: &ViewerConfig) -> anyhow::Result<()> {
         sender: CameraSender::new(DEFAULT_INTERVAL),
         walk: None,
         snapshots: 0,
+        progress: ProgressPrinter::new(config.progress),
+        panel,
     };
     let result = headless.run(&events);
     headless.link.close();
@@ -165,6 +174,9 @@ struct Headless<'a> {
     /// None until the SMA's scene is known.
     walk: Option<Walk>,
     snapshots: u32,
+    progress: ProgressPrinter,
+    /// `--overlay`: the window's panel over the PNG snapshots.
+    panel: Option<PanelPainter>,
 }
 
 impl Headless<'_> {
@@ -176,6 +188,7 @@ impl Headless<'_> {
                     self.restate()?;
                 }
             }
+            self.progress.tick(&self.state);
             let Some(walk) = &self.walk else {
                 let waited = launched.elapsed().as_secs_f64();
                 if self.config.seconds.is_some_and(|s| waited >= s) {
@@ -248,11 +261,31 @@ impl Headless<'_> {
             tone_map: self.config.tone_map,
             l_white: self.state.l_white,
             wireframe: self.config.wireframe,
+            sky: self.state.sky(),
         };
         let depth = depth_range(&walk.camera, self.state.table.extent());
-        let image =
-            self.offscreen
-                .snapshot(&self.gpu, &self.triangles, &walk.camera, depth, &settings)?;
+        let facts = Facts {
+            tone_map: settings.tone_map,
+            wireframe: settings.wireframe,
+            paused: self.config.no_refine,
+            ..Facts::of(&self.state, &self.config.connect)
+        };
+        let gpu = (&self.gpu.device, &self.gpu.queue);
+        let panel = &mut self.panel;
+        let mut paint = |encoder: &mut wgpu::CommandEncoder,
+                         target: (&wgpu::TextureView, [u32; 2])| {
+            if let Some(panel) = panel.as_mut() {
+                panel.paint(gpu, encoder, target, fixed_screen(target.1), &facts);
+            }
+        };
+        let image = self.offscreen.snapshot_painted(
+            &self.gpu,
+            &self.triangles,
+            &walk.camera,
+            depth,
+            &settings,
+            &mut paint,
+        )?;
         let (inserted, removed) = self.state.take_interval();
         let epoch = self.state.epoch.unwrap_or_default();
         let record = SnapshotRecord {
@@ -266,7 +299,7 @@ impl Headless<'_> {
             outstanding: epoch.outstanding,
         };
         self.writer.write(&record, &image)?;
-        tracing::info!(
+        tracing::debug!(
             index = record.index,
             t,
             shown = record.shown,

@@ -8,6 +8,8 @@
 //! - [`link`]: the SMA connection with reconnect and backoff; [`view_state`] follows its events;
 //! - [`draw`] (with `draw.wgsl`): the pass with tone mapping (`conventions::tone_map`, held to
 //!   the shader by a test); [`offscreen`]: the same pass into textures, read back;
+//! - [`progress`]: the one-line progress a parent process shows (`--progress`);
+//! - [`panel`] (egui, drawn by `overlay`): what the system does, the keys, buttons for them;
 //! - [`window`] (winit) and [`headless`] (snapshots, [`snapshot_files`]) front ends, with
 //!   [`walk_camera`], [`camera_path`], [`camera_sender`] and [`session`];
 //! - [`gpu`]: device setup and the `WALKTHROUGH_REQUIRE_GPU` rule;
@@ -24,6 +26,9 @@ pub mod gpu;
 pub mod headless;
 pub mod link;
 pub mod offscreen;
+pub(crate) mod overlay;
+pub mod panel;
+pub mod progress;
 pub(crate) mod session;
 pub(crate) mod snapshot_files;
 pub mod table;

@@ -10,7 +10,8 @@ use crate::table::TriangleTable;
 use crate::update::TableOp;
 use crate::vertex_buffer::GpuTriangles;
 
-const DISPLAY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+/// The display image's format (what draws over it must match).
+pub const DISPLAY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 /// Linear radiance in full float where the adapter can draw into it; GL (downlevel) cannot, and
 /// gets half floats (11-bit mantissa: 0.05 % relative error, below any sample's noise).
 const LINEAR_FORMATS: [wgpu::TextureFormat; 2] = [
@@ -18,12 +19,19 @@ const LINEAR_FORMATS: [wgpu::TextureFormat; 2] = [
     wgpu::TextureFormat::Rgba16Float,
 ];
 
+/// Drawing recorded over the display image, given as a target view and its size in pixels.
+pub type PaintOver<'a> = dyn FnMut(&mut wgpu::CommandEncoder, (&wgpu::TextureView, [u32; 2])) + 'a;
+
 /// One snapshot of the viewer's image.
 pub struct Snapshot {
     /// Tone-mapped, sRGB-encoded (what the window shows).
     pub display: image::RgbaImage,
-    /// Linear radiance, row-major from the top-left pixel.
+    /// Linear radiance, row-major from the top-left pixel; the sky where no geometry is seen.
     pub linear: Vec<[f32; 3]>,
+    /// Whether each pixel sees geometry (the linear target's alpha: the sky writes 0). The
+    /// convergence metric leaves out pixels that see none (DESIGN.md §10); the EXR carries it as
+    /// alpha.
+    pub covered: Vec<bool>,
     pub width: u32,
     pub height: u32,
 }
@@ -92,6 +100,20 @@ impl Offscreen {
         depth: (f32, f32),
         settings: &DrawSettings,
     ) -> anyhow::Result<Snapshot> {
+        self.snapshot_painted(gpu, triangles, camera, depth, settings, &mut |_, _| {})
+    }
+
+    /// [`Offscreen::snapshot`], with `paint` recording more drawing over the display image
+    /// (the panel of `--overlay`; the linear image stays clean).
+    pub fn snapshot_painted(
+        &self,
+        gpu: &Gpu,
+        triangles: &GpuTriangles,
+        camera: &Camera,
+        depth: (f32, f32),
+        settings: &DrawSettings,
+        paint: &mut PaintOver,
+    ) -> anyhow::Result<Snapshot> {
         self.draw_into(
             gpu,
             &[&self.display, &self.linear],
@@ -100,14 +122,24 @@ impl Offscreen {
             depth,
             settings,
         );
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        paint(
+            &mut encoder,
+            (&self.display.view, [self.width, self.height]),
+        );
+        gpu.queue.submit([encoder.finish()]);
         let display = self.read(gpu, &self.display)?;
         let linear = self.read(gpu, &self.linear)?;
         let display = image::RgbaImage::from_raw(self.width, self.height, display)
             .ok_or_else(|| anyhow!("display readback has the wrong size"))?;
-        let linear = linear_rgb(&linear, self.linear.bytes_per_pixel);
+        let (linear, covered) = linear_rgba(&linear, self.linear.bytes_per_pixel)
+            .into_iter()
+            .map(|[r, g, b, a]| ([r, g, b], a > 0.5))
+            .unzip();
         Ok(Snapshot {
             display,
             linear,
+            covered,
             width: self.width,
             height: self.height,
         })
@@ -204,17 +236,14 @@ fn linear_format(adapter: &wgpu::Adapter) -> wgpu::TextureFormat {
         .unwrap_or(LINEAR_FORMATS[1])
 }
 
-/// RGB from RGBA pixels of 32-bit or 16-bit floats.
-fn linear_rgb(bytes: &[u8], bytes_per_pixel: u32) -> Vec<[f32; 3]> {
+/// RGBA pixels of 32-bit or 16-bit floats.
+fn linear_rgba(bytes: &[u8], bytes_per_pixel: u32) -> Vec<[f32; 4]> {
     if bytes_per_pixel == 16 {
         bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(bytes)
-            .into_iter()
-            .map(|[r, g, b, _]| [r, g, b])
-            .collect()
     } else {
         bytemuck::pod_collect_to_vec::<u8, [u16; 4]>(bytes)
             .into_iter()
-            .map(|[r, g, b, _]| [r, g, b].map(|h| exr::prelude::f16::from_bits(h).to_f32()))
+            .map(|px| px.map(|h| exr::prelude::f16::from_bits(h).to_f32()))
             .collect()
     }
 }

@@ -71,6 +71,11 @@ mod tests {
             },
             viewpoints: vec![vp("MC"), vp("VT")],
             criteria: vec!["nld_os".into(), "rnd".into()],
+            sky: Default::default(),
+            quality: protocol::renderer_link::Quality {
+                paths: 64,
+                bounces: Some(2),
+            },
         }
     }
 

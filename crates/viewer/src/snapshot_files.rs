@@ -76,11 +76,14 @@ pub fn write_png(path: &Path, snapshot: &Snapshot) -> anyhow::Result<()> {
         .with_context(|| format!("writing {}", path.display()))
 }
 
+/// Linear radiance with the coverage as alpha (1: sees geometry, 0: sky), as the ground truth
+/// carries it.
 pub fn write_exr(path: &Path, snapshot: &Snapshot) -> anyhow::Result<()> {
     let width = snapshot.width as usize;
-    exr::prelude::write_rgb_file(path, width, snapshot.height as usize, |x, y| {
-        let [r, g, b] = snapshot.linear[y * width + x];
-        (r, g, b)
+    exr::prelude::write_rgba_file(path, width, snapshot.height as usize, |x, y| {
+        let i = y * width + x;
+        let [r, g, b] = snapshot.linear[i];
+        (r, g, b, f32::from(u8::from(snapshot.covered[i])))
     })
     .with_context(|| format!("writing {}", path.display()))
 }

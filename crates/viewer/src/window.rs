@@ -3,8 +3,9 @@
 //! Keys: W/S or Up/Down walk, A/D strafe, Left/Right turn, Q/E sink/rise, drag with the left
 //! button to look, +/- (or the wheel) change speed, 1–9 jump to the scene's viewpoints, C switches
 //! the criterion, P pauses/resumes refinement, F toggles the wireframe, T the tone-mapping
-//! operator, Esc quits. Frames are drawn on demand (an update arrived, the camera moved), so an
-//! idle viewer leaves the CPU to the renderers.
+//! operator, H hides the panel, Esc quits. The panel ([`crate::panel`]) lists them and offers the
+//! same switches to the mouse. Frames are drawn on demand (an update arrived, the camera moved,
+//! the panel changed), so an idle viewer leaves the CPU to the renderers.
 
 use std::collections::HashSet;
 use std::sync::Arc;
@@ -24,6 +25,9 @@ use crate::config::ViewerConfig;
 use crate::draw::{DrawSettings, Drawer, Output, depth_range, depth_texture};
 use crate::gpu::Gpu;
 use crate::link::{Link, LinkEvent};
+use crate::overlay::Overlay;
+use crate::panel::{Action, Facts};
+use crate::progress::ProgressPrinter;
 use crate::session::{next_criterion, pick_viewpoint, preferences};
 use crate::vertex_buffer::GpuTriangles;
 use crate::view_state::{Reaction, ViewState};
@@ -52,6 +56,7 @@ pub fn run(config: &ViewerConfig) -> anyhow::Result<()> {
 
 /// The window and what draws into it.
 struct Display {
+    overlay: Overlay,
     triangles: GpuTriangles,
     drawer: Drawer,
     depth: wgpu::TextureView,
@@ -76,7 +81,7 @@ impl Display {
         );
         let surface = instance.create_surface(window.clone())?;
         let gpu = pollster::block_on(Gpu::open(instance, Some(&surface)))?;
-        tracing::info!(adapter = %gpu.describe(), "window");
+        tracing::debug!(adapter = %gpu.describe(), "window");
         let size = window.inner_size();
         let mut config = surface
             .get_default_config(&gpu.adapter, size.width.max(1), size.height.max(1))
@@ -89,6 +94,7 @@ impl Display {
         config.present_mode = wgpu::PresentMode::AutoVsync;
         surface.configure(&gpu.device, &config);
         Ok(Display {
+            overlay: Overlay::new(window.clone(), &gpu.device, config.format),
             triangles: GpuTriangles::new(&gpu),
             drawer: Drawer::new(&gpu.device, config.format, Output::Display),
             depth: depth_texture(&gpu.device, config.width, config.height),
@@ -159,6 +165,9 @@ struct App {
     /// The criterion this viewer asked for, if any, and whether it paused refinement.
     criterion: Option<String>,
     paused: bool,
+    panel: bool,
+    fps: f64,
+    progress: ProgressPrinter,
     /// Left button held: mouse look.
     dragging: bool,
     cursor: Option<PhysicalPosition<f64>>,
@@ -176,9 +185,13 @@ impl App {
                 tone_map: config.tone_map,
                 l_white: 1.0,
                 wireframe: config.wireframe,
+                ..DrawSettings::default()
             },
             criterion: config.criterion.clone(),
             paused: config.no_refine,
+            panel: true,
+            fps: 0.0,
+            progress: ProgressPrinter::new(config.progress),
             config,
             link,
             state: ViewState::default(),
@@ -237,7 +250,7 @@ impl App {
     }
 
     fn key_pressed(&mut self, code: KeyCode, event_loop: &ActiveEventLoop) {
-        let digit = [
+        const DIGITS: [KeyCode; 9] = [
             KeyCode::Digit1,
             KeyCode::Digit2,
             KeyCode::Digit3,
@@ -247,41 +260,71 @@ impl App {
             KeyCode::Digit7,
             KeyCode::Digit8,
             KeyCode::Digit9,
-        ]
-        .iter()
-        .position(|&d| d == code);
-        match code {
-            KeyCode::Escape => event_loop.exit(),
+        ];
+        let action = match code {
+            KeyCode::Escape => {
+                event_loop.exit();
+                None
+            }
             KeyCode::KeyC => {
                 let scene = self.state.scene.as_ref();
                 let current = self.state.refinement.as_ref().map(|(c, _)| c.as_str());
-                if let Some(name) = scene.and_then(|s| next_criterion(s, current)) {
-                    self.link
-                        .send(ViewerToSma::SetCriterion { name: name.clone() });
-                    self.criterion = Some(name);
+                scene
+                    .and_then(|s| next_criterion(s, current))
+                    .map(Action::Criterion)
+            }
+            KeyCode::KeyP => Some(Action::Pause(!self.paused)),
+            KeyCode::KeyF => Some(Action::Wireframe(!self.settings.wireframe)),
+            KeyCode::KeyT => Some(Action::ToneMap(self.settings.tone_map.next())),
+            KeyCode::KeyH => {
+                self.panel = !self.panel;
+                None
+            }
+            KeyCode::Equal | KeyCode::NumpadAdd | KeyCode::PageUp => {
+                self.scale_speed(SPEED_STEP);
+                None
+            }
+            KeyCode::Minus | KeyCode::NumpadSubtract | KeyCode::PageDown => {
+                self.scale_speed(1.0 / SPEED_STEP);
+                None
+            }
+            _ => DIGITS
+                .iter()
+                .position(|&d| d == code)
+                .map(Action::Viewpoint),
+        };
+        if let Some(action) = action {
+            self.apply(action);
+        }
+    }
+
+    /// What a key or a click on the panel asks for.
+    fn apply(&mut self, action: Action) {
+        match action {
+            Action::Viewpoint(i) => {
+                let viewpoint = self.state.scene.as_ref().and_then(|s| s.viewpoints.get(i));
+                if let (Some(vp), Some(walk)) = (viewpoint, self.walk.as_mut()) {
+                    *walk = WalkCamera::at_viewpoint(vp, walk.speed);
+                    tracing::debug!(viewpoint = %vp.name, "jumped");
                 }
             }
-            KeyCode::KeyP => {
-                self.paused = !self.paused;
-                self.link.send(if self.paused {
+            Action::Criterion(name) => {
+                self.link
+                    .send(ViewerToSma::SetCriterion { name: name.clone() });
+                self.criterion = Some(name);
+            }
+            Action::Pause(paused) => {
+                self.paused = paused;
+                self.link.send(if paused {
                     ViewerToSma::Pause
                 } else {
                     ViewerToSma::Resume
                 });
             }
-            KeyCode::KeyF => self.settings.wireframe = !self.settings.wireframe,
-            KeyCode::KeyT => self.settings.tone_map = self.settings.tone_map.next(),
-            KeyCode::Equal | KeyCode::NumpadAdd | KeyCode::PageUp => self.scale_speed(SPEED_STEP),
-            KeyCode::Minus | KeyCode::NumpadSubtract | KeyCode::PageDown => {
-                self.scale_speed(1.0 / SPEED_STEP)
-            }
-            _ => {
-                let viewpoint = digit.and_then(|i| self.state.scene.as_ref()?.viewpoints.get(i));
-                if let (Some(vp), Some(walk)) = (viewpoint, self.walk.as_mut()) {
-                    *walk = WalkCamera::at_viewpoint(vp, walk.speed);
-                }
-            }
+            Action::Wireframe(on) => self.settings.wireframe = on,
+            Action::ToneMap(op) => self.settings.tone_map = op,
         }
+        self.redraw();
     }
 
     fn scale_speed(&mut self, factor: f32) {
@@ -324,6 +367,7 @@ impl App {
         let (w, h) = d.size();
         let camera = walk.camera(w, h);
         self.settings.l_white = self.state.l_white;
+        self.settings.sky = self.state.sky();
         let depth = depth_range(&camera, self.state.table.extent());
         let mut encoder = d.gpu.device.create_command_encoder(&Default::default());
         d.drawer.draw(
@@ -336,9 +380,25 @@ impl App {
             depth,
             &self.settings,
         );
+        let actions = if self.panel {
+            let facts = Facts {
+                fps: self.fps,
+                paused: self.paused,
+                tone_map: self.settings.tone_map,
+                wireframe: self.settings.wireframe,
+                ..Facts::of(&self.state, &self.config.connect)
+            };
+            let gpu = (&d.gpu.device, &d.gpu.queue);
+            d.overlay.draw(gpu, &mut encoder, &view, &facts)
+        } else {
+            Vec::new()
+        };
         d.gpu.queue.submit([encoder.finish()]);
         d.gpu.queue.present(texture);
         self.frames += 1;
+        for action in actions {
+            self.apply(action);
+        }
     }
 
     fn update_title(&mut self) {
@@ -348,6 +408,7 @@ impl App {
             return;
         }
         let fps = self.frames as f64 / elapsed.as_secs_f64();
+        self.fps = fps;
         (self.frames, self.title_at) = (0, Instant::now());
         let title = match (&self.state.scene, self.state.connected) {
             (Some(scene), true) => {
@@ -396,6 +457,21 @@ impl ApplicationHandler<LinkEvent> for App {
     }
 
     fn window_event(&mut self, event_loop: &ActiveEventLoop, _: WindowId, event: WindowEvent) {
+        let panel_took = self.panel
+            && self
+                .display
+                .as_mut()
+                .is_some_and(|d| d.overlay.on_event(&event));
+        if panel_took {
+            // A click or a hover on the panel: draw it again, do not steer with it.
+            self.redraw();
+            if !matches!(
+                event,
+                WindowEvent::KeyboardInput { .. } | WindowEvent::RedrawRequested
+            ) {
+                return;
+            }
+        }
         match event {
             WindowEvent::CloseRequested => event_loop.exit(),
             WindowEvent::Resized(size) => {
@@ -452,12 +528,18 @@ impl ApplicationHandler<LinkEvent> for App {
     }
 
     fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
-        if self.keys.moving() {
+        let panel_busy = self.panel
+            && self
+                .display
+                .as_ref()
+                .is_some_and(|d| d.overlay.wants_repaint());
+        if self.keys.moving() || panel_busy {
             self.redraw();
         }
         // A camera change held back by the rate limit goes out on one of these wake-ups.
         self.offer_camera();
         self.update_title();
+        self.progress.tick(&self.state);
         event_loop.set_control_flow(ControlFlow::WaitUntil(Instant::now() + DEFAULT_INTERVAL));
     }
 }

@@ -41,6 +41,7 @@ fn draw(gpu: &Gpu, op: ToneMap, wireframe: bool) -> Snapshot {
         tone_map: op,
         l_white: L_WHITE,
         wireframe,
+        ..DrawSettings::default()
     };
     render_offscreen_with(gpu, &known_triangles(), &front_camera(1, W, H), &settings).unwrap()
 }
@@ -194,8 +195,10 @@ fn headless_binary_writes_snapshots_when_the_sma_is_idle() {
         tone_map: ToneMap::Drago,
         l_white: L_WHITE,
         wireframe: false,
+        sky: common::SKY,
     };
     let want = render_offscreen_with(&gpu, &triangles, &camera, &settings).unwrap();
+    assert_sky_pixels(&png, &want);
     let same = png
         .pixels()
         .zip(want.display.pixels())
@@ -204,13 +207,34 @@ fn headless_binary_writes_snapshots_when_the_sma_is_idle() {
 
     let exr = exr::prelude::read_first_rgba_layer_from_file(
         out.path().join(fields[9]),
-        |size, _| vec![[0f32; 3]; size.width() * size.height()],
-        |pixels, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            pixels[pos.y() * W as usize + pos.x()] = [r, g, b]
+        |size, _| vec![([0f32; 3], false); size.width() * size.height()],
+        |pixels, pos, (r, g, b, a): (f32, f32, f32, f32)| {
+            pixels[pos.y() * W as usize + pos.x()] = ([r, g, b], a > 0.5)
         },
     )
     .unwrap();
-    assert_eq!(exr.layer_data.channel_data.pixels, want.linear);
+    let (linear, covered): (Vec<_>, Vec<_>) =
+        exr.layer_data.channel_data.pixels.into_iter().unzip();
+    assert_eq!(linear, want.linear);
+    assert_eq!(covered, want.covered, "the EXR's alpha is the coverage");
+}
+
+/// The snapshot's sky: the scene's sky radiance tone-mapped like the geometry above the horizon,
+/// black below it, the sun's disc white; those pixels count as seeing no geometry.
+fn assert_sky_pixels(png: &image::RgbImage, drawn: &Snapshot) {
+    let at = |x: u32, y: u32| png.get_pixel(x, y).0.map(f32::from);
+    let sky = expected(common::SKY.radiance, ToneMap::Drago);
+    assert!(sky.iter().all(|c| *c > 20.0), "the test's sky is not dark");
+    assert_close(at(5, 5), sky, 1.0, "sky above the horizon");
+    assert_close(at(W - 5, 50), sky, 1.0, "sky beside the triangles");
+    assert_close(at(5, H - 5), [0.0; 3], 0.0, "below the horizon");
+    // The sun 25° above the centre: tan 25° / tan 30° of the half height above it.
+    let sun_row =
+        (H as f32 / 2.0 * (1.0 - 25f32.to_radians().tan() / 30f32.to_radians().tan())) as u32;
+    assert_close(at(W / 2, sun_row), [255.0; 3], 0.0, "the sun's disc");
+    let covered = |x: u32, y: u32| drawn.covered[(y * W + x) as usize];
+    assert!(!covered(5, 5) && !covered(W / 2, sun_row) && !covered(5, H - 5));
+    assert!(covered(55, 70), "the flat square sees geometry");
 }
 
 #[test]

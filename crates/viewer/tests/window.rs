@@ -1,6 +1,8 @@
-//! The real window under Xvfb: it opens, shows the SMA's triangles (a screenshot of the X screen
-//! compared with the headless drawing of the same view), and a synthesized key press walks the
-//! camera, which reaches the SMA stand-in as a new `Camera`.
+//! The real window under Xvfb: it opens, shows the SMA's triangles under the scene's sky beside
+//! its panel (a screenshot of the X screen compared with the headless drawing of the same view),
+//! `H` hides the panel (the whole screen is then the headless drawing), a synthesized key press
+//! walks the camera, and a click on a viewpoint button of the panel jumps there; both reach the
+//! SMA stand-in as a new `Camera`.
 
 mod common;
 
@@ -13,8 +15,11 @@ use protocol::viewer_link::{Epoch, SmaToViewer, ViewerToSma};
 use viewer::gpu::{REQUIRE_GPU_VAR, gpu_required, headless_or_skip};
 use viewer::{DrawSettings, ToneMap, render_offscreen_with};
 
-const W: u32 = 320;
-const H: u32 = 240;
+const W: u32 = 640;
+const H: u32 = 480;
+/// Screen columns left of this are the panel's (it is `viewer::panel::WIDTH` points wide, one
+/// pixel per point under Xvfb), with a margin for its edge line.
+const PANEL_PX: u32 = viewer::panel::WIDTH as u32 + 4;
 
 /// Kills the processes it holds when the test ends, passed or not.
 struct Reaper(Vec<Child>);
@@ -90,19 +95,43 @@ fn screenshot(display: &str) -> Option<image::RgbImage> {
         .map(|i| i.into_rgb8())
 }
 
-/// Mean absolute difference per channel, 0..255.
-fn mean_difference(a: &image::RgbImage, b: &image::RgbaImage) -> f64 {
-    let total: u64 = a
-        .pixels()
-        .zip(b.pixels())
-        .flat_map(|(p, q)| (0..3).map(move |c| p.0[c].abs_diff(q.0[c]) as u64))
+/// Mean absolute difference per channel, 0..255, over the columns `columns`.
+fn mean_difference(
+    a: &image::RgbImage,
+    b: &image::RgbaImage,
+    columns: std::ops::Range<u32>,
+) -> f64 {
+    let width = columns.len() as u64;
+    let total: u64 = (0..H)
+        .flat_map(|y| columns.clone().map(move |x| (x, y)))
+        .flat_map(|(x, y)| {
+            let (p, q) = (a.get_pixel(x, y).0, b.get_pixel(x, y).0);
+            (0..3).map(move |c| p[c].abs_diff(q[c]) as u64)
+        })
         .sum();
-    total as f64 / (3 * W * H) as f64
+    total as f64 / (3 * width * H as u64) as f64
+}
+
+/// Waits until the screen shows `want` over `columns`; returns the last difference.
+fn wait_for_screen(
+    what: &str,
+    display: &str,
+    want: &image::RgbaImage,
+    columns: std::ops::Range<u32>,
+) -> f64 {
+    let mut last = f64::NAN;
+    wait_for(what, || {
+        let shot = screenshot(display)?;
+        last = mean_difference(&shot, want, columns.clone());
+        (last < 1.0).then_some(())
+    });
+    last
 }
 
 #[test]
-fn the_window_shows_the_triangles_and_walks_on_a_key_press() {
-    const TEST: &str = "the_window_shows_the_triangles_and_walks_on_a_key_press";
+fn the_window_shows_the_triangles_and_its_panel_hides_it_on_h_walks_and_jumps_on_a_click() {
+    const TEST: &str =
+        "the_window_shows_the_triangles_and_its_panel_hides_it_on_h_walks_and_jumps_on_a_click";
     if !["Xvfb", "xdotool", "import"].iter().all(|p| have(p)) {
         assert!(
             !gpu_required(),
@@ -146,15 +175,25 @@ fn the_window_shows_the_triangles_and_walks_on_a_key_press() {
         tone_map: ToneMap::Drago,
         l_white: 4.0,
         wireframe: false,
+        sky: common::SKY,
     };
     let want = render_offscreen_with(&gpu, &triangles, &camera, &settings).unwrap();
-    let mut last = f64::NAN;
-    wait_for("the triangles on screen", || {
-        let shot = screenshot(&display)?;
-        last = mean_difference(&shot, &want.display);
-        (last < 1.0).then_some(())
-    });
-    eprintln!("{TEST}: screen vs headless, mean difference {last:.3} levels");
+    let beside = wait_for_screen(
+        "the triangles beside the panel",
+        &display,
+        &want.display,
+        PANEL_PX..W,
+    );
+    let shot = screenshot(&display).expect("a screenshot");
+    let panel = mean_difference(&shot, &want.display, 0..PANEL_PX);
+    eprintln!(
+        "{TEST}: screen vs headless, mean difference {beside:.3} levels beside the panel, \
+         {panel:.1} over it"
+    );
+    assert!(
+        panel > 10.0,
+        "no panel over the left of the window ({panel:.1} levels)"
+    );
 
     // No window manager runs to hand out the keyboard focus: give it to the window.
     let found = x_command(
@@ -168,6 +207,10 @@ fn the_window_shows_the_triangles_and_walks_on_a_key_press() {
         .map(str::to_string);
     let window = window.expect("the viewer's window on the X display");
     x_command(&display, "xdotool", &["windowfocus", "--sync", &window]);
+    x_command(&display, "xdotool", &["key", "h"]);
+    let hidden = wait_for_screen("the panel hidden", &display, &want.display, 0..W);
+    eprintln!("{TEST}: after H, whole screen vs headless {hidden:.3} levels");
+
     x_command(&display, "xdotool", &["keydown", "w"]);
     std::thread::sleep(Duration::from_millis(300));
     x_command(&display, "xdotool", &["keyup", "w"]);
@@ -185,6 +228,20 @@ fn the_window_shows_the_triangles_and_walks_on_a_key_press() {
         walked.orientation, camera.orientation,
         "walking does not turn"
     );
+
+    // The panel back, a click on the second viewpoint's button: the camera jumps there.
+    x_command(&display, "xdotool", &["key", "h"]);
+    let button = viewer::panel::viewpoint_button(1).center();
+    let (x, y) = (button.x.round().to_string(), button.y.round().to_string());
+    x_command(&display, "xdotool", &["mousemove", &x, &y]);
+    std::thread::sleep(Duration::from_millis(300));
+    x_command(&display, "xdotool", &["click", "1"]);
+    let side = &scene().viewpoints[1];
+    let jumped = wait_for("the camera at the clicked viewpoint", || {
+        let c = sma.expect_camera();
+        (c.eye == side.eye).then_some(c)
+    });
+    assert!(jumped.seq > walked.seq);
 
     x_command(&display, "xdotool", &["key", "Escape"]);
     sma.expect("goodbye", |s| {

@@ -61,14 +61,14 @@ impl Service {
                 accepted = listener.accept() => match accepted {
                     Ok((stream, peer)) => match limit.admit() {
                         Admission::Serve(permit) => {
-                            tracing::info!(%peer, "SMA connected");
+                            tracing::debug!(%peer, "SMA connected");
                             let service = Arc::clone(&service);
                             let stop = stop_rx.clone();
                             connections.spawn(async move {
                                 if let Err(e) = connection::handle(stream, service, stop).await {
                                     tracing::warn!(%peer, "connection ended: {e}");
                                 } else {
-                                    tracing::info!(%peer, "connection closed");
+                                    tracing::debug!(%peer, "connection closed");
                                 }
                                 drop(permit);
                             });

@@ -491,7 +491,7 @@ impl Schedule {
             converged: self.converged,
             rejected_points: self.rejected_points,
         };
-        tracing::info!(
+        tracing::debug!(
             samples = self.samples,
             samples_per_sec = format!("{rate:.0}"),
             leaves = stats.leaves,

@@ -1,8 +1,9 @@
 //! The viewer tests' scene and triangles, for the SMA stand-in of `testkit::fake_sma`.
 #![allow(dead_code)] // each test binary uses its own part of this helper
 
+use protocol::renderer_link::Quality;
 use protocol::types::{Bounds, Viewpoint};
-use protocol::viewer_link::{SceneInfo, ShownTriangle};
+use protocol::viewer_link::{SceneInfo, ShownTriangle, SkyInfo, SunInfo};
 pub use testkit::fake_sma::{Seen, StandIn};
 
 /// A scene with two viewpoints looking at the origin from +Z.
@@ -23,8 +24,23 @@ pub fn scene() -> SceneInfo {
         },
         viewpoints: vec![vp("front", [0.0, 0.0, 3.0]), vp("side", [3.0, 0.0, 0.0])],
         criteria: vec!["nld_os".into(), "nld_is".into(), "rnd".into()],
+        sky: SKY,
+        quality: Quality {
+            paths: 64,
+            bounces: Some(2),
+        },
     }
 }
+
+/// A blue sky with a large sun 25° above the front view's centre, above the known triangles.
+pub const SKY: SkyInfo = SkyInfo {
+    radiance: [0.3, 0.5, 1.0],
+    sun: Some(SunInfo {
+        direction: [0.0, 0.422_618_3, -0.906_307_8],
+        radiance: [50.0, 45.0, 40.0],
+        angular_diameter_deg: 5.0,
+    }),
+};
 
 /// Known triangles for image checks, seen from the "front" viewpoint: a red-orange square on the
 /// left (two triangles, one radiance), a square on the right whose radiance varies along x, and a
