@@ -179,11 +179,12 @@ pub struct ConvergenceArgs {
     /// of that scene's views.
     #[arg(long, value_delimiter = ',')]
     pub views: Vec<String>,
-    /// Criteria to compare. Default: every criterion the SMA offers.
+    /// Criteria to compare. Default: rnd, nld-is-thesis, nld-os-thesis and the best noise-aware
+    /// criterion (nld-px); a run without refinement is always added.
     #[arg(long, value_delimiter = ',')]
     pub criteria: Vec<String>,
     /// Length of each run; snapshots every second.
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = 60.0)]
     pub seconds: f64,
     /// Fixed sample counts at which snapshots are also taken.
     #[arg(
@@ -192,12 +193,15 @@ pub struct ConvergenceArgs {
         default_value = "1000,2000,4000,8000,16000,32000,64000,128000,256000"
     )]
     pub at_samples: Vec<u64>,
-    #[arg(long, default_value_t = 1024)]
+    /// Image size of the runs, the ground truth and the direct render (half of 1024×768, so a
+    /// 1024-path ground truth of every view fits in under an hour on 2 cores).
+    #[arg(long, default_value_t = 512)]
     pub width: u32,
-    #[arg(long, default_value_t = 768)]
+    #[arg(long, default_value_t = 384)]
     pub height: u32,
-    /// Paths per pixel of the ground truth (DESIGN.md §10: at least 256).
-    #[arg(long, default_value_t = 256)]
+    /// Paths per pixel of the ground truth (DESIGN.md §10: at least 256; 1024 so that its own
+    /// noise does not set the error floor).
+    #[arg(long, default_value_t = 1024)]
     pub gt_spp: u32,
     /// Tables, plots, strips and CSVs (committed: keep it small).
     #[arg(long, default_value = "docs/convergence")]

@@ -28,7 +28,7 @@ use testkit::ground_truth::GroundTruth;
 use testkit::loopback::{System, SystemConfig, ViewerConfig};
 use viewer::link::{Link, LinkEvent};
 use viewer::table::{ApplyCounts, TriangleTable};
-use walkthrough::bench::convergence::record::{Measurement, Schedule};
+use walkthrough::bench::convergence::record::Measurement;
 use walkthrough::bench::convergence::{GROUND_TRUTH_SEED, INTERACTIVE_BOUNCES, measure_snapshots};
 use walkthrough::bench::metrics::Reference;
 
@@ -235,12 +235,7 @@ fn run(
     let probe = probe.finish();
     drop(system);
     outcome.unwrap_or_else(|e| panic!("{name}: {e:#}"));
-    let schedule = if viewer.every_seconds.is_some() {
-        Schedule::Time
-    } else {
-        Schedule::Samples
-    };
-    let rows = measure_snapshots(name, schedule, reference, &dir.join("snapshots"))
+    let rows = measure_snapshots(name, reference, &dir.join("snapshots"))
         .unwrap_or_else(|e| panic!("{name}: {e:#}"));
     Run {
         name: name.into(),

@@ -1,5 +1,6 @@
-//! Convergence plots (DESIGN.md §10): the error against time and against samples, one line per
-//! criterion and one for the run without refinement. SVG, because text in plotters' bitmap backend
+//! Convergence plots (DESIGN.md §10): the error against time and against paths traced, and the
+//! renderers' busy share over time, one line per criterion and one for the run without
+//! refinement. SVG, because text in plotters' bitmap backend
 //! needs system font libraries (DEPENDENCY-NOTES.md).
 
 use std::path::Path;
@@ -9,28 +10,28 @@ use plotters::coord::ranged1d::ValueFormatter;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
-use crate::bench::convergence::record::{Measurement, Schedule, run_labels, run_rows, scheduled};
+use crate::bench::convergence::record::{Measurement, run_labels, run_rows};
 
 type Metric = (&'static str, fn(&Measurement) -> f64);
 type Axis = (&'static str, fn(&Measurement) -> f64);
 
-const METRICS: [Metric; 2] = [
-    ("mean LDR-FLIP", |m| m.error.flip),
-    ("RMSE (sRGB, 0..1)", |m| m.error.rmse),
-];
-const AXES: [Axis; 2] = [
-    ("time (s)", |m| m.time_s),
-    ("samples", |m| m.samples as f64),
-];
+const FLIP: Metric = ("mean LDR-FLIP", |m| m.error.flip);
+const RMSE: Metric = ("RMSE (sRGB, 0..1)", |m| m.error.rmse);
+const BUSY: Metric = ("renderer busy share", |m| m.renderer_busy);
+const TIME: Axis = ("time (s)", |m| m.time_s);
+const PATHS: Axis = ("paths traced", |m| m.paths as f64);
+/// The panels, row by row.
+const PANELS: [(Metric, Axis); 4] = [(FLIP, TIME), (FLIP, PATHS), (RMSE, TIME), (BUSY, TIME)];
 
-/// A 2×2 SVG: FLIP and RMSE (rows) against time and samples (columns).
+/// A 2×2 SVG: FLIP against time and against paths traced; RMSE and the renderers' busy share
+/// against time.
 pub fn error_panels(path: &Path, title: &str, rows: &[Measurement]) -> anyhow::Result<()> {
     let root = SVGBackend::new(path, (1100, 760)).into_drawing_area();
     root.fill(&WHITE).map_err(plot_error)?;
     let root = root.titled(title, ("sans-serif", 22)).map_err(plot_error)?;
     let panels = root.split_evenly((2, 2));
-    for (i, panel) in panels.iter().enumerate() {
-        panel_chart(panel, rows, METRICS[i / 2], AXES[i % 2])?;
+    for (panel, (metric, axis)) in panels.iter().zip(PANELS) {
+        panel_chart(panel, rows, metric, axis)?;
     }
     root.present().map_err(plot_error)?;
     Ok(())
@@ -44,12 +45,12 @@ fn panel_chart(
 ) -> anyhow::Result<()> {
     let (y_name, y_of) = metric;
     let (x_name, x_of) = axis;
-    // Samples span decades (0 at t = 0 is left out of the log axis).
-    let log_x = x_name == "samples";
+    // Paths span decades (0 at t = 0 is left out of the log axis).
+    let log_x = x_name == PATHS.0;
     let series: Vec<(String, Vec<(f64, f64)>)> = run_labels(rows)
         .into_iter()
         .map(|label| {
-            let points = panel_rows(&run_rows(rows, &label), log_x)
+            let points = run_rows(rows, &label)
                 .into_iter()
                 .map(|m| (x_of(m), y_of(m)))
                 .filter(|(x, _)| !log_x || *x > 0.0)
@@ -74,17 +75,6 @@ fn panel_chart(
     } else {
         let chart = builder.build_cartesian_2d(0.0..x_max, 0.0..y_max);
         draw_chart(chart.map_err(plot_error)?, names, &series)
-    }
-}
-
-/// Against time: the periodic snapshots. Against samples: the run at fixed sample counts where
-/// there is one (the run without refinement has only periodic snapshots).
-fn panel_rows<'a>(run: &[&'a Measurement], against_samples: bool) -> Vec<&'a Measurement> {
-    let by_samples = scheduled(run, Schedule::Samples);
-    if against_samples && !by_samples.is_empty() {
-        by_samples
-    } else {
-        scheduled(run, Schedule::Time)
     }
 }
 
@@ -137,25 +127,11 @@ fn plot_error(e: impl std::fmt::Display) -> anyhow::Error {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench::metrics::ImageError;
+    use crate::bench::convergence::record::test_measurement;
 
     #[test]
     fn writes_an_svg_with_every_run_in_the_legend() {
-        let m = |run: &str, t: f64, flip: f64| Measurement {
-            run: run.into(),
-            schedule: Schedule::Time,
-            time_s: t,
-            samples: (t * 1000.0) as u64,
-            shown: 1,
-            inserted: 1,
-            removed: 0,
-            outstanding: 0,
-            error: ImageError {
-                flip,
-                rmse: flip / 2.0,
-            },
-            exr: None,
-        };
+        let m = |run: &str, t: f64, flip: f64| test_measurement(run, t, (t * 1000.0) as u64, flip);
         let rows = [
             m("nld-os", 0.0, 0.9),
             m("nld-os", 1.0, 0.2),

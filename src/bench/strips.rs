@@ -91,8 +91,7 @@ fn thumb(reference: &Reference, m: &Measurement, thumb_height: u32) -> anyhow::R
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench::convergence::record::Schedule;
-    use crate::bench::metrics::ImageError;
+    use crate::bench::convergence::record::test_measurement;
 
     #[test]
     fn lays_out_appendix_b_rows() {
@@ -107,19 +106,8 @@ mod tests {
             alpha: None,
         });
         let m = |t: f64| Measurement {
-            run: "nld-os".into(),
-            schedule: Schedule::Time,
-            time_s: t,
-            samples: 1,
-            shown: 1,
-            inserted: 1,
-            removed: 0,
-            outstanding: 0,
-            error: ImageError {
-                flip: 0.1,
-                rmse: 0.1,
-            },
             exr: Some(exr.clone()),
+            ..test_measurement("nld-os", t, 1, 0.1)
         };
         let rows = [m(1.0), m(2.0)];
         let path = dir.path().join("strip.png");

@@ -53,6 +53,9 @@ pub struct Epoch {
     pub removed: u64,
     /// Samples computed so far (all viewers).
     pub samples: u64,
+    /// Paths traced for those samples so far: the cost of the picture, as samples of different
+    /// rungs of the quality ladder cost different numbers of paths (DESIGN.md §5, §10).
+    pub paths: u64,
     /// Shade requests not yet answered.
     pub outstanding: u64,
 }
@@ -60,6 +63,10 @@ pub struct Epoch {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Stats {
     pub samples_per_sec: f32,
+    pub paths_per_sec: f32,
+    /// Share of the last interval during which the renderers had a batch in hand (the mean over
+    /// the connected renderers, 0..1): how much of the rest time went to shading (DESIGN.md §3).
+    pub renderer_busy: f32,
     pub leaves: u64,
     pub cached_samples: u64,
     pub renderers: u32,

@@ -297,6 +297,7 @@ fn viewer_link_seeds() -> Vec<(String, Vec<u8>)> {
                 inserted: 2,
                 removed: 0,
                 samples: 1000,
+                paths: 64000,
                 outstanding: 7,
             }),
         ),
@@ -304,6 +305,8 @@ fn viewer_link_seeds() -> Vec<(String, Vec<u8>)> {
             "stats",
             SmaToViewer::Stats(Stats {
                 samples_per_sec: 5e4,
+                paths_per_sec: 3.2e6,
+                renderer_busy: 0.9,
                 leaves: 100,
                 cached_samples: 80,
                 renderers: 2,

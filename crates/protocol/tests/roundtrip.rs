@@ -182,19 +182,22 @@ fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
             }
         }),
         finite().prop_map(|l_white| SmaToViewer::ToneMap { l_white }),
-        any::<[u64; 7]>().prop_map(|c| SmaToViewer::Epoch(Epoch {
+        any::<[u64; 8]>().prop_map(|c| SmaToViewer::Epoch(Epoch {
             camera_seq: c[0],
             shown: c[1],
             visible_leaves: c[2],
             inserted: c[3],
             removed: c[4],
             samples: c[5],
-            outstanding: c[6],
+            paths: c[6],
+            outstanding: c[7],
         })),
         (finite(), any::<u64>(), any::<u64>(), any::<u32>()).prop_map(
             |(samples_per_sec, leaves, cached_samples, renderers)| {
                 SmaToViewer::Stats(Stats {
                     samples_per_sec,
+                    paths_per_sec: samples_per_sec * 64.0,
+                    renderer_busy: (leaves % 101) as f32 / 100.0,
                     leaves,
                     cached_samples,
                     renderers,

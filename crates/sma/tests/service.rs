@@ -481,7 +481,8 @@ async fn two_viewers_share_one_cache_and_a_bad_frame_closes_only_its_viewer() {
 }
 
 /// The stated end of DESIGN.md §5: a resting viewer's noisy samples get more paths, rung by rung
-/// up to the ladder's cap, the SMA then says `converged` and asks for nothing more.
+/// up to the ladder's cap, with the renderer kept busy meanwhile; the SMA then says `converged`
+/// and asks for nothing more.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_resting_viewer_gets_more_paths_until_converged_then_nothing() {
     if !gpu_available() {
@@ -497,6 +498,20 @@ async fn a_resting_viewer_gets_more_paths_until_converged_then_nothing() {
     probe.complete(camera.seq, WAIT).await.unwrap();
     let stats = probe.until_converged(WAIT).await.unwrap();
     assert!(stats.converged);
+    let working: Vec<_> = probe.stats_seen.iter().filter(|s| !s.converged).collect();
+    assert!(
+        working
+            .iter()
+            .any(|s| s.renderer_busy > 0.0 && s.paths_per_sec > 0.0),
+        "no interval before the end had the renderer busy: {working:?}"
+    );
+    let last = probe.epochs.last().unwrap();
+    assert!(
+        last.paths >= last.samples * u64::from(Quality::DIRECT.paths),
+        "{} paths for {} samples",
+        last.paths,
+        last.samples
+    );
     let rung = Quality {
         paths: 3 * Quality::INTERACTIVE.paths,
         ..Quality::INTERACTIVE

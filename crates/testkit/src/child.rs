@@ -13,6 +13,9 @@ use anyhow::Context;
 /// How long a child may take to bind its port (scene load, BVH build, wgpu start on Mesa).
 pub const START_TIMEOUT: Duration = Duration::from_secs(120);
 
+/// `/proc`'s clock ticks (USER_HZ: 100 on every Linux architecture, fixed by its ABI).
+const CLOCK_TICKS_PER_SECOND: f64 = 100.0;
+
 /// A running child process; killed when dropped, on every exit path (a failure, a panic in a test).
 pub struct Process {
     name: String,
@@ -76,6 +79,17 @@ impl Process {
     pub fn kill(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
+    }
+
+    /// CPU seconds (user + system) the child has used so far, read from `/proc` (Linux); `None`
+    /// elsewhere or once the child is reaped.
+    pub fn cpu_seconds(&self) -> Option<f64> {
+        let stat = std::fs::read_to_string(format!("/proc/{}/stat", self.child.id())).ok()?;
+        // After the command name (in parentheses, and it may hold spaces) come the fields from
+        // the 3rd on; utime and stime are the 14th and 15th, in clock ticks.
+        let fields: Vec<&str> = stat.rsplit_once(')')?.1.split_whitespace().collect();
+        let ticks = |i: usize| fields.get(i - 3)?.parse::<f64>().ok();
+        Some((ticks(14)? + ticks(15)?) / CLOCK_TICKS_PER_SECOND)
     }
 
     /// The exit status once the child has ended.

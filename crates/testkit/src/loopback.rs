@@ -89,9 +89,11 @@ impl System {
         self.sma_addr
     }
 
-    /// Runs a headless viewer to its end, writing snapshots into `out`. Fails when the viewer
-    /// fails, overruns, or a server dies meanwhile.
-    pub fn run_viewer(&mut self, config: &ViewerConfig, out: &Path) -> anyhow::Result<()> {
+    /// Runs a headless viewer to its end, writing snapshots into `out`, and tells the CPU time
+    /// each process used meanwhile. Fails when the viewer fails, overruns, or a server dies.
+    pub fn run_viewer(&mut self, config: &ViewerConfig, out: &Path) -> anyhow::Result<CpuShares> {
+        let started = Instant::now();
+        let servers_before: Vec<f64> = self.server_cpu();
         let mut viewer = Process::spawn(
             &self.exe,
             "viewer",
@@ -99,10 +101,25 @@ impl System {
             Some(&self.logs.join("viewer.log")),
         )?;
         let deadline = Instant::now() + config.time_limit;
+        let mut viewer_cpu = 0.0;
         loop {
+            // Read while the viewer runs: once it is reaped, /proc no longer has it.
+            viewer_cpu = viewer.cpu_seconds().unwrap_or(viewer_cpu);
             if let Some(status) = viewer.exited() {
                 return if status.success() {
-                    Ok(())
+                    let used: Vec<f64> = self
+                        .server_cpu()
+                        .iter()
+                        .zip(&servers_before)
+                        .map(|(after, before)| after - before)
+                        .collect();
+                    let (sma, renderers) = used.split_last().expect("an SMA");
+                    Ok(CpuShares {
+                        wall_s: started.elapsed().as_secs_f64(),
+                        renderers_s: renderers.iter().sum(),
+                        sma_s: *sma,
+                        viewer_s: viewer_cpu,
+                    })
                 } else {
                     Err(viewer.failure(&format!("failed ({status})")))
                 };
@@ -127,6 +144,26 @@ impl System {
             std::thread::sleep(Duration::from_millis(50));
         }
     }
+}
+
+impl System {
+    /// CPU seconds of each server so far: the renderers, then the SMA (the order started).
+    fn server_cpu(&self) -> Vec<f64> {
+        self.servers
+            .iter()
+            .map(|p| p.cpu_seconds().unwrap_or(0.0))
+            .collect()
+    }
+}
+
+/// Where the machine's time went during a viewer's run (DESIGN.md §10: rest time is meant for the
+/// renderer): CPU seconds of each kind of process, and the wall time.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CpuShares {
+    pub wall_s: f64,
+    pub renderers_s: f64,
+    pub sma_s: f64,
+    pub viewer_s: f64,
 }
 
 fn viewer_args(c: &ViewerConfig, sma: SocketAddr, out: &Path) -> Vec<String> {

@@ -27,6 +27,8 @@ pub struct Probe {
     pub refinement: Vec<(String, bool)>,
     /// The latest `Stats`.
     pub stats: Option<Stats>,
+    /// Every `Stats`, in order.
+    pub stats_seen: Vec<Stats>,
     next_seq: u64,
 }
 
@@ -57,6 +59,7 @@ impl Probe {
             epochs: Vec::new(),
             refinement: Vec::new(),
             stats: None,
+            stats_seen: Vec::new(),
             next_seq: 0,
         })
     }
@@ -151,7 +154,10 @@ impl Probe {
             SmaToViewer::Refinement { criterion, paused } => {
                 self.refinement.push((criterion, paused))
             }
-            SmaToViewer::Stats(stats) => self.stats = Some(stats),
+            SmaToViewer::Stats(stats) => {
+                self.stats = Some(stats);
+                self.stats_seen.push(stats);
+            }
             SmaToViewer::SceneInfo(_) => {}
             SmaToViewer::Error { message } => bail!("the SMA reported an error: {message}"),
         }

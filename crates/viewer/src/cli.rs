@@ -51,8 +51,9 @@ pub struct Cli {
     /// Image height in pixels.
     #[arg(long, default_value_t = 768)]
     pub height: u32,
-    /// Headless: a snapshot every this many seconds, from t = 0 (the first camera sent).
-    #[arg(long, conflicts_with = "snapshot_at_samples")]
+    /// Headless: a snapshot every this many seconds, from t = 0 (the first camera sent); with
+    /// `--snapshot-at-samples` as well, both kinds in one run.
+    #[arg(long)]
     pub snapshot_every: Option<f64>,
     /// Headless: a snapshot when the SMA's sample count first reaches each of these.
     #[arg(long, value_delimiter = ',')]

@@ -296,7 +296,10 @@ impl Headless<'_> {
             inserted,
             removed,
             samples: epoch.samples,
+            paths: epoch.paths,
             outstanding: epoch.outstanding,
+            renderer_busy: self.state.stats.renderer_busy,
+            converged: self.state.stats.converged,
         };
         self.writer.write(&record, &image)?;
         tracing::debug!(

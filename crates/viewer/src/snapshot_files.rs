@@ -11,9 +11,10 @@ use crate::offscreen::Snapshot;
 
 pub const CSV_NAME: &str = "snapshots.csv";
 /// `inserted`/`removed` are summed over the epochs since the previous snapshot (Δins, Δrem);
-/// `camera_seq`, `shown`, `samples` and `outstanding` are the latest epoch's.
-pub const CSV_HEADER: &str =
-    "index,time_s,camera_seq,shown,inserted,removed,samples,outstanding,png,exr";
+/// `camera_seq`, `shown`, `samples`, `paths` and `outstanding` are the latest epoch's;
+/// `renderer_busy` and `converged` the latest `Stats`' (one interval of the SMA's, about a second).
+pub const CSV_HEADER: &str = "index,time_s,camera_seq,shown,inserted,removed,samples,paths,\
+                              outstanding,renderer_busy,converged,png,exr";
 
 /// One CSV row.
 #[derive(Clone, Debug, PartialEq)]
@@ -25,7 +26,10 @@ pub struct SnapshotRecord {
     pub inserted: u64,
     pub removed: u64,
     pub samples: u64,
+    pub paths: u64,
     pub outstanding: u64,
+    pub renderer_busy: f32,
+    pub converged: bool,
 }
 
 pub struct SnapshotWriter {
@@ -55,7 +59,7 @@ impl SnapshotWriter {
         let r = record;
         writeln!(
             self.csv,
-            "{},{:.3},{},{},{},{},{},{},{png},{exr}",
+            "{},{:.3},{},{},{},{},{},{},{},{:.3},{},{png},{exr}",
             r.index,
             r.time_s,
             r.camera_seq,
@@ -63,7 +67,10 @@ impl SnapshotWriter {
             r.inserted,
             r.removed,
             r.samples,
-            r.outstanding
+            r.paths,
+            r.outstanding,
+            r.renderer_busy,
+            u8::from(r.converged)
         )?;
         self.csv.flush()?;
         Ok(())

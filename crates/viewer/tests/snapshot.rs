@@ -177,6 +177,7 @@ fn headless_binary_writes_snapshots_when_the_sma_is_idle() {
         shown: n,
         inserted: n,
         samples: 42,
+        paths: 2688,
         ..Epoch::default()
     };
     sma.send(SmaToViewer::Epoch(epoch));
@@ -188,9 +189,14 @@ fn headless_binary_writes_snapshots_when_the_sma_is_idle() {
     assert_eq!(rows.len(), 2, "{csv}");
     let fields: Vec<&str> = rows[1].split(',').collect();
     let (seq, n) = (camera.seq.to_string(), n.to_string());
-    assert_eq!(fields[2..8], [seq.as_str(), &n, &n, "0", "42", "0"]);
+    assert_eq!(
+        fields[2..11],
+        [seq.as_str(), &n, &n, "0", "42", "2688", "0", "0.000", "0"]
+    );
 
-    let png = image::open(out.path().join(fields[8])).unwrap().into_rgb8();
+    let png = image::open(out.path().join(fields[11]))
+        .unwrap()
+        .into_rgb8();
     let settings = DrawSettings {
         tone_map: ToneMap::Drago,
         l_white: L_WHITE,
@@ -206,7 +212,7 @@ fn headless_binary_writes_snapshots_when_the_sma_is_idle() {
     assert!(same, "the snapshot differs from the offscreen drawing");
 
     let exr = exr::prelude::read_first_rgba_layer_from_file(
-        out.path().join(fields[9]),
+        out.path().join(fields[12]),
         |size, _| vec![([0f32; 3], false); size.width() * size.height()],
         |pixels, pos, (r, g, b, a): (f32, f32, f32, f32)| {
             pixels[pos.y() * W as usize + pos.x()] = ([r, g, b], a > 0.5)

@@ -5,6 +5,7 @@
 //! into a CSV; tables, plots and strips are drawn from it into the output folder, and the Markdown
 //! section into `docs/bench/convergence.md`.
 
+pub mod cpu;
 pub mod manifest;
 pub mod record;
 pub mod snapshots;
@@ -19,9 +20,9 @@ use anyhow::Context;
 use crate::bench::metrics::{LinearImage, Reference};
 use crate::bench::{plots, strips};
 use manifest::ViewRecord;
-use record::{Measurement, NO_REFINE, Schedule};
+use record::{Measurement, NO_REFINE};
 use testkit::ground_truth::GroundTruth;
-use testkit::loopback::{System, SystemConfig, ViewerConfig};
+use testkit::loopback::{CpuShares, System, SystemConfig, ViewerConfig};
 
 /// Bounce depth of the interactive preset (DESIGN.md §10: 64 paths × 2 bounces per sample); the
 /// ground truth uses the same estimator and depth, per pixel.
@@ -36,6 +37,9 @@ const SHARED_SCENES: &str = "../shared/scenes";
 const SPONZA: &str = "scenes/sponza.toml";
 
 pub const SECTION: &str = "docs/bench/convergence.md";
+
+/// The SMA's stats (and with them the renderers' busy share) once a second, as the snapshots.
+const STATS_EVERY_SECOND: [&str; 2] = ["--stats-secs", "1"];
 
 /// Time a run may take beyond its `--seconds`: processes start, wgpu opens Mesa, scenes load.
 const START_ALLOWANCE: Duration = Duration::from_secs(90);
@@ -112,11 +116,19 @@ pub fn run(args: ConvergenceConfig) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The criteria the SMA offers, the thesis's three first.
+/// The noise-aware criterion measured against the thesis's (DESIGN.md §6): the best of the three
+/// in the 20-s runs of the previous measurement.
+pub const BEST_NOISE_AWARE: &str = "nld-px";
+/// What it is compared with at equal paths traced: random selection and the thesis's eq. 4.3
+/// criteria as the thesis defined them.
+pub const RIVALS: [&str; 3] = ["rnd", "nld-is-thesis", "nld-os-thesis"];
+
+/// The rivals, then the best noise-aware criterion; any other by `--criteria`.
 pub fn default_criteria() -> Vec<String> {
-    sma::criteria::CriterionKind::ALL
+    RIVALS
         .iter()
-        .map(|c| c.name().to_string())
+        .chain(std::iter::once(&BEST_NOISE_AWARE))
+        .map(|c| c.to_string())
         .collect()
 }
 
@@ -175,7 +187,7 @@ fn strings(v: &[&str]) -> Vec<String> {
     v.iter().map(|s| s.to_string()).collect()
 }
 
-/// Ground truth, the run without refinement and two runs per criterion; writes the view's CSV and
+/// Ground truth, the run without refinement and one run per criterion; writes the view's CSV and
 /// strip (the plot is drawn with the section, from the CSV).
 fn measure_view(
     args: &ConvergenceConfig,
@@ -207,19 +219,19 @@ fn measure_view(
     };
     let runs_dir = args.runs.join(record.stem());
     let mut rows = Vec::new();
+    let mut shares = Vec::new();
     for run in planned_runs(args, exe, spec, criteria) {
-        eprintln!("  {} ({} snapshots)…", run.label, run.schedule.as_str());
-        let dir = runs_dir.join(format!("{}-{}", run.label, run.schedule.as_str()));
-        rows.extend(measure_run(
-            &run.system,
-            &run.viewer,
-            &run.label,
-            run.schedule,
-            &reference,
-            &dir,
-        )?);
+        eprintln!("  {}…", run.label);
+        let dir = runs_dir.join(&run.label);
+        let (measured, cpu) = measure_run(&run.system, &run.viewer, &run.label, &reference, &dir)?;
+        rows.extend(measured);
+        shares.push((run.label.clone(), cpu));
     }
     record::write_csv(&args.out.join(format!("{}.csv", record.stem())), &rows)?;
+    cpu::write_csv(
+        &args.out.join(format!("{}-cpu.csv", record.stem())),
+        &shares,
+    )?;
     let base = base_mesh(&rows);
     strips::write_strip(
         &args.out.join(format!("{}-strip.png", record.stem())),
@@ -234,14 +246,13 @@ fn measure_view(
 /// One run of the system for a view.
 struct PlannedRun {
     label: String,
-    schedule: Schedule,
     system: SystemConfig,
     viewer: ViewerConfig,
 }
 
 /// The run without refinement (periodic snapshots, and one when first idle: the base mesh at full
-/// quality), then for each criterion a run with periodic snapshots and one with snapshots at the
-/// fixed sample counts (the viewer takes one kind per run).
+/// quality), then for each criterion a run with snapshots every second and at the fixed sample
+/// counts.
 fn planned_runs(
     args: &ConvergenceConfig,
     exe: &Path,
@@ -255,7 +266,12 @@ fn planned_runs(
         refine,
         seed: args.seed,
         renderers: args.renderers,
-        sma_flags: args.sma_flags.clone(),
+        // A busy share for every one-second snapshot.
+        sma_flags: [
+            STATS_EVERY_SECOND.map(String::from).as_slice(),
+            &args.sma_flags,
+        ]
+        .concat(),
     };
     let viewer = |every_seconds: Option<f64>, at_samples: Vec<u64>, when_idle: bool| ViewerConfig {
         view: spec.view.clone(),
@@ -269,48 +285,37 @@ fn planned_runs(
     };
     let mut runs = vec![PlannedRun {
         label: NO_REFINE.to_string(),
-        schedule: Schedule::Time,
         system: system(&criteria[0], false),
         viewer: viewer(Some(1.0), vec![], true),
     }];
-    for criterion in criteria {
-        for schedule in [Schedule::Time, Schedule::Samples] {
-            let v = match schedule {
-                Schedule::Time => viewer(Some(1.0), vec![], false),
-                Schedule::Samples => viewer(None, args.at_samples.clone(), false),
-            };
-            runs.push(PlannedRun {
-                label: criterion.clone(),
-                schedule,
-                system: system(criterion, true),
-                viewer: v,
-            });
-        }
-    }
+    runs.extend(criteria.iter().map(|criterion| PlannedRun {
+        label: criterion.clone(),
+        system: system(criterion, true),
+        viewer: viewer(Some(1.0), args.at_samples.clone(), false),
+    }));
     runs
 }
 
-/// Starts a fresh system, runs the viewer, and measures every snapshot it wrote.
+/// Starts a fresh system, runs the viewer, and measures every snapshot it wrote; with the CPU
+/// time each process used.
 pub fn measure_run(
     system: &SystemConfig,
     viewer: &ViewerConfig,
     label: &str,
-    schedule: Schedule,
     reference: &Reference,
     dir: &Path,
-) -> anyhow::Result<Vec<Measurement>> {
+) -> anyhow::Result<(Vec<Measurement>, CpuShares)> {
     if dir.exists() {
         std::fs::remove_dir_all(dir)?;
     }
     let snapshots_dir = dir.join("snapshots");
-    System::start(system, dir)?.run_viewer(viewer, &snapshots_dir)?;
-    measure_snapshots(label, schedule, reference, &snapshots_dir)
+    let cpu = System::start(system, dir)?.run_viewer(viewer, &snapshots_dir)?;
+    Ok((measure_snapshots(label, reference, &snapshots_dir)?, cpu))
 }
 
 /// The error of every snapshot a viewer wrote into `dir`.
 pub fn measure_snapshots(
     label: &str,
-    schedule: Schedule,
     reference: &Reference,
     dir: &Path,
 ) -> anyhow::Result<Vec<Measurement>> {
@@ -320,9 +325,11 @@ pub fn measure_snapshots(
             let error = reference.error_of(&LinearImage::read_exr(&s.exr)?)?;
             Ok(Measurement {
                 run: label.to_string(),
-                schedule,
                 time_s: s.time_s,
                 samples: s.samples,
+                paths: s.paths,
+                renderer_busy: s.renderer_busy,
+                converged: s.converged,
                 shown: s.shown,
                 inserted: s.inserted,
                 removed: s.removed,
@@ -351,15 +358,19 @@ pub fn section(out: &Path) -> anyhow::Result<String> {
     let mut md = String::from("## convergence\n\n");
     md.push_str(
         "Convergence per viewpoint (thesis §5.2, DESIGN.md §10), regenerated by `walkthrough bench convergence` \
-         (options: `--views`, `--criteria`, `--seconds`, `--width/--height`, `--gt-spp`; `--report-only` redraws this section and the plots from the CSVs). For each view and criterion a \
-         fresh renderer + SMA + headless viewer run on loopback, as separate processes, from an empty cache (t = 0 at \
-         the viewer's first camera); samples at the SMA's interactive quality (64 paths × 2 bounces). Δvis = triangles \
-         shown, Δins / Δrem = triangles inserted / removed since t = 0 (as in the thesis's tables 5.2–5.4), samples = \
-         vertex samples computed. The error is against the renderer's per-pixel ground truth at the same bounce \
-         depth, both images tone-mapped alike (Drago with the ground truth's L_white, sRGB), over the pixels that see \
-         geometry: mean LDR-FLIP (67 ppd) and RMSE. `no-refine` is the same system with refinement switched off: its \
-         last picture is the unrefined base mesh at full GI quality. Strips (appendix B): first row without \
-         refinement; one row per criterion at 1, 2, 3, 4, 5 s; last row the ground truth.\n\n",
+         (options: `--views`, `--criteria`, `--seconds`, `--width/--height`, `--gt-spp`; `--report-only` redraws this \
+         section and the plots from the CSVs). For each view and criterion a fresh renderer + SMA + headless viewer run \
+         on loopback, as separate processes, from an empty cache (t = 0 at the viewer's first camera), with snapshots \
+         every second and when the sample count passes 1 000, 2 000, 4 000, …; samples climb the quality ladder \
+         (direct light, the scene's 64 paths × 2 bounces, then ×4 paths up to the SMA's `--max-paths`, DESIGN.md §5). \
+         Δvis = triangles shown, Δins / Δrem = triangles inserted / removed since t = 0 (as in the thesis's tables \
+         5.2–5.4), samples = vertex samples computed, paths = paths traced for them (the cost at which runs are \
+         compared), busy = the share of the second before the snapshot during which the renderer had a batch in hand \
+         (the SMA's stats interval, set to 1 s). The error is against the renderer's per-pixel ground truth at the same bounce depth, both images \
+         tone-mapped alike (Drago with the ground truth's L_white, sRGB), over the pixels that see geometry (sky \
+         pixels are left out): mean LDR-FLIP (67 ppd) and RMSE. `no-refine` is the same system with refinement \
+         switched off: the unrefined base mesh, its samples still climbing the ladder. Strips (appendix B): first row \
+         without refinement; one row per criterion at 1, 2, 3, 4, 5 s; last row the ground truth.\n\n",
     );
     let _ = writeln!(md, "Machine: {}.\n", crate::bench::machine::describe());
     for record in &records {
@@ -386,8 +397,13 @@ pub fn section(out: &Path) -> anyhow::Result<String> {
             );
         }
         md.push_str(&tables::time_table(record, &rows));
-        md.push_str("\nMean FLIP at fixed sample counts (time when reached):\n\n");
-        md.push_str(&tables::samples_table(record, &rows));
+        md.push_str("\nMean FLIP at equal paths traced (time when reached):\n\n");
+        md.push_str(&tables::paths_table(&rows));
+        let shares = cpu::read_csv(&out.join(format!("{}-cpu.csv", record.stem())))?;
+        if !shares.is_empty() {
+            md.push_str("\nWhere the CPU went over each run (share of all cores):\n\n");
+            md.push_str(&cpu::table(&shares));
+        }
         let dir = out.to_string_lossy();
         let stem = record.stem();
         let _ = writeln!(

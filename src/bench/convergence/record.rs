@@ -1,5 +1,7 @@
 //! Measured snapshots of one view, kept as `<scene>-<view>.csv` under the output folder: the
 //! convergence tables, plots and strips are drawn from them, and `bench accuracy` reads them back.
+//! One run per criterion takes its snapshots every second and when the sample count reaches each
+//! fixed count (which falls between the seconds early on, timing the first second finely).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -11,51 +13,30 @@ use crate::bench::metrics::ImageError;
 /// The run label of the control run with refinement switched off.
 pub const NO_REFINE: &str = "no-refine";
 
-/// What triggered a run's snapshots: the viewer takes either periodic snapshots or snapshots at
-/// sample counts in one run, so each criterion is run once for each.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Schedule {
-    /// Every second from t = 0 (and, without refinement, when idle).
-    Time,
-    /// At fixed sample counts.
-    Samples,
-}
-
-impl Schedule {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Schedule::Time => "time",
-            Schedule::Samples => "samples",
-        }
-    }
-
-    fn parse(s: &str) -> anyhow::Result<Schedule> {
-        match s {
-            "time" => Ok(Schedule::Time),
-            "samples" => Ok(Schedule::Samples),
-            _ => anyhow::bail!("unknown schedule {s:?}"),
-        }
-    }
-}
-
 /// One snapshot of one run and its error against the ground truth.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Measurement {
     /// The criterion, or [`NO_REFINE`].
     pub run: String,
-    pub schedule: Schedule,
     pub time_s: f64,
     pub samples: u64,
+    /// Paths traced for those samples: the cost at which runs are compared (DESIGN.md §10).
+    pub paths: u64,
     pub shown: u64,
     pub inserted: u64,
     pub removed: u64,
     pub outstanding: u64,
+    /// The renderers' busy share over the SMA's latest stats interval (about the second before).
+    pub renderer_busy: f64,
+    /// The SMA said the view is at its stated end (DESIGN.md §5).
+    pub converged: bool,
     pub error: ImageError,
     /// The viewer's linear image (in the raw runs folder; absent from CSVs read back).
     pub exr: Option<PathBuf>,
 }
 
-const HEADER: &str = "run,schedule,time_s,samples,shown,inserted,removed,outstanding,flip,rmse";
+const HEADER: &str = "run,time_s,samples,paths,shown,inserted,removed,outstanding,renderer_busy,\
+                      converged,flip,rmse";
 
 pub fn write_csv(path: &Path, rows: &[Measurement]) -> anyhow::Result<()> {
     let mut out = std::io::BufWriter::new(
@@ -65,15 +46,17 @@ pub fn write_csv(path: &Path, rows: &[Measurement]) -> anyhow::Result<()> {
     for m in rows {
         writeln!(
             out,
-            "{},{},{:.3},{},{},{},{},{},{:.5},{:.5}",
+            "{},{:.3},{},{},{},{},{},{},{:.3},{},{:.5},{:.5}",
             m.run,
-            m.schedule.as_str(),
             m.time_s,
             m.samples,
+            m.paths,
             m.shown,
             m.inserted,
             m.removed,
             m.outstanding,
+            m.renderer_busy,
+            u8::from(m.converged),
             m.error.flip,
             m.error.rmse
         )?;
@@ -87,7 +70,7 @@ pub fn read_csv(path: &Path) -> anyhow::Result<Vec<Measurement>> {
     let mut lines = text.lines();
     anyhow::ensure!(
         lines.next() == Some(HEADER),
-        "{} does not start with {HEADER:?}",
+        "{} does not start with {HEADER:?} (measured by an older `bench convergence`: measure again)",
         path.display()
     );
     lines
@@ -98,19 +81,21 @@ pub fn read_csv(path: &Path) -> anyhow::Result<Vec<Measurement>> {
 
 fn parse_row(line: &str) -> anyhow::Result<Measurement> {
     let f: Vec<&str> = line.split(',').collect();
-    anyhow::ensure!(f.len() == 10, "expected 10 fields");
+    anyhow::ensure!(f.len() == 12, "expected 12 fields");
     Ok(Measurement {
         run: f[0].to_string(),
-        schedule: Schedule::parse(f[1])?,
-        time_s: f[2].parse()?,
-        samples: f[3].parse()?,
+        time_s: f[1].parse()?,
+        samples: f[2].parse()?,
+        paths: f[3].parse()?,
         shown: f[4].parse()?,
         inserted: f[5].parse()?,
         removed: f[6].parse()?,
         outstanding: f[7].parse()?,
+        renderer_busy: f[8].parse()?,
+        converged: f[9] == "1",
         error: ImageError {
-            flip: f[8].parse()?,
-            rmse: f[9].parse()?,
+            flip: f[10].parse()?,
+            rmse: f[11].parse()?,
         },
         exr: None,
     })
@@ -132,33 +117,34 @@ pub fn run_labels(rows: &[Measurement]) -> Vec<String> {
     labels
 }
 
-/// The rows of `run` taken on `schedule`.
-pub fn scheduled<'a>(run: &[&'a Measurement], schedule: Schedule) -> Vec<&'a Measurement> {
+/// The snapshot nearest `t` seconds, within a quarter second (the viewer's `--snapshot-every`
+/// ticks land within a few milliseconds of the second; the slack tolerates a busy machine).
+pub fn at_time<'a>(run: &[&'a Measurement], t: f64) -> Option<&'a Measurement> {
     run.iter()
         .copied()
-        .filter(|m| m.schedule == schedule)
-        .collect()
-}
-
-/// The periodic snapshot taken at `t` seconds (the viewer's `--snapshot-every` ticks land within
-/// a few milliseconds of the second; a quarter second of slack tolerates a busy machine).
-pub fn at_time<'a>(run: &[&'a Measurement], t: f64) -> Option<&'a Measurement> {
-    scheduled(run, Schedule::Time)
-        .into_iter()
         .filter(|m| (m.time_s - t).abs() < 0.25)
         .min_by(|a, b| (a.time_s - t).abs().total_cmp(&(b.time_s - t).abs()))
 }
 
-/// The snapshot taken when the sample count first reached `n` (`--snapshot-at-samples`).
+/// The first snapshot at which the sample count had reached `n`.
 pub fn at_samples<'a>(run: &[&'a Measurement], n: u64) -> Option<&'a Measurement> {
-    scheduled(run, Schedule::Samples)
-        .into_iter()
-        .find(|m| m.samples >= n)
+    run.iter().copied().find(|m| m.samples >= n)
 }
 
-/// The first snapshot time, periodic or at a sample count, at which the mean FLIP is at or
-/// below `level`: the sample-count snapshots fall between the seconds, so a level reached in
-/// the first second is timed more finely than to the second.
+/// The first snapshot at which `n` paths had been traced.
+pub fn at_paths<'a>(run: &[&'a Measurement], n: u64) -> Option<&'a Measurement> {
+    run.iter().copied().find(|m| m.paths >= n)
+}
+
+/// The last snapshot at or before `t` seconds: the picture the person saw then.
+pub fn by_time<'a>(run: &[&'a Measurement], t: f64) -> Option<&'a Measurement> {
+    run.iter()
+        .copied()
+        .take_while(|m| m.time_s <= t + 0.25)
+        .last()
+}
+
+/// The first snapshot time at which the mean FLIP is at or below `level`.
 pub fn time_to_reach(run: &[&Measurement], level: f64) -> Option<f64> {
     run.iter()
         .filter(|m| m.error.flip <= level)
@@ -166,18 +152,20 @@ pub fn time_to_reach(run: &[&Measurement], level: f64) -> Option<f64> {
         .min_by(f64::total_cmp)
 }
 
-/// A periodic snapshot with made-up counts, for tests.
+/// A snapshot with made-up counts (64 paths per sample), for tests.
 #[cfg(test)]
 pub fn test_measurement(run: &str, time_s: f64, samples: u64, flip: f64) -> Measurement {
     Measurement {
         run: run.into(),
-        schedule: Schedule::Time,
         time_s,
         samples,
+        paths: samples * 64,
         shown: 10,
         inserted: 12,
         removed: 2,
         outstanding: 0,
+        renderer_busy: 0.9,
+        converged: false,
         error: ImageError {
             flip,
             rmse: flip / 2.0,
@@ -198,7 +186,8 @@ mod tests {
         let rows = vec![
             m("nld-os", 1.0, 100, 0.25),
             Measurement {
-                schedule: Schedule::Samples,
+                converged: true,
+                renderer_busy: 0.125,
                 ..m(NO_REFINE, 2.5, 40, 0.5)
             },
         ];
@@ -207,23 +196,22 @@ mod tests {
     }
 
     #[test]
-    fn picks_snapshots_by_time_samples_and_level() {
-        let by_samples = |time_s, samples, flip| Measurement {
-            schedule: Schedule::Samples,
-            ..m("a", time_s, samples, flip)
-        };
+    fn picks_snapshots_by_time_samples_paths_and_level() {
         let rows = [
             m("a", 0.0, 0, 1.0),
             m("a", 1.01, 500, 0.3),
-            by_samples(1.1, 1000, 0.2),
+            m("a", 1.1, 1000, 0.2),
             m("a", 2.0, 1500, 0.09),
-            by_samples(2.2, 2000, 0.05),
+            m("a", 2.2, 2000, 0.05),
         ];
         let run: Vec<&Measurement> = rows.iter().collect();
         assert_eq!(at_time(&run, 1.0).unwrap().samples, 500);
         assert!(at_time(&run, 3.0).is_none());
         assert_eq!(at_samples(&run, 800).unwrap().time_s, 1.1);
-        assert_eq!(at_samples(&run, 1500).unwrap().time_s, 2.2);
+        assert_eq!(at_samples(&run, 1500).unwrap().time_s, 2.0);
+        assert_eq!(at_paths(&run, 64 * 1600).unwrap().time_s, 2.2);
+        assert_eq!(by_time(&run, 1.5).unwrap().time_s, 1.1);
+        assert_eq!(by_time(&run, 60.0).unwrap().time_s, 2.2);
         assert_eq!(time_to_reach(&run, 0.2), Some(1.1));
         assert_eq!(time_to_reach(&run, 0.1), Some(2.0));
         assert_eq!(time_to_reach(&run, 0.05), Some(2.2));

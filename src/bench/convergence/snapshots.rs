@@ -16,10 +16,14 @@ pub struct Snapshot {
     /// Triangles inserted and removed since t = 0 (Δins, Δrem).
     pub inserted: u64,
     pub removed: u64,
-    /// Samples computed so far.
+    /// Samples computed so far, and the paths traced for them.
     pub samples: u64,
+    pub paths: u64,
     /// Shade requests outstanding at the latest epoch.
     pub outstanding: u64,
+    /// The SMA's latest `Stats`: the renderers' busy share, and whether the view converged.
+    pub renderer_busy: f64,
+    pub converged: bool,
     /// The linear image.
     pub exr: PathBuf,
 }
@@ -47,23 +51,40 @@ fn parse(text: &str, dir: &Path) -> anyhow::Result<Vec<Snapshot>> {
             .copied()
             .with_context(|| format!("no column {name:?}"))
     };
-    let [time, shown, inserted, removed, samples, outstanding, exr] = [
+    let [
+        time,
+        shown,
+        inserted,
+        removed,
+        samples,
+        paths,
+        outstanding,
+        busy,
+        converged,
+        exr,
+    ] = [
         "time_s",
         "shown",
         "inserted",
         "removed",
         "samples",
+        "paths",
         "outstanding",
+        "renderer_busy",
+        "converged",
         "exr",
     ]
     .map(column);
-    let (time, shown, inserted, removed, samples, outstanding, exr) = (
+    let (time, shown, inserted, removed, samples, paths, outstanding, busy, converged, exr) = (
         time?,
         shown?,
         inserted?,
         removed?,
         samples?,
+        paths?,
         outstanding?,
+        busy?,
+        converged?,
         exr?,
     );
     let (mut total_inserted, mut total_removed) = (0, 0);
@@ -92,7 +113,12 @@ fn parse(text: &str, dir: &Path) -> anyhow::Result<Vec<Snapshot>> {
                 inserted: total_inserted,
                 removed: total_removed,
                 samples: int(samples)?,
+                paths: int(paths)?,
                 outstanding: int(outstanding)?,
+                renderer_busy: fields[busy]
+                    .parse()
+                    .with_context(|| format!("busy {:?}", fields[busy]))?,
+                converged: fields[converged] == "1",
                 exr: dir.join(fields[exr]),
             })
         })
@@ -105,10 +131,11 @@ mod tests {
 
     #[test]
     fn sums_insertions_and_removals_from_the_start() {
-        let csv = "index,time_s,camera_seq,shown,inserted,removed,samples,outstanding,png,exr\n\
-                   0,0.000,1,0,0,0,0,12,snapshot_000.png,snapshot_000.exr\n\
-                   1,1.002,1,700,737,37,1500,0,snapshot_001.png,snapshot_001.exr\n\
-                   2,2.001,1,900,300,100,3000,4,snapshot_002.png,snapshot_002.exr\n";
+        let csv = "index,time_s,camera_seq,shown,inserted,removed,samples,paths,outstanding,\
+                   renderer_busy,converged,png,exr\n\
+                   0,0.000,1,0,0,0,0,0,12,0.000,0,snapshot_000.png,snapshot_000.exr\n\
+                   1,1.002,1,700,737,37,1500,96000,0,0.950,0,snapshot_001.png,snapshot_001.exr\n\
+                   2,2.001,1,900,300,100,3000,192000,4,1.000,1,snapshot_002.png,snapshot_002.exr\n";
         let run = parse(csv, Path::new("/r")).unwrap();
         assert_eq!(run.len(), 3);
         assert_eq!(
@@ -116,6 +143,8 @@ mod tests {
             (1037, 137, 900)
         );
         assert_eq!(run[1].time_s, 1.002);
+        assert_eq!((run[1].paths, run[1].renderer_busy), (96000, 0.95));
+        assert!(run[2].converged && !run[1].converged);
         assert_eq!(run[2].exr, Path::new("/r/snapshot_002.exr"));
     }
 

@@ -1,20 +1,39 @@
 //! Markdown tables of one view in the form of the thesis's tables 5.2–5.4 (Δvis, Δins, Δrem per
-//! criterion at 0, 1, 2, … s), with rows added for samples and the measured error, and a second
-//! table of the error at fixed sample counts.
+//! criterion at 0, 1, 2, … s), with rows added for samples, paths, the renderers' busy share and
+//! the measured error, and a second table of the error at equal paths traced (DESIGN.md §10).
 
 use std::fmt::Write;
 
 use super::manifest::ViewRecord;
-use super::record::{Measurement, at_samples, at_time, run_labels, run_rows};
+use super::record::{Measurement, at_paths, at_time, run_labels, run_rows};
 
-/// The columns of the time table: every second up to 5 s (the thesis's instants), then every 5 s.
+/// The columns of the time table: every second up to 5 s (the thesis's instants), every 5 s up
+/// to 20 s, then every 10 s.
 pub fn table_times(seconds: f64) -> Vec<f64> {
     let every_second = (0..=5).map(f64::from);
-    let every_five = (2..).map(|k| f64::from(5 * k));
+    let every_five = [10.0, 15.0, 20.0];
+    let every_ten = (3..).map(|k| f64::from(10 * k));
     every_second
         .chain(every_five)
+        .chain(every_ten)
         .take_while(|t| *t <= seconds + 1e-9)
         .collect()
+}
+
+/// Paths traced at which runs are compared: ×4 steps from a million.
+pub const PATH_LEVELS: [u64; 7] = [
+    1 << 20,
+    1 << 22,
+    1 << 24,
+    1 << 26,
+    1 << 28,
+    1 << 30,
+    1 << 32,
+];
+
+/// `4.2 M` paths.
+pub fn millions(n: u64) -> String {
+    format!("{:.1} M", n as f64 / 1e6)
 }
 
 type Cell = fn(&Measurement) -> String;
@@ -24,6 +43,8 @@ const TIME_ROWS: &[(&str, Cell)] = &[
     ("Δins", |m| thousands(m.inserted)),
     ("Δrem", |m| thousands(m.removed)),
     ("samples", |m| thousands(m.samples)),
+    ("paths", |m| millions(m.paths)),
+    ("busy", |m| format!("{:.2}", m.renderer_busy)),
     ("FLIP", |m| format!("{:.3}", m.error.flip)),
     ("RMSE", |m| format!("{:.3}", m.error.rmse)),
 ];
@@ -55,32 +76,30 @@ pub fn time_table(record: &ViewRecord, rows: &[Measurement]) -> String {
     md
 }
 
-/// Mean FLIP at the first snapshot with at least n samples, and when it was taken.
-pub fn samples_table(record: &ViewRecord, rows: &[Measurement]) -> String {
+/// Mean FLIP at the first snapshot at which each level of paths had been traced, and when.
+pub fn paths_table(rows: &[Measurement]) -> String {
     let labels = run_labels(rows);
-    let counts: Vec<u64> = record
-        .sample_counts
-        .iter()
-        .copied()
+    let levels: Vec<u64> = PATH_LEVELS
+        .into_iter()
         .filter(|n| {
             labels
                 .iter()
-                .any(|l| at_samples(&run_rows(rows, l), *n).is_some())
+                .any(|l| at_paths(&run_rows(rows, l), *n).is_some())
         })
         .collect();
-    let mut md = String::from("| Samples |");
-    for n in &counts {
-        let _ = write!(md, " {} |", thousands(*n));
+    let mut md = String::from("| Paths traced |");
+    for n in &levels {
+        let _ = write!(md, " {} |", millions(*n));
     }
     md.push_str("\n|---|");
-    md.push_str(&"---:|".repeat(counts.len()));
+    md.push_str(&"---:|".repeat(levels.len()));
     md.push('\n');
     for label in &labels {
         let run = run_rows(rows, label);
         let _ = write!(md, "| {label} |");
-        for n in &counts {
+        for n in &levels {
             let cell =
-                at_samples(&run, *n).map(|m| format!("{:.3} ({:.1} s)", m.error.flip, m.time_s));
+                at_paths(&run, *n).map(|m| format!("{:.3} ({:.1} s)", m.error.flip, m.time_s));
             let _ = write!(md, " {} |", cell.unwrap_or_else(|| "—".into()));
         }
         md.push('\n');
@@ -102,7 +121,7 @@ pub fn thousands(n: u64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench::convergence::record::{Schedule, test_measurement};
+    use crate::bench::convergence::record::test_measurement;
 
     fn m(run: &str, time_s: f64, samples: u64, flip: f64) -> Measurement {
         Measurement {
@@ -132,6 +151,8 @@ mod tests {
             table_times(20.0),
             vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 10.0, 15.0, 20.0]
         );
+        assert_eq!(table_times(60.0).last(), Some(&60.0));
+        assert_eq!(table_times(60.0).len(), 13);
     }
 
     #[test]
@@ -143,16 +164,12 @@ mod tests {
 
     #[test]
     fn tables_hold_every_run_and_mark_missing_snapshots() {
-        let by_samples = Measurement {
-            schedule: Schedule::Samples,
-            ..m("rnd", 2.1, 250, 0.2)
-        };
         let rows = [
             m("nld-os", 0.0, 0, 0.9),
             m("nld-os", 1.0, 150, 0.3),
             m("rnd", 0.0, 0, 0.9),
             m("rnd", 2.0, 250, 0.2),
-            by_samples,
+            m("rnd", 2.1, 20_000, 0.1),
         ];
         let time = time_table(&record(), &rows);
         assert!(
@@ -160,15 +177,11 @@ mod tests {
             "{time}"
         );
         assert!(time.contains("|  | FLIP | 0.900 | — | 0.200 |"), "{time}");
-        let samples = samples_table(&record(), &rows);
-        assert!(
-            samples.starts_with("| Samples | 100 | 200 |\n"),
-            "{samples}"
-        );
-        assert!(
-            samples.contains("| rnd | 0.200 (2.1 s) | 0.200 (2.1 s) |"),
-            "{samples}"
-        );
-        assert!(samples.contains("| nld-os | — | — |"), "{samples}");
+        assert!(time.contains("|  | paths | 0.0 M | — | 0.0 M |"), "{time}");
+        // 20 000 samples × 64 paths = 1.28 M paths: past the first level only.
+        let paths = paths_table(&rows);
+        assert!(paths.starts_with("| Paths traced | 1.0 M |\n"), "{paths}");
+        assert!(paths.contains("| rnd | 0.100 (2.1 s) |"), "{paths}");
+        assert!(paths.contains("| nld-os | — |"), "{paths}");
     }
 }

@@ -21,6 +21,7 @@
 //! refinement rounds and the luminance image, [`waits`] the small state machines of what the work
 //! waits for.
 
+mod busy;
 mod coarsening;
 mod display;
 mod pending;
@@ -48,6 +49,7 @@ use crate::mesh::SubdivisionMesh;
 use crate::pool::{PoolEvent, PoolHandle};
 use crate::viewer_link::{ViewerEvent, ViewerId};
 use crate::visibility::{Gpu, LuminancePass, Visibility};
+use busy::BusyMeter;
 use coarsening::Coarsening;
 use pending::PendingRefinement;
 use plan::{Aging, MorePaths, NeedsInput, Qualities};
@@ -82,8 +84,12 @@ pub struct Schedule {
     /// What the next turn owes the queue and the viewers.
     owed: Owed,
     samples: u64,
+    /// Paths traced for `samples` (DESIGN.md §10: cost is counted in paths).
+    paths: u64,
     samples_since_pass: u64,
-    samples_at_last_stats: u64,
+    /// `samples` and `paths` at the previous `Stats`.
+    counted_at_last_stats: (u64, u64),
+    busy: BusyMeter,
     last_stats: Instant,
     frame: u64,
     refine_turn: usize,
@@ -134,8 +140,10 @@ impl Schedule {
             viewers: BTreeMap::new(),
             owed: Owed::default(),
             samples: 0,
+            paths: 0,
             samples_since_pass: 0,
-            samples_at_last_stats: 0,
+            counted_at_last_stats: (0, 0),
+            busy: BusyMeter::new(Instant::now()),
             last_stats: Instant::now(),
             frame: 0,
             refine_turn: 0,
@@ -175,6 +183,11 @@ impl Schedule {
                 self.on_pool_event(event);
             }
             self.turn()?;
+            self.busy.observe(
+                Instant::now(),
+                self.requests.batches_in_flight(),
+                self.renderers,
+            );
         }
     }
 
@@ -271,6 +284,7 @@ impl Schedule {
                 // find something now.
                 self.viewers.values_mut().for_each(|v| v.wait.new_input());
                 self.samples += n;
+                self.paths += radiance.paths.iter().map(|&p| u64::from(p)).sum::<u64>();
                 self.samples_since_pass += n;
                 self.owed.samples_arrived();
             }
@@ -329,10 +343,11 @@ impl Schedule {
     /// the ladder's cap), nothing is in flight and no refinement step waits.
     fn note_convergence(&mut self) {
         let converged = !self.viewers.is_empty()
-            && self
-                .viewers
-                .values()
-                .all(|v| v.view.is_some() && v.criterion_dry && !v.wait.needs_pass())
+            && self.viewers.values().all(|v| {
+                // Without refinement no criterion runs: there is nothing to subdivide.
+                let dry = v.criterion_dry || !self.config.refine;
+                v.view.is_some() && dry && !v.wait.needs_pass()
+            })
             && self.requests.outstanding() == 0
             && self.pending.is_empty()
             && !self.owed.any();
@@ -396,14 +411,13 @@ impl Schedule {
         self.requests.replan(needs);
     }
 
-    /// A viewer resting with nothing to subdivide gets more paths where its noise shows.
+    /// Every shown view gets more paths where its noise shows, below every other need: they
+    /// keep the renderers busy between refinement rounds and passes (DESIGN.md §3, §5).
     fn more_paths_for(&self, viewer: &Viewer) -> Option<MorePaths> {
-        let resting = viewer.criterion_dry || viewer.paused;
         Some(MorePaths {
             l_white: viewer.last_l_white?,
             threshold: self.config.display_error,
         })
-        .filter(|_| resting)
     }
 
     fn sync_viewers(&mut self) {
@@ -413,6 +427,7 @@ impl Schedule {
             pending: &self.pending,
             outstanding_requests: self.requests.outstanding() as u64,
             samples: self.samples,
+            paths: self.paths,
         };
         for viewer in self.viewers.values_mut() {
             viewer.sync(&input);
@@ -451,7 +466,7 @@ impl Schedule {
         RefineGate {
             refine: self.config.refine,
             groups_pending: !self.pending.is_empty(),
-            outstanding: self.requests.outstanding(),
+            outstanding: self.requests.outstanding_before_paths(),
             queue_low: self.config.queue_low,
             rest: self.config.rest,
         }
@@ -480,11 +495,15 @@ impl Schedule {
 
     fn report_stats(&mut self) {
         let secs = self.last_stats.elapsed().as_secs_f32().max(1e-3);
-        let rate = (self.samples - self.samples_at_last_stats) as f32 / secs;
-        self.samples_at_last_stats = self.samples;
+        let (samples, paths) = self.counted_at_last_stats;
+        let rate = (self.samples - samples) as f32 / secs;
+        let paths_rate = (self.paths - paths) as f32 / secs;
+        self.counted_at_last_stats = (self.samples, self.paths);
         self.last_stats = Instant::now();
         let stats = Stats {
             samples_per_sec: rate,
+            paths_per_sec: paths_rate,
+            renderer_busy: self.busy.take(self.last_stats),
             leaves: self.mesh.leaf_count() as u64,
             cached_samples: self.cache.len() as u64,
             renderers: self.renderers as u32,
@@ -494,6 +513,8 @@ impl Schedule {
         tracing::debug!(
             samples = self.samples,
             samples_per_sec = format!("{rate:.0}"),
+            paths_per_sec = format!("{paths_rate:.0}"),
+            renderer_busy = format!("{:.2}", stats.renderer_busy),
             leaves = stats.leaves,
             cached = stats.cached_samples,
             cache_mib = format!("{:.1}", self.cache.bytes() as f64 / (1 << 20) as f64),

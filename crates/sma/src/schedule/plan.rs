@@ -121,7 +121,7 @@ pub struct NeedsInput<'a> {
     pub view_dependent: &'a [bool],
     pub qualities: Qualities,
     pub aging: Aging,
-    /// Set while the viewer rests and its criterion has found nothing to subdivide.
+    /// Set once the viewer has a tone map: its noisy samples get more paths (lowest urgency).
     pub more_paths: Option<MorePaths>,
 }
 

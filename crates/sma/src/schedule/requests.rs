@@ -20,8 +20,9 @@ pub enum Urgency {
     /// A shown sample to upgrade to the scene's quality, or a view-dependent one to retake for
     /// the eye that moved (DESIGN.md §5, §7).
     Better,
-    /// More paths for a sample whose noise the person can still see, while its viewer rests and
-    /// its criterion finds nothing to subdivide (the quality ladder, DESIGN.md §5).
+    /// More paths for a sample whose noise the person can still see (the quality ladder,
+    /// DESIGN.md §5): the work that fills the renderers whenever nothing above waits, so rest
+    /// time is never idle.
     Paths,
 }
 
@@ -48,9 +49,13 @@ struct InFlight {
 
 #[derive(Default)]
 pub struct Requests {
+    /// Sorted by urgency, then priority; only ever popped at the front.
     queue: VecDeque<Need>,
     in_flight: HashMap<SampleKey, InFlight>,
     batches_in_flight: usize,
+    /// Batches in flight for needs above [`Urgency::Paths`], and their points: what refinement
+    /// waits for (a batch holds needs of one kind only, see `next_batch`).
+    urgent_batches: HashMap<u64, usize>,
     next_batch_id: u64,
     seed: u64,
 }
@@ -84,6 +89,13 @@ impl Requests {
         self.queue.len()
     }
 
+    /// Samples queued or in flight that a picture or a refinement step waits for: all but more
+    /// paths for samples already shown, which only fill the renderers' spare time.
+    pub fn outstanding_before_paths(&self) -> usize {
+        self.queue.partition_point(|n| n.urgency < Urgency::Paths)
+            + self.urgent_batches.values().sum::<usize>()
+    }
+
     pub fn in_flight_keys(&self) -> usize {
         self.in_flight.len()
     }
@@ -100,15 +112,20 @@ impl Requests {
     }
 
     /// The next batch: up to `max_points` queued needs of the quality at the head of the queue,
-    /// skipping those a cached sample or one in flight already satisfies.
+    /// and all more paths or none, skipping those a cached sample or one in flight already
+    /// satisfies.
     pub fn next_batch(&mut self, max_points: usize, cache: &ShadingCache) -> Option<ShadeBatch> {
         let mut points = Vec::new();
         let mut quality = None;
+        let mut urgent = None;
         while points.len() < max_points {
             let Some(need) = self.queue.front().copied() else {
                 break;
             };
-            if quality.is_some_and(|q| q != need.quality) {
+            let need_urgent = need.urgency < Urgency::Paths;
+            if quality.is_some_and(|q| q != need.quality)
+                || urgent.is_some_and(|u| u != need_urgent)
+            {
                 break;
             }
             self.queue.pop_front();
@@ -116,6 +133,7 @@ impl Requests {
                 continue;
             }
             quality = Some(need.quality);
+            urgent = Some(need_urgent);
             let entry = self.in_flight.entry(need.point.key).or_insert(InFlight {
                 best: (0, 0),
                 count: 0,
@@ -128,6 +146,9 @@ impl Requests {
         self.next_batch_id += 1;
         self.batches_in_flight += 1;
         let batch_id = self.next_batch_id;
+        if urgent == Some(true) {
+            self.urgent_batches.insert(batch_id, points.len());
+        }
         let seed = self.seed ^ batch_id.wrapping_mul(0x9E37_79B9_7F4A_7C15);
         Some(ShadeBatch {
             batch_id,
@@ -148,6 +169,7 @@ impl Requests {
     /// A batch came back (answered or failed): its keys are no longer in flight for it.
     pub fn finished(&mut self, batch: &ShadeBatch) {
         self.batches_in_flight = self.batches_in_flight.saturating_sub(1);
+        self.urgent_batches.remove(&batch.batch_id);
         for point in &batch.points {
             if let Some(f) = self.in_flight.get_mut(&point.key) {
                 f.count -= 1;
@@ -210,6 +232,27 @@ mod tests {
         r.finished(&b);
         assert_eq!(r.in_flight_keys(), 0);
         assert_eq!(r.batches_in_flight(), 0);
+    }
+
+    #[test]
+    fn more_paths_fill_their_own_batches_and_never_hold_refinement_back() {
+        let cache = ShadingCache::new(1 << 20);
+        let mut r = Requests::new(7);
+        r.replan(vec![
+            need(1, Quality::INTERACTIVE, Urgency::Paths, 9.0),
+            need(2, Quality::INTERACTIVE, Urgency::Paths, 8.0),
+            need(3, Quality::INTERACTIVE, Urgency::Refinement, 1.0),
+        ]);
+        assert_eq!((r.outstanding(), r.outstanding_before_paths()), (3, 1));
+        let refinement = r.next_batch(8, &cache).unwrap();
+        assert_eq!(refinement.points.len(), 1, "a batch holds one kind of need");
+        assert_eq!(r.outstanding_before_paths(), 1, "in flight, still awaited");
+        let paths = r.next_batch(8, &cache).unwrap();
+        assert_eq!(paths.points.len(), 2);
+        r.finished(&refinement);
+        assert_eq!((r.outstanding(), r.outstanding_before_paths()), (2, 0));
+        r.finished(&paths);
+        assert_eq!(r.outstanding(), 0);
     }
 
     #[test]

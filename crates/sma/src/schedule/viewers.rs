@@ -44,8 +44,9 @@ pub struct SyncInput<'a> {
     pub pending: &'a PendingRefinement,
     /// Samples queued or in flight.
     pub outstanding_requests: u64,
-    /// Samples computed so far.
+    /// Samples computed so far, and the paths traced for them.
     pub samples: u64,
+    pub paths: u64,
 }
 
 impl Viewer {
@@ -112,6 +113,7 @@ impl Viewer {
             inserted: std::mem::take(&mut self.display.inserted),
             removed: std::mem::take(&mut self.display.removed),
             samples: input.samples,
+            paths: input.paths,
             outstanding,
         };
         self.last_outstanding = Some(outstanding);
