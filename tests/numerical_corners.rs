@@ -10,6 +10,8 @@
 //!   at most 0.02.
 //! - An all-black scene (no sun, no sky, no emitter: L_max = 0, where eq. 4.3 and the tone map
 //!   divide by it) is shown, in full and without a stall, as a black picture.
+//! - A sun on the horizon lights with the half of its disc above it, one below it not at all,
+//!   and the system shades both to the end.
 //!
 //! Needs a wgpu adapter (Mesa's llvmpipe without a GPU): without one the test says so and returns,
 //! unless `WALKTHROUGH_REQUIRE_GPU` is set, where it fails.
@@ -48,18 +50,10 @@ fn a_scene_far_from_the_origin_shades_like_the_centred_one() {
     let (far_image, _) = snapshot(&far, &work.path().join("far"));
 
     let reference = Reference::new(near_image);
-    let mean = |image: &LinearImage| {
-        let covered = reference
-            .covered
-            .iter()
-            .zip(&image.rgb)
-            .filter(|(c, _)| **c);
-        let (sum, n) = covered.fold((0.0f64, 0usize), |(s, n), (_, rgb)| {
-            (s + luminance(*rgb) as f64, n + 1)
-        });
-        sum / n.max(1) as f64
-    };
-    let (near_mean, far_mean) = (mean(&reference.image), mean(&far_image));
+    let (near_mean, far_mean) = (
+        mean_luminance(&reference.image, &reference.covered),
+        mean_luminance(&far_image, &reference.covered),
+    );
     let flip = reference
         .error_of(&far_image)
         .expect("comparable snapshots")
@@ -117,6 +111,73 @@ fn an_all_black_scene_is_shown_black() {
         lit, 0,
         "{lit} pixels of the tone-mapped snapshot are not black"
     );
+}
+
+/// The sun on the horizon lights with the half of its disc above it, and one below it not at
+/// all (DESIGN.md §7, like the sky); the system shades each to the end, every pixel finite. The
+/// sun's part of the picture is its mean luminance less that of the scene without a sun.
+#[test]
+fn a_sun_on_the_horizon_lights_with_half_its_disc_and_one_below_it_not_at_all() {
+    match viewer::gpu::headless_or_skip("sun_at_the_horizon") {
+        Ok(Some(_)) => {}
+        Ok(None) => return,
+        Err(e) => panic!("{e:#}"),
+    }
+    let work = tempfile::tempdir().expect("a temporary folder");
+    let builtin = scene::load(SCENE).expect("the built-in scene");
+    let run = |name: &str, sun_y: Option<f32>| {
+        let mut scene = builtin.clone();
+        match sun_y {
+            Some(y) => {
+                let sun = scene.settings.sun.as_mut().expect("the scene has a sun");
+                sun.direction = [-0.85, y, 0.4];
+            }
+            None => scene.settings.sun = None,
+        }
+        let (image, _) = snapshot(&scene, &work.path().join(name));
+        assert!(
+            image.rgb.iter().flatten().all(|c| c.is_finite()),
+            "{name}: a pixel is not finite"
+        );
+        let covered: Vec<bool> = image
+            .alpha
+            .as_ref()
+            .expect("the snapshot marks what sees geometry")
+            .iter()
+            .map(|a| *a > 0.5)
+            .collect();
+        mean_luminance(&image, &covered)
+    };
+    let sunless = run("sunless", None);
+    // 0.3° up: the whole 0.53° disc above the horizon.
+    let above = run("above", Some(0.3f32.to_radians().tan() * 0.939)) - sunless;
+    let on = run("on", Some(0.0)) - sunless;
+    let below = run("below", Some(-0.35)) - sunless;
+    eprintln!(
+        "mean luminance without a sun {sunless:.4}; the sun's part: just above the horizon {above:.4}, on it {on:.4}, below it {below:.4}"
+    );
+    assert!(above > 0.01 * sunless, "a low sun lights the scene");
+    let half = on / above;
+    assert!(
+        (0.4..=0.6).contains(&half),
+        "the sun on the horizon lights with {half:.3} of a low sun's light"
+    );
+    assert!(
+        below.abs() <= 1e-6 * sunless,
+        "a sun below the horizon adds {below}"
+    );
+}
+
+/// Mean luminance of the pixels marked `covered`.
+fn mean_luminance(image: &LinearImage, covered: &[bool]) -> f64 {
+    let (sum, n) = covered
+        .iter()
+        .zip(&image.rgb)
+        .filter(|(c, _)| **c)
+        .fold((0.0f64, 0usize), |(s, n), (_, rgb)| {
+            (s + luminance(*rgb) as f64, n + 1)
+        });
+    sum / n.max(1) as f64
 }
 
 /// Runs the system on `scene` (exported into `dir`) to the first idle snapshot; its linear image

@@ -201,7 +201,7 @@ mod tests {
         let far = Vec3::new(1.0e5, 0.0, 1.0e5);
         let origin = local_origin(lo + far, hi + far, extent);
         assert_eq!(origin, DVec3::new(99_840.0, 0.0, 99_840.0));
-        let p = Vec3::new(100_003.0078125, 5.5, 99_877.5);
+        let p = Vec3::new(100_003.01, 5.5, 99_877.5);
         let local = conventions::camera::relative_to(p, origin);
         assert_eq!(local.as_dvec3() + origin, p.as_dvec3(), "moving is exact");
     }
