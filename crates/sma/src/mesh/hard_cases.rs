@@ -143,8 +143,7 @@ fn refinement_stops_at_the_minimum_edge() {
 
 /// Far from the origin (1e5, f32 spacing about 0.008, DESIGN.md §7) the minimum edge follows the
 /// float spacing: refinement stops with every leaf's corners apart. With the extent alone setting
-/// it (2 mm for this 25 cm square), midpoints rounded onto their ends, leaves collapsed, and the
-/// splitting never stopped.
+/// it (2 mm for this 25 cm square), midpoints rounded onto their ends and leaves collapsed.
 #[test]
 fn far_from_the_origin_the_minimum_edge_follows_the_float_spacing() {
     let mut scene = square();
