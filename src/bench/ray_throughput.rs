@@ -86,7 +86,7 @@ fn view_rays(world: &World, view: &str, cfg: &Config) -> anyhow::Result<(Rays, R
         for tx in (0..cfg.width).step_by(8) {
             for y in ty..(ty + 8).min(cfg.height) {
                 for x in tx..(tx + 8).min(cfg.width) {
-                    primary.origin.push(cam.eye_vec());
+                    primary.origin.push(world.to_local(cam.eye_vec()));
                     primary
                         .dir
                         .push(cam.ray_direction(x as f32 + 0.5, y as f32 + 0.5));

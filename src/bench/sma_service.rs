@@ -13,7 +13,7 @@ use protocol::viewer_link::Camera;
 use rand::{RngExt, SeedableRng};
 
 use sma::mesh::{MeshParams, SubdivisionMesh};
-use sma::visibility::{Gpu, IdPass, TriangleBuffer, Visibility};
+use sma::visibility::{Gpu, IdPass, TriangleBuffer, View, Visibility};
 
 use super::stats::{fit_line, median};
 
@@ -76,7 +76,11 @@ fn write_pass_cost(md: &mut String, gpu: &Gpu, runs: usize, quick: bool) -> anyh
         &[0, 10_000, 100_000, 1_000_000]
     };
     let camera = bench_camera();
-    let view_proj = camera.view_projection(0.1, 100.0);
+    let view = View {
+        camera: camera.pinhole(),
+        near: 0.1,
+        far: 100.0,
+    };
     let mut pass = IdPass::new(gpu);
     writeln!(
         md,
@@ -89,12 +93,12 @@ fn write_pass_cost(md: &mut String, gpu: &Gpu, runs: usize, quick: bool) -> anyh
     let mut points = Vec::new();
     for &n in sizes {
         let mut buffer = TriangleBuffer::default();
-        buffer.upload(gpu, &random_triangles(n, n as u64));
+        buffer.upload(gpu, &random_triangles(n, n as u64), view.eye());
         let (mut times, mut counting) = (Vec::new(), Vec::new());
         let mut visible = 0;
         for _ in 0..runs + 1 {
             let t = Instant::now();
-            let image = pass.render(gpu, &buffer, view_proj, WIDTH, HEIGHT)?;
+            let image = pass.render(gpu, &buffer, &view)?;
             let rendered = t.elapsed();
             visible = image.coverage(n).iter().filter(|c| c.pixels > 0).count();
             let total = t.elapsed();

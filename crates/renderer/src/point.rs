@@ -48,14 +48,16 @@ pub enum InvalidPoint {
     DegenerateTriangle,
 }
 
-/// The front-side shading point where the ray from `origin` along `dir` first hits, `None` where
-/// it hits nothing. Its key names vertex 0: it stands for no mesh vertex (benchmarks, tests).
+/// The front-side shading point where the ray from world position `origin` along `dir` first
+/// hits, `None` where it hits nothing. Its key names vertex 0: it stands for no mesh vertex
+/// (benchmarks, tests).
 pub fn front_point_hit_by(
     world: &World,
     origin: Vec3,
     dir: Vec3,
     eye: Option<Vec3f>,
 ) -> Option<ShadePoint> {
+    let origin = world.to_local(origin);
     let hit = world.bvh.closest_hit(origin, dir, f32::INFINITY)?;
     let q = origin + dir * hit.t;
     let [a, b, c] = world.scene.mesh.triangle_positions(hit.triangle as usize);

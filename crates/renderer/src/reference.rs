@@ -119,7 +119,7 @@ fn pixel(
     rng: &mut Rng,
     counts: &mut RayCounts,
 ) -> (Vec3, bool) {
-    let origin = camera.eye_vec();
+    let origin = world.to_local(camera.eye_vec());
     let mut sum = Vec3::ZERO;
     let mut covered = false;
     let spp = s.spp.max(1);

@@ -57,7 +57,7 @@ pub fn shade_point(
     if material.is_view_dependent() {
         flags |= point_flags::VIEW_DEPENDENT;
     }
-    let wo = outgoing_direction(&s, p.eye.map(Vec3::from));
+    let wo = outgoing_direction(&s, p.eye.map(|e| world.to_local(Vec3::from(e))));
     let paths = quality.paths.max(1);
     let mut sum = Vec3::ZERO;
     let mut luminance = PathLuminance::default();

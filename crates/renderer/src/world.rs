@@ -1,7 +1,17 @@
 //! What the estimator needs of a scene, prepared once: the BVH, the lights the scene calls for,
 //! each material's scattering, unit face normals and the origin offsetter.
+//!
+//! The world works in a **local frame**: the scene moved by a round origin near its centre
+//! ([`World::to_local`]), so a scene far from the world origin (coordinates around 1e5, where f32
+//! spacing is about 0.008, DESIGN.md §7) is traced at the precision of a centred one. In world
+//! coordinates its rounding would set the ray offsets (`offset`) to centimetres and move every
+//! shading point decimetres off its vertex; locally they are those of the centred scene. The
+//! origin is a multiple of a power of two at least the scene's extent, so a centred scene is not
+//! moved at all and moving a far one is exact. Shading points come in object space (base
+//! triangle, barycentric coordinates), so only eyes and ray origins given in world coordinates
+//! need [`World::to_local`].
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use scene::{Effects, Scene};
 
 use crate::bvh::{BuildPreset, Hit, SceneBvh};
@@ -13,6 +23,7 @@ use crate::offset::Offsetter;
 /// A point on a surface, on the side being shaded.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Surface {
+    /// In the local frame ([`World::to_local`]).
     pub position: Vec3,
     /// Unit geometric normal of the shaded side.
     pub normal: Vec3,
@@ -20,6 +31,7 @@ pub struct Surface {
 }
 
 pub struct World {
+    /// The scene, its positions in the local frame.
     pub scene: Scene,
     pub bvh: SceneBvh,
     pub lights: Lights,
@@ -29,6 +41,8 @@ pub struct World {
     bsdfs: Vec<Bsdf>,
     /// Unit counter-clockwise normal per triangle (zero for a degenerate one).
     face_normals: Vec<Vec3>,
+    /// The world position of the local frame's origin.
+    origin: DVec3,
 }
 
 impl World {
@@ -36,15 +50,19 @@ impl World {
         World::with_preset(scene, BuildPreset::Slow)
     }
 
-    pub fn with_preset(scene: Scene, preset: BuildPreset) -> World {
-        let bvh = SceneBvh::build(&scene.mesh, preset);
-        let lights = Lights::from_scene(&scene);
+    pub fn with_preset(mut scene: Scene, preset: BuildPreset) -> World {
         let (lo, hi) = scene.mesh.bounds();
         let extent = if lo.is_finite() && hi.is_finite() {
             (hi - lo).length()
         } else {
             1.0
         };
+        let origin = local_origin(lo, hi, extent);
+        for p in &mut scene.mesh.positions {
+            *p = conventions::camera::relative_to(*p, origin);
+        }
+        let bvh = SceneBvh::build(&scene.mesh, preset);
+        let lights = Lights::from_scene(&scene);
         let face_normals = (0..scene.mesh.triangles.len())
             .map(|t| scene.mesh.face_normal(t).normalize_or_zero())
             .collect();
@@ -57,7 +75,13 @@ impl World {
             bsdfs,
             face_normals,
             scene,
+            origin,
         }
+    }
+
+    /// A world position (an eye, a ray origin) in the local frame.
+    pub fn to_local(&self, p: Vec3) -> Vec3 {
+        conventions::camera::relative_to(p, self.origin)
     }
 
     pub fn effects(&self) -> Effects {
@@ -147,5 +171,38 @@ impl World {
             normal,
             triangle: hit.triangle,
         }
+    }
+}
+
+/// The local frame's origin: the centre of the bounds rounded to a multiple of the power of two
+/// at or above the extent (zero for a scene around the world origin; exact subtraction, since
+/// every coordinate far enough out to be moved is a multiple of a finer power of two).
+fn local_origin(lo: Vec3, hi: Vec3, extent: f32) -> DVec3 {
+    if !(lo.is_finite() && hi.is_finite() && extent.is_finite()) {
+        return DVec3::ZERO;
+    }
+    let grid = f64::from(extent.max(1.0)).log2().ceil().exp2();
+    let centre = 0.5 * (lo.as_dvec3() + hi.as_dvec3());
+    (centre / grid).round() * grid
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_local_origin_is_zero_near_the_world_origin_and_round_far_from_it() {
+        let (lo, hi) = (
+            Vec3::new(-120.0, 0.0, -120.0),
+            Vec3::new(120.0, 16.4, 120.0),
+        );
+        let extent = (hi - lo).length();
+        assert_eq!(local_origin(lo, hi, extent), DVec3::ZERO);
+        let far = Vec3::new(1.0e5, 0.0, 1.0e5);
+        let origin = local_origin(lo + far, hi + far, extent);
+        assert_eq!(origin, DVec3::new(99_840.0, 0.0, 99_840.0));
+        let p = Vec3::new(100_003.01, 5.5, 99_877.5);
+        let local = conventions::camera::relative_to(p, origin);
+        assert_eq!(local.as_dvec3() + origin, p.as_dvec3(), "moving is exact");
     }
 }

@@ -203,3 +203,46 @@ fn plane_under_the_sky_reflects_albedo_times_sky() {
         );
     }
 }
+
+/// No light from below the horizon (DESIGN.md §7, like the sky): a panel floating under a sun
+/// below the horizon is black on both sides, and a wall facing a sun on the horizon gets the
+/// half of the disc above it. No sample is NaN (`path_samples` checks each).
+#[test]
+fn a_sun_below_the_horizon_lights_nothing_and_one_on_it_half_its_disc() {
+    let mut b = SceneBuilder::new(settings(
+        Some(sun(Vec3::new(0.3, -1.0, 0.2), SUN_RADIANCE)),
+        Sky::None,
+    ));
+    let m = b.material(grey(ALBEDO));
+    floor(&mut b, Vec3::new(0.0, 1.0, 0.0), 2.0, m);
+    let w = world(b);
+    for (origin, dir) in [
+        (Vec3::new(0.3, 0.0, 0.1), Vec3::Y),
+        (Vec3::new(0.3, 3.0, 0.1), Vec3::NEG_Y),
+    ] {
+        let p = point_hit_by(&w, origin, dir);
+        let samples = path_samples(&w, &p, 500, Some(2), 6);
+        assert!(
+            samples.iter().all(|&l| l == 0.0),
+            "lit from below the horizon, seen along {dir}"
+        );
+    }
+
+    let mut b = SceneBuilder::new(settings(Some(sun(Vec3::X, SUN_RADIANCE)), Sky::None));
+    let m = b.material(grey(ALBEDO));
+    let c = |y: f32, z: f32| Vec3::new(0.0, y, z);
+    quad(
+        &mut b,
+        [c(-5.0, -5.0), c(5.0, -5.0), c(5.0, 5.0), c(-5.0, 5.0)],
+        m,
+    );
+    let w = world(b);
+    let p = point_hit_by(&w, Vec3::new(3.0, 0.2, 0.1), Vec3::NEG_X);
+    let samples = path_samples(&w, &p, 4000, Some(2), 7);
+    let (mean, se) = mean_and_standard_error(&samples);
+    let want = 0.5 * expected_sunlit(0.0);
+    assert!(
+        (mean - want).abs() <= 4.0 * se + 1e-6 * want,
+        "sun on the horizon: {mean} vs half the disc's {want} (se {se})"
+    );
+}

@@ -58,7 +58,9 @@ fn region_mean(w: &World, img: &Image, select: impl Fn(u32, Vec3) -> bool) -> (V
     for y in 0..img.height {
         for x in 0..img.width {
             let dir = cam.ray_direction(x as f32 + 0.5, y as f32 + 0.5);
-            if let Some(hit) = w.bvh.closest_hit(cam.eye_vec(), dir, f32::INFINITY)
+            if let Some(hit) = w
+                .bvh
+                .closest_hit(w.to_local(cam.eye_vec()), dir, f32::INFINITY)
                 && select(hit.triangle, cam.eye_vec() + dir * hit.t)
             {
                 sum += img.pixels[(y * img.width + x) as usize];

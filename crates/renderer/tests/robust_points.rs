@@ -52,7 +52,8 @@ fn check_closed_room_is_dark(offset: Vec3) {
     let m = b.material(grey(0.7));
     cube(&mut b, offset, offset + Vec3::new(3.0, 2.5, 4.0), true, m);
     let w = world(b);
-    let centre = offset + Vec3::new(1.5, 1.25, 2.0);
+    // Shading points are in the world's local frame.
+    let centre = w.to_local(offset + Vec3::new(1.5, 1.25, 2.0));
     let mut counts = RayCounts::default();
     let mut inside = 0;
     for p in vertex_points(&w) {

@@ -192,6 +192,35 @@ mod tests {
         );
     }
 
+    /// A needle (sine of its smallest angle 1e-6) is a triangle like any other, with unit
+    /// normals; a sliver under the bound (1e-8) has no meaningful normal and is dropped.
+    #[test]
+    fn needles_are_kept_and_slivers_below_the_bound_dropped() {
+        let mut b = SceneBuilder::new(settings());
+        let m = b.material(Material::diffuse("grey", Vec3::splat(0.5)));
+        let [o, x, needle, sliver] = [
+            Vec3::ZERO,
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(1.0, 1e-6, 0.0),
+            Vec3::new(1.0, 1e-8, 0.0),
+        ]
+        .map(|p| b.vertex(p));
+        b.triangle([o, x, needle], m);
+        b.triangle([o, x, sliver], m);
+        let s = b.build().expect("the needle makes a scene");
+        assert_eq!(s.report.dropped_triangles, 1);
+        assert_eq!(s.mesh.triangles.len(), 1);
+        let normals = s.mesh.triangles[0]
+            .vertices
+            .map(|v| s.mesh.normals[v as usize]);
+        assert!(
+            normals
+                .iter()
+                .all(|n| n.is_finite() && (n.length() - 1.0).abs() < 1e-6),
+            "{normals:?}"
+        );
+    }
+
     #[test]
     fn undefined_references_are_errors_not_panics() {
         let mut b = SceneBuilder::new(settings());

@@ -18,7 +18,7 @@ pub fn analyse_effects(settings: &SceneSettings, materials: &[Material], mesh: &
     let sun = settings
         .sun
         .as_ref()
-        .is_some_and(|s| s.radiance.iter().any(|c| *c > 0.0));
+        .is_some_and(|s| s.radiance.iter().any(|c| *c > 0.0) && s.is_above_horizon());
     let sky =
         matches!(&settings.sky, Sky::Uniform { radiance } if radiance.iter().any(|c| *c > 0.0));
     let area_lights = used.iter().any(|m| m.is_emitter());
@@ -128,6 +128,23 @@ mod tests {
             e.to_string(),
             "sky, area lights, diffuse interreflection, glossy, mirror"
         );
+    }
+
+    /// The sun lights nothing from below the horizon (DESIGN.md §7), so a sun wholly under it
+    /// calls for no sun rays; one on the horizon, half above it, does.
+    #[test]
+    fn a_sun_below_the_horizon_calls_for_no_sun() {
+        let materials = [Material::diffuse("d", Vec3::splat(0.5))];
+        let sun_toward = |dir: &str| {
+            let toml = format!(
+                "[sun]\ndirection = {dir}\nradiance = [1, 1, 1]\nangular_diameter_deg = 0.5"
+            );
+            analyse_effects(&settings(&toml), &materials, &mesh_using(&[0])).sun
+        };
+        assert!(!sun_toward("[0.3, -1, 0.2]"), "below the horizon");
+        assert!(!sun_toward("[1, -0.01, 0]"), "the disc's top just under it");
+        assert!(sun_toward("[1, 0, 0]"), "on the horizon");
+        assert!(sun_toward("[1, -0.004, 0]"), "the disc's top just over it");
     }
 
     #[test]

@@ -126,6 +126,15 @@ impl SceneSettings {
 }
 
 impl Sun {
+    /// Whether some of the disc is above the horizon (y = 0; +Y is up, DESIGN.md §7). Like the
+    /// sky, the sun gives no light from below the horizon: a sun wholly under it lights nothing,
+    /// and one on it lights with the part above.
+    pub fn is_above_horizon(&self) -> bool {
+        let d = glam::Vec3::from(self.direction).normalize_or_zero();
+        let half = (0.5 * self.angular_diameter_deg).to_radians();
+        d.y > -half.sin()
+    }
+
     fn validate(&self) -> Result<(), String> {
         let d = glam::Vec3::from(self.direction);
         if !d.is_finite() || d.length_squared() == 0.0 {

@@ -4,16 +4,19 @@
 //! - [`id_pass`]: triangles into an R32Uint ID buffer with depth, per-triangle pixel coverage;
 //! - [`levels`]: level 1 over the base mesh, level 2 over the leaves of visible base triangles;
 //! - [`luminance_pass`]: the Gouraud luminance image of what a viewer shows, for `nld-is`;
-//! - [`coverage_mask`]: the pixels a set of triangles covers, for tests.
+//! - [`coverage_mask`]: the pixels a set of triangles covers, for tests;
+//! - [`view`]: a camera and depth range; every pass draws camera-relative.
 
 pub mod coverage_mask;
 pub mod gpu;
 pub mod id_pass;
 pub mod levels;
 pub mod luminance_pass;
+pub mod view;
 
 pub use coverage_mask::coverage;
 pub use gpu::{Gpu, GpuError};
 pub use id_pass::{Coverage, IdImage, IdPass, TriangleBuffer};
-pub use levels::{LeafView, Visibility, scene_view_projection, side_facing};
+pub use levels::{LeafView, Visibility, scene_view, side_facing};
 pub use luminance_pass::LuminancePass;
+pub use view::View;

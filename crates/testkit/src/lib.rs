@@ -8,7 +8,8 @@
 //! - [`fake_renderer`]: a renderer stand-in that shades a known function and logs requests;
 //! - [`fake_sma`]: an SMA stand-in that sends what a viewer test queues and reports what it hears;
 //! - [`ground_truth`]: a view's per-pixel reference image, rendered once and kept on disk;
-//! - [`gpu`]: the `WALKTHROUGH_REQUIRE_GPU` rule for tests that need an adapter.
+//! - [`gpu`]: the `WALKTHROUGH_REQUIRE_GPU` rule for tests that need an adapter;
+//! - [`moved_scene`]: a scene moved far from the origin, geometry and viewpoints.
 
 pub mod child;
 pub mod fake_renderer;
@@ -17,4 +18,5 @@ pub mod gpu;
 pub mod ground_truth;
 pub mod liar;
 pub mod loopback;
+pub mod moved_scene;
 pub mod probe;

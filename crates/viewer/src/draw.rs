@@ -155,8 +155,12 @@ impl Drawer {
         let (near, far) = depth_range;
         let mut uniforms = Uniforms {
             // Reversed Z (near -> 1, far -> 0): with a float depth buffer the precision then
-            // follows the float's own, so a tiny near plane costs nothing far away.
-            view_proj: camera.view_projection(far, near).to_cols_array_2d(),
+            // follows the float's own, so a tiny near plane costs nothing far away. Positions
+            // are relative to the buffer's origin (`vertex_buffer`), so the matrix is too.
+            view_proj: camera
+                .pinhole()
+                .view_projection_from(triangles.origin(), far, near)
+                .to_cols_array_2d(),
             l_white: settings.l_white.max(1e-6),
             mode: match (self.output, settings.tone_map) {
                 (Output::Linear, _) => 0,

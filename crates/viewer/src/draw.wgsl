@@ -92,9 +92,10 @@ fn vs_sky(@builtin(vertex_index) index: u32) -> SkyOut {
     return SkyOut(vec4<f32>(ndc, 0.0, 1.0), ndc);
 }
 
+// Like the renderer's sky and sun: nothing from below the horizon (DESIGN.md §7).
 fn sky_radiance(dir: vec3<f32>) -> vec3<f32> {
     var radiance = select(vec3<f32>(0.0), u.sky.xyz, dir.y > 0.0);
-    if u.sun_dir.w > 0.0 && 1.0 - dot(dir, u.sun_dir.xyz) <= u.sun_dir.w {
+    if u.sun_dir.w > 0.0 && dir.y > 0.0 && 1.0 - dot(dir, u.sun_dir.xyz) <= u.sun_dir.w {
         radiance += u.sun_radiance.xyz;
     }
     return radiance;

@@ -258,11 +258,6 @@ impl TriangleTable {
     pub fn clear_dirty(&mut self) {
         self.dirty.clear();
     }
-
-    /// The bytes of the triangles in `slots`, as uploaded to the GPU.
-    pub fn slot_bytes(&self, slots: Range<u32>) -> &[u8] {
-        bytemuck::cast_slice(&self.vertices[3 * slots.start as usize..3 * slots.end as usize])
-    }
 }
 
 /// Radiance the shader can tone-map: non-finite or negative values become 0 (never trust the wire).

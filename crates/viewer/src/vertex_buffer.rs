@@ -4,9 +4,18 @@
 //! any slot) packed into one list that a compute pass (`scatter.wgsl`) writes into place — one
 //! buffer write per scattered slot would cost more than the data. The whole table is sent only
 //! when the buffer grows, which doubling makes rare (amortised O(1) per triangle).
+//!
+//! Positions go up relative to an origin, a point of the scene fixed for the table's life, and
+//! the drawing's matrix is built for it (`conventions::camera`): far from the world origin (1e5,
+//! where f32 spacing is about 0.008) the picture is that of a centred scene (DESIGN.md §7). The
+//! origin is not the eye itself, or every camera move would re-send the whole table; a point of
+//! the scene is as close to the eye as the scene is large, and that is all the precision needs.
+
+use conventions::camera::relative_to;
+use glam::DVec3;
 
 use crate::gpu::Gpu;
-use crate::table::{TRIANGLE_BYTES, TriangleTable};
+use crate::table::{TRIANGLE_BYTES, TriangleTable, Vertex};
 
 const MIN_CAPACITY: u64 = 4096;
 /// Runs at least this long go through `write_buffer`; shorter ones are scattered.
@@ -26,6 +35,9 @@ pub struct GpuTriangles {
     scatter: Option<Scatter>,
     /// The table outgrew the device's largest buffer at the last sync.
     truncated: bool,
+    /// What positions are relative to: the centre of the table's extent at the first sync that
+    /// found triangles; chosen again after a sync that found none.
+    origin: Option<DVec3>,
 }
 
 /// What one `sync` sent.
@@ -53,7 +65,13 @@ impl GpuTriangles {
             count: 0,
             scatter: compute.then(|| Scatter::new(&gpu.device)),
             truncated: false,
+            origin: None,
         }
+    }
+
+    /// The point positions on the GPU are relative to.
+    pub fn origin(&self) -> DVec3 {
+        self.origin.unwrap_or(DVec3::ZERO)
     }
 
     pub fn buffer(&self) -> &wgpu::Buffer {
@@ -67,6 +85,16 @@ impl GpuTriangles {
     /// Brings the GPU copy in line with `table`.
     pub fn sync(&mut self, gpu: &Gpu, table: &mut TriangleTable) -> Upload {
         let len = table.len() as u64;
+        // Every live slot was written since a sync that found none, so all go up relative to
+        // the new origin.
+        if len == 0 {
+            self.origin = None;
+        } else if self.origin.is_none() {
+            self.origin = table.extent().map(|e| {
+                0.5 * (glam::Vec3::from(e.min).as_dvec3() + glam::Vec3::from(e.max).as_dvec3())
+            });
+        }
+        let origin = self.origin();
         let max = gpu.device.limits().max_buffer_size / TRIANGLE_BYTES;
         let grow = len > self.capacity && self.capacity < max;
         if grow {
@@ -90,7 +118,7 @@ impl GpuTriangles {
         if grow || refill {
             self.count = len.min(self.capacity) as u32;
             table.clear_dirty();
-            let bytes = write(&gpu.queue, &self.buffer, table, 0..self.count);
+            let bytes = write(&gpu.queue, &self.buffer, table, 0..self.count, origin);
             return Upload {
                 bytes,
                 writes: 1,
@@ -117,11 +145,14 @@ impl GpuTriangles {
             if scatter.is_some() && range.len() < LONG_RUN_SLOTS as usize {
                 for slot in range {
                     patches.push(slot);
-                    patches
-                        .extend_from_slice(bytemuck::cast_slice(table.slot_bytes(slot..slot + 1)));
+                    patches.extend_from_slice(bytemuck::cast_slice(&relative_vertices(
+                        table,
+                        slot..slot + 1,
+                        origin,
+                    )));
                 }
             } else {
-                upload.bytes += write(&gpu.queue, &self.buffer, table, range);
+                upload.bytes += write(&gpu.queue, &self.buffer, table, range, origin);
                 upload.writes += 1;
             }
         }
@@ -141,12 +172,29 @@ fn write(
     buffer: &wgpu::Buffer,
     table: &TriangleTable,
     slots: std::ops::Range<u32>,
+    origin: DVec3,
 ) -> u64 {
-    let bytes = table.slot_bytes(slots.clone());
+    let vertices = relative_vertices(table, slots.clone(), origin);
+    let bytes: &[u8] = bytemuck::cast_slice(&vertices);
     if !bytes.is_empty() {
         queue.write_buffer(buffer, slots.start as u64 * TRIANGLE_BYTES, bytes);
     }
     bytes.len() as u64
+}
+
+/// The vertices of `slots` as the GPU holds them: positions relative to `origin`.
+fn relative_vertices(
+    table: &TriangleTable,
+    slots: std::ops::Range<u32>,
+    origin: DVec3,
+) -> Vec<Vertex> {
+    table.vertices()[3 * slots.start as usize..3 * slots.end as usize]
+        .iter()
+        .map(|v| Vertex {
+            position: relative_to(glam::Vec3::from(v.position), origin).to_array(),
+            radiance: v.radiance,
+        })
+        .collect()
 }
 
 fn create(device: &wgpu::Device, capacity: u64) -> wgpu::Buffer {
@@ -372,8 +420,19 @@ mod tests {
                 scattered += gpu_triangles.sync(&gpu, &mut table).scattered;
                 let bytes = table.len() as u64 * TRIANGLE_BYTES;
                 let on_gpu = read_back(&gpu, gpu_triangles.buffer(), bytes);
+                let origin = gpu_triangles.origin();
+                let want: Vec<Vertex> = table
+                    .vertices()
+                    .iter()
+                    .map(|v| Vertex {
+                        position: (glam::Vec3::from(v.position).as_dvec3() - origin)
+                            .as_vec3()
+                            .to_array(),
+                        radiance: v.radiance,
+                    })
+                    .collect();
                 assert!(
-                    on_gpu == table.slot_bytes(0..table.len() as u32),
+                    on_gpu == bytemuck::cast_slice::<Vertex, u8>(&want),
                     "batch {batch}, scatter {use_scatter}"
                 );
                 assert_eq!(gpu_triangles.count() as usize, table.len());

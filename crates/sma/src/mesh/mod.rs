@@ -37,6 +37,8 @@ mod step;
 mod weld;
 
 #[cfg(test)]
+mod hard_cases;
+#[cfg(test)]
 mod invariants;
 #[cfg(test)]
 pub(crate) mod test_meshes;
@@ -59,13 +61,17 @@ pub type VertexId = u32;
 /// Below this fraction of the scene's extent an edge is not split: midpoints of shorter edges
 /// would lie within a few hundred f32 ulps of their ends, so positions would start to collide.
 const MIN_EDGE_FRACTION_OF_EXTENT: f32 = 1e-5;
+/// Nor below this many f32 ulps of the scene's largest coordinate: far from the origin (1e5,
+/// where the spacing is about 0.008, DESIGN.md §7) the extent says nothing of the spacing, and a
+/// midpoint rounds by up to half an ulp, a sixteenth of such an edge.
+const MIN_EDGE_ULPS: f32 = 8.0;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MeshParams {
     /// No red split of a triangle whose longest edge is shorter than twice this (scene units), so
     /// no child edge drops below it (no split below a set edge length). Closure splits
     /// ignore it: conformity comes first. Raised to [`MIN_EDGE_FRACTION_OF_EXTENT`] of the scene
-    /// extent at least.
+    /// extent and [`MIN_EDGE_ULPS`] of its largest coordinate at least.
     pub min_edge_length: f32,
     /// Weld tolerance as a fraction of the scene's bounding-box diagonal: base vertices closer
     /// than this are one point for adjacency. 1e-6 is ten f32 ulps of a scene coordinate, so it
@@ -321,7 +327,8 @@ impl SubdivisionMesh {
             min_split_edge: 2.0
                 * params
                     .min_edge_length
-                    .max(MIN_EDGE_FRACTION_OF_EXTENT * extent),
+                    .max(MIN_EDGE_FRACTION_OF_EXTENT * extent)
+                    .max(MIN_EDGE_ULPS * ulp(lo.abs().max(hi.abs()).max_element())),
             leaf_count: nodes.len(),
             base_count: nodes.len(),
             nodes,
@@ -471,6 +478,15 @@ impl SubdivisionMesh {
     fn longest_edge(&self, id: NodeId) -> f32 {
         let [a, b, c] = self.leaf_positions(id);
         a.distance(b).max(b.distance(c)).max(c.distance(a))
+    }
+}
+
+/// The spacing of f32 values at `x` (0 for an empty scene's infinite bounds).
+fn ulp(x: f32) -> f32 {
+    if x.is_finite() {
+        f32::from_bits(x.abs().to_bits() + 1) - x.abs()
+    } else {
+        0.0
     }
 }
 

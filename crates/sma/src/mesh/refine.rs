@@ -21,17 +21,23 @@ fn green_children(v: [VertexId; 3], s: usize, m: VertexId) -> [[VertexId; 3]; 2]
     [[a, m, o], [m, b, o]]
 }
 
-/// Barycentric weights of `p` on triangle `t` for its vertices 1 and 2 (least squares in the
-/// triangle's plane).
+/// Barycentric weights of `p` on triangle `t` for its vertices 1 and 2: `p`'s components along
+/// the edges, from cross products with the triangle's normal, in f64. The Gram determinant
+/// (|e1|²|e2|² - (e1·e2)²) of the textbook form cancels to nothing in f32 for a needle (a sine of
+/// its smallest angle below ~3e-4), placing its midpoints at a corner; a cross product keeps
+/// the sine itself, and f64 keeps it to needles of sine 1e-7, the thinnest the scene keeps.
 fn barycentric(t: [Vec3; 3], p: Vec3) -> [f32; 2] {
-    let (e1, e2, d) = (t[1] - t[0], t[2] - t[0], p - t[0]);
-    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
-    let (d1, d2) = (d.dot(e1), d.dot(e2));
-    let det = d11 * d22 - d12 * d12;
-    if det <= 0.0 {
+    let [a, b, c] = t.map(Vec3::as_dvec3);
+    let (e1, e2, d) = (b - a, c - a, p.as_dvec3() - a);
+    let n = e1.cross(e2);
+    let nn = n.length_squared();
+    if nn <= 0.0 {
         return [0.0; 2];
     }
-    [(d22 * d1 - d12 * d2) / det, (d11 * d2 - d12 * d1) / det]
+    [
+        (d.cross(e2).dot(n) / nn) as f32,
+        (e1.cross(d).dot(n) / nn) as f32,
+    ]
 }
 
 impl SubdivisionMesh {

@@ -168,16 +168,10 @@ impl Schedule {
                 )
             })
             .collect();
-        let view_proj = self.visibility.view_projection(camera);
+        let pass_view = self.visibility.view(camera);
         let lum = self
             .luminance
-            .render(
-                self.visibility.gpu(),
-                &triangles,
-                view_proj,
-                camera.width,
-                camera.height,
-            )
+            .render(self.visibility.gpu(), &triangles, &pass_view)
             .context("luminance pass")?;
         let ids = view
             .pixel_leaves

@@ -6,7 +6,7 @@ use protocol::viewer_link::Camera;
 
 use super::gpu::{Gpu, GpuError};
 use super::id_pass::{IdPass, TriangleBuffer};
-use super::levels::scene_view_projection;
+use super::levels::scene_view;
 
 /// Per pixel, row-major from the top left: whether one of `triangles` is seen there, for a scene
 /// of `bounds`.
@@ -16,10 +16,10 @@ pub fn coverage(
     camera: &Camera,
     bounds: (Vec3, Vec3),
 ) -> Result<Vec<bool>, GpuError> {
+    let view = scene_view(camera, bounds);
     let mut pass = IdPass::new(gpu);
     let mut buffer = TriangleBuffer::default();
-    buffer.upload(gpu, triangles);
-    let view_proj = scene_view_projection(camera, bounds);
-    let image = pass.render(gpu, &buffer, view_proj, camera.width, camera.height)?;
+    buffer.upload(gpu, triangles, view.eye());
+    let image = pass.render(gpu, &buffer, &view)?;
     Ok(image.ids.iter().map(|&id| id != 0).collect())
 }

@@ -2,11 +2,13 @@
 //! test; each pixel holds `index + 1` of the triangle it sees (0: nothing). The index comes from
 //! `@builtin(primitive_index)` where [`Gpu`] chose it, else from the vertex index: triangles are
 //! drawn unindexed, three vertices each, so vertex `v` belongs to triangle `v / 3`. Either way a
-//! vertex is its position alone (12 bytes).
+//! vertex is its position alone (12 bytes), relative to its buffer's origin (`view`).
 
-use glam::{Mat4, Vec3};
+use conventions::camera::relative_to;
+use glam::{DVec3, Mat4, Vec3};
 
 use super::gpu::{Gpu, GpuError, MatrixUniform, OffscreenTarget};
+use super::view::View;
 
 // Each fragment writes its own depth, z / w of its perspective-interpolated clip position, rather
 // than leave it to the fixed function: wgpu's GL backend remaps clip z from WebGPU's 0..1 to GL's
@@ -56,19 +58,27 @@ pub fn reversed_z(view_proj: Mat4) -> Mat4 {
     flip * view_proj
 }
 
-/// Triangles on the device, ready to draw.
+/// Triangles on the device, ready to draw, relative to an origin.
 #[derive(Default)]
 pub struct TriangleBuffer {
     buffer: Option<wgpu::Buffer>,
     count: u32,
+    origin: DVec3,
 }
 
 impl TriangleBuffer {
-    /// Uploads triangles; triangle `i` of `triangles` gets id `i + 1` in the image.
-    pub fn upload(&mut self, gpu: &Gpu, triangles: &[[Vec3; 3]]) {
-        let positions: Vec<[f32; 3]> = triangles.iter().flatten().map(|p| p.to_array()).collect();
+    /// Uploads triangles as `p - origin` (see `view`); triangle `i` of `triangles` gets id
+    /// `i + 1` in the image. The origin should lie near the eyes that will look at them: the eye
+    /// itself for a buffer drawn once, a point of the scene for one drawn from many cameras.
+    pub fn upload(&mut self, gpu: &Gpu, triangles: &[[Vec3; 3]], origin: DVec3) {
+        let positions: Vec<[f32; 3]> = triangles
+            .iter()
+            .flatten()
+            .map(|&p| relative_to(p, origin).to_array())
+            .collect();
         gpu.upload_into(&mut self.buffer, bytemuck::cast_slice(&positions));
         self.count = triangles.len() as u32;
+        self.origin = origin;
     }
 
     pub fn len(&self) -> usize {
@@ -146,24 +156,23 @@ impl R32UintPass {
         }
     }
 
-    /// Draws `vertex_count` vertices of `vertices` seen through `view_proj` (a
-    /// `Camera::view_projection`) and reads the image back.
+    /// Draws `vertex_count` vertices of `vertices`, positions relative to `origin`, seen through
+    /// `view`, and reads the image back.
     pub fn draw_and_read(
         &mut self,
         gpu: &Gpu,
         vertices: Option<&wgpu::Buffer>,
         vertex_count: u32,
-        view_proj: Mat4,
-        width: u32,
-        height: u32,
+        view: &View,
+        origin: DVec3,
     ) -> Result<Vec<u32>, GpuError> {
-        self.uniform.set(gpu, reversed_z(view_proj));
+        self.uniform.set(gpu, view.matrix_from(origin));
         let target = fitted_target(
             &mut self.target,
             gpu,
             wgpu::TextureFormat::R32Uint,
-            width,
-            height,
+            view.width(),
+            view.height(),
         );
         target.draw_and_read::<u32>(
             gpu,
@@ -199,24 +208,25 @@ impl IdPass {
         }
     }
 
-    /// Draws `triangles` seen through `view_proj` (a `Camera::view_projection`) and reads back.
+    /// Draws `triangles` seen through `view` and reads back.
     pub fn render(
         &mut self,
         gpu: &Gpu,
         triangles: &TriangleBuffer,
-        view_proj: Mat4,
-        width: u32,
-        height: u32,
+        view: &View,
     ) -> Result<IdImage, GpuError> {
         let ids = self.pass.draw_and_read(
             gpu,
             triangles.buffer.as_ref(),
             triangles.count * 3,
-            view_proj,
-            width,
-            height,
+            view,
+            triangles.origin,
         )?;
-        Ok(IdImage { width, height, ids })
+        Ok(IdImage {
+            width: view.width(),
+            height: view.height(),
+            ids,
+        })
     }
 }
 

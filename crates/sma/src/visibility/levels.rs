@@ -3,12 +3,13 @@
 //! renders only the leaves of those and yields the visible set V_t keyed by (leaf, side), with
 //! pixel counts and centroids, and the leaf under every pixel.
 
-use glam::{Mat4, Vec3};
+use glam::Vec3;
 use protocol::Side;
 use protocol::viewer_link::Camera;
 
 use super::gpu::{Gpu, GpuError};
 use super::id_pass::{Coverage, IdPass, TriangleBuffer};
+use super::view::View;
 use crate::mesh::{NodeId, SubdivisionMesh};
 use crate::visible_set::{VisibleLeaf, VisibleSet};
 
@@ -29,6 +30,8 @@ pub struct LeafView {
 pub struct Visibility {
     gpu: Gpu,
     pass: IdPass,
+    /// Relative to the centre of the scene's bounds: uploaded once for every camera, and as
+    /// precise as a centred scene's wherever the scene lies (`view`).
     base: TriangleBuffer,
     leaves: TriangleBuffer,
     /// Scene bounds, for near and far planes that hold the whole scene.
@@ -42,7 +45,11 @@ impl Visibility {
         let base_triangles: Vec<[Vec3; 3]> = (0..mesh.base_count() as NodeId)
             .map(|b| mesh.leaf_positions(b))
             .collect();
-        base.upload(&gpu, &base_triangles);
+        base.upload(
+            &gpu,
+            &base_triangles,
+            (0.5 * (bounds.0 + bounds.1)).as_dvec3(),
+        );
         Visibility {
             gpu,
             pass,
@@ -56,8 +63,8 @@ impl Visibility {
         &self.gpu
     }
 
-    pub fn view_projection(&self, camera: &Camera) -> Mat4 {
-        scene_view_projection(camera, self.bounds)
+    pub fn view(&self, camera: &Camera) -> View {
+        scene_view(camera, self.bounds)
     }
 
     /// Levels 1 and 2 for one camera.
@@ -66,9 +73,9 @@ impl Visibility {
         mesh: &SubdivisionMesh,
         camera: &Camera,
     ) -> Result<LeafView, GpuError> {
-        let view_proj = self.view_projection(camera);
+        let view = self.view(camera);
         let (w, h) = (camera.width, camera.height);
-        let level1 = self.pass.render(&self.gpu, &self.base, view_proj, w, h)?;
+        let level1 = self.pass.render(&self.gpu, &self.base, &view)?;
         let bases: Vec<u32> = level1
             .coverage(mesh.base_count())
             .iter()
@@ -78,8 +85,8 @@ impl Visibility {
             .collect();
         let submitted: Vec<NodeId> = bases.iter().flat_map(|&b| mesh.leaves_of_base(b)).collect();
         let positions: Vec<[Vec3; 3]> = submitted.iter().map(|&l| mesh.leaf_positions(l)).collect();
-        self.leaves.upload(&self.gpu, &positions);
-        let level2 = self.pass.render(&self.gpu, &self.leaves, view_proj, w, h)?;
+        self.leaves.upload(&self.gpu, &positions, view.eye());
+        let level2 = self.pass.render(&self.gpu, &self.leaves, &view)?;
         let coverage = level2.coverage(submitted.len());
         let eye = camera.eye_vec();
         let (mut leaves, mut centroids) = (Vec::new(), Vec::new());
@@ -111,12 +118,16 @@ impl Visibility {
     }
 }
 
-/// Camera -> clip for a scene with `bounds`: far reaches the farthest corner of the bounds; near
-/// is a small fraction of it (depth is reversed-Z float, so the ratio costs no precision).
-pub fn scene_view_projection(camera: &Camera, (lo, hi): (Vec3, Vec3)) -> Mat4 {
+/// The view of a scene with `bounds`: far reaches the farthest corner of the bounds; near is a
+/// small fraction of it (depth is reversed-Z float, so the ratio costs no precision).
+pub fn scene_view(camera: &Camera, (lo, hi): (Vec3, Vec3)) -> View {
     let eye = camera.eye_vec();
     let far = (eye - lo).abs().max((eye - hi).abs()).length().max(1e-3) * 1.01;
-    camera.view_projection(far * 1e-5, far)
+    View {
+        camera: camera.pinhole(),
+        near: far * 1e-5,
+        far,
+    }
 }
 
 /// The side of `node` that faces `eye`, relative to its vertices' canonical normals

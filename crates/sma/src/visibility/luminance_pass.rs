@@ -3,10 +3,12 @@
 //! written as their bits into R32Uint: R32Float is not renderable on every adapter (llvmpipe
 //! through GL refuses it), R32Uint is, and without blending the bits pass through unchanged.
 
-use glam::{Mat4, Vec3};
+use conventions::camera::relative_to;
+use glam::Vec3;
 
 use super::gpu::{Gpu, GpuError};
 use super::id_pass::R32UintPass;
+use super::view::View;
 
 // Depth written per fragment, as in the ID pass (see `id_pass`): the same pixels on every backend.
 const SHADER: &str = r#"
@@ -42,18 +44,19 @@ impl LuminancePass {
         }
     }
 
-    /// Draws triangles given as (positions, vertex luminances) and reads the image back.
+    /// Draws triangles given as (positions, vertex luminances) seen through `view`, relative to
+    /// its eye (`view`), and reads the image back.
     pub fn render(
         &mut self,
         gpu: &Gpu,
         triangles: &[([Vec3; 3], [f32; 3])],
-        view_proj: Mat4,
-        width: u32,
-        height: u32,
+        view: &View,
     ) -> Result<Vec<f32>, GpuError> {
+        let eye = view.eye();
         let mut words: Vec<f32> = Vec::with_capacity(triangles.len() * 12);
         for (positions, lum) in triangles {
-            for (p, l) in positions.iter().zip(lum) {
+            for (&p, l) in positions.iter().zip(lum) {
+                let p = relative_to(p, eye);
                 words.extend([p.x, p.y, p.z, *l]);
             }
         }
@@ -62,9 +65,8 @@ impl LuminancePass {
             gpu,
             self.vertices.as_ref(),
             triangles.len() as u32 * 3,
-            view_proj,
-            width,
-            height,
+            view,
+            eye,
         )?;
         Ok(bits.into_iter().map(f32::from_bits).collect())
     }
