@@ -245,10 +245,13 @@ mod tests {
             "127.0.0.1:0",
             "--threads",
             "2",
+            "--join",
+            "sma:7300",
         ])
         .unwrap();
         assert!(
-            matches!(cli.command, Command::Serve { ref scene, threads: 2, .. } if scene == "cornell")
+            matches!(cli.command, Command::Serve { ref scene, threads: 2, ref join, .. }
+                if scene == "cornell" && join == &["sma:7300"])
         );
         let cli = Cli::try_parse_from([
             "renderer",

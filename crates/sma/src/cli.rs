@@ -304,6 +304,15 @@ mod tests {
     }
 
     #[test]
+    fn renderers_are_dialed_or_join_a_renderer_port_but_one_way_is_given() {
+        let cli = Cli::try_parse_from(["sma", "--renderer-listen", "0.0.0.0:7300"]).unwrap();
+        let config = cli.config();
+        assert_eq!(config.renderer_listen.as_deref(), Some("0.0.0.0:7300"));
+        assert!(config.renderers.is_empty());
+        assert!(Cli::try_parse_from(["sma"]).is_err());
+    }
+
+    #[test]
     fn criteria_are_parsed_by_name() {
         let cli = Cli::try_parse_from(["sma", "--renderer", "r:1", "--criterion", "rnd"]).unwrap();
         assert_eq!(cli.criterion, CriterionKind::Rnd);
