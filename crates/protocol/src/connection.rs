@@ -3,7 +3,7 @@
 
 use std::io;
 use std::marker::PhantomData;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use bytes::Bytes;
 use futures::{SinkExt, StreamExt};
@@ -22,6 +22,8 @@ use crate::types::Fingerprint;
 /// Reads typed messages `M`, one per frame.
 pub struct MessageReader<R, M> {
     inner: FramedRead<R, FrameDecoder>,
+    /// A frame begun must be complete this long after its first byte (DESIGN.md §8).
+    frame_timeout: Option<Duration>,
     _msg: PhantomData<fn() -> M>,
 }
 
@@ -36,6 +38,7 @@ impl<R: AsyncRead + Unpin, M: WireMessage> MessageReader<R, M> {
     pub fn new(io: R, max_frame: usize) -> Self {
         MessageReader {
             inner: FramedRead::new(io, FrameDecoder::new(max_frame)),
+            frame_timeout: None,
             _msg: PhantomData,
         }
     }
@@ -47,6 +50,13 @@ impl<R: AsyncRead + Unpin, M: WireMessage> MessageReader<R, M> {
 
     pub fn set_max_frame(&mut self, max_frame: usize) {
         self.inner.decoder_mut().set_max_frame_length(max_frame);
+    }
+
+    /// From now on a frame that has begun must be complete within `limit`, or the read fails
+    /// with `FrameStalled`: a peer that stops halfway through a frame is cut off rather than
+    /// held open for good. Waiting for a frame to begin is not limited.
+    pub fn set_frame_timeout(&mut self, limit: Duration) {
+        self.frame_timeout = Some(limit);
     }
 
     /// The next message; `Err(Closed)` at a clean end of stream.
@@ -61,8 +71,26 @@ impl<R: AsyncRead + Unpin, M: WireMessage> MessageReader<R, M> {
         decode(&frame)
     }
 
+    /// Cancel-safe: the bytes of a frame in progress stay in the decoder's buffer.
     async fn recv_frame(&mut self) -> Result<bytes::BytesMut, ProtocolError> {
-        match self.inner.next().await {
+        let next = loop {
+            let Some(limit) = self.frame_timeout else {
+                break self.inner.next().await;
+            };
+            // Until a frame begins, look again after one limit; once begun, at its deadline.
+            let started = self.inner.decoder().frame_started();
+            let check_at = started.unwrap_or_else(Instant::now) + limit;
+            match tokio::time::timeout_at(check_at.into(), self.inner.next()).await {
+                Ok(next) => break next,
+                Err(_) => {
+                    let begun = self.inner.decoder().frame_started();
+                    if begun.is_some_and(|t| t.elapsed() >= limit) {
+                        return Err(ProtocolError::FrameStalled { after: limit });
+                    }
+                }
+            }
+        };
+        match next {
             Some(Ok(frame)) => Ok(frame),
             Some(Err(e)) => Err(map_codec_error(e, self.inner.decoder().max_frame_length())),
             None if self.inner.read_buffer().is_empty() => Err(ProtocolError::Closed),
@@ -84,9 +112,9 @@ impl<W: AsyncWrite + Unpin, M: Serialize> MessageWriter<W, M> {
         self.send_as(msg).await
     }
 
-    /// Sends a message of another type on the same stream (the handshake frame).
-    pub async fn send_as<T: Serialize>(&mut self, msg: &T) -> Result<(), ProtocolError> {
-        let payload = encode(msg)?;
+    /// Sends a payload encoded beforehand (`frame::encode`), e.g. by a task that counts the
+    /// bytes it queues for a peer.
+    pub async fn send_payload(&mut self, payload: Vec<u8>) -> Result<(), ProtocolError> {
         if payload.len() > self.max_frame {
             return Err(ProtocolError::MessageTooLarge {
                 len: payload.len(),
@@ -97,6 +125,11 @@ impl<W: AsyncWrite + Unpin, M: Serialize> MessageWriter<W, M> {
             .send(Bytes::from(payload))
             .await
             .map_err(ProtocolError::Io)
+    }
+
+    /// Sends a message of another type on the same stream (the handshake frame).
+    pub async fn send_as<T: Serialize>(&mut self, msg: &T) -> Result<(), ProtocolError> {
+        self.send_payload(encode(msg)?).await
     }
 }
 

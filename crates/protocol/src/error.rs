@@ -15,6 +15,8 @@ pub enum ProtocolError {
     MessageTooLarge { len: usize, max: usize },
     #[error("connection closed in the middle of a frame")]
     Truncated,
+    #[error("a frame begun was not complete within {after:?}: the peer stalled halfway")]
+    FrameStalled { after: std::time::Duration },
     #[error("connection closed by peer")]
     Closed,
     #[error("unknown message kind (tag not known to this protocol version)")]

@@ -3,6 +3,7 @@
 //! triangles and radiance stays compact without a hand-written encoding.
 
 use std::io;
+use std::time::Instant;
 
 use bytes::BytesMut;
 use serde::{Serialize, de::DeserializeOwned};
@@ -30,6 +31,8 @@ pub struct FrameDecoder {
     codec: LengthDelimitedCodec,
     /// A length was read and its body has not been returned yet.
     inside_frame: bool,
+    /// When the first byte of the frame not yet returned came, if one has.
+    started: Option<Instant>,
 }
 
 impl FrameDecoder {
@@ -37,7 +40,13 @@ impl FrameDecoder {
         FrameDecoder {
             codec: codec(max_frame),
             inside_frame: false,
+            started: None,
         }
+    }
+
+    /// When the first byte of a frame not yet complete came; `None` between frames.
+    pub fn frame_started(&self) -> Option<Instant> {
+        self.started
     }
 
     pub fn max_frame_length(&self) -> usize {
@@ -55,9 +64,14 @@ impl Decoder for FrameDecoder {
 
     fn decode(&mut self, src: &mut BytesMut) -> io::Result<Option<BytesMut>> {
         let buffered = src.len();
+        if buffered > 0 && self.started.is_none() {
+            self.started = Some(Instant::now());
+        }
         let frame = self.codec.decode(src)?;
         if frame.is_some() {
             self.inside_frame = false;
+            // What follows a complete frame came with it: the next frame starts now.
+            self.started = (!src.is_empty()).then(Instant::now);
         } else if src.len() < buffered {
             self.inside_frame = true;
         }

@@ -8,6 +8,7 @@
 //! - [`handshake`]: magic, protocol version, role and (renderer link) scene fingerprint;
 //! - [`renderer_link`] and [`viewer_link`]: the messages of each link;
 //! - [`admission`]: what a port allows a peer before its handshake, and how many it serves;
+//! - [`liveness`]: heartbeats, silence and frame timeouts: when a peer counts as lost;
 //! - [`connection`]: a typed message reader and writer over any byte stream;
 //! - [`error`]: every way a peer can go wrong, as a value, never a panic;
 //! - [`camera`]: the wire's camera in the system's camera convention.
@@ -28,6 +29,7 @@ pub mod connection;
 mod error;
 pub mod frame;
 pub mod handshake;
+pub mod liveness;
 pub mod renderer_link;
 pub mod types;
 mod variant_count;

@@ -59,6 +59,11 @@ pub enum ToRenderer {
     ShadeBatch(ShadeBatch),
     /// Polite goodbye; the renderer finishes nothing more for this link.
     Bye,
+    /// A heartbeat: the renderer answers `Pong` with the same nonce at once, however busy its
+    /// workers are, so a renderer that stops answering is known to be lost (DESIGN.md §2).
+    Ping {
+        nonce: u64,
+    },
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -87,13 +92,18 @@ pub mod point_flags {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum FromRenderer {
     Radiance(Radiance),
-    /// The renderer could not take a batch (e.g. malformed); the SMA re-issues it elsewhere.
+    /// The renderer could not take a batch (e.g. malformed, or more batches than it holds at
+    /// once); the SMA re-issues it elsewhere.
     Rejected {
         batch_id: u64,
         reason: String,
     },
     Error {
         message: String,
+    },
+    /// The answer to `Ping`.
+    Pong {
+        nonce: u64,
     },
 }
 

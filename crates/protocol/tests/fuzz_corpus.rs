@@ -172,6 +172,7 @@ fn renderer_link_seeds() -> Vec<(String, Vec<u8>)> {
             }),
         ),
         ("bye", ToRenderer::Bye),
+        ("ping", ToRenderer::Ping { nonce: 7 }),
     ];
     let from_renderer = [
         (
@@ -199,6 +200,7 @@ fn renderer_link_seeds() -> Vec<(String, Vec<u8>)> {
                 message: "out of memory".into(),
             },
         ),
+        ("pong", FromRenderer::Pong { nonce: u64::MAX }),
     ];
     let mut out = seeds("to-renderer", &to_renderer);
     out.extend(seeds("from-renderer", &from_renderer));

@@ -93,6 +93,7 @@ fn to_renderer() -> impl Strategy<Value = ToRenderer> {
                 }
             )),
         Just(ToRenderer::Bye),
+        any::<u64>().prop_map(|nonce| ToRenderer::Ping { nonce }),
     ]
 }
 fn from_renderer() -> impl Strategy<Value = FromRenderer> {
@@ -117,6 +118,7 @@ fn from_renderer() -> impl Strategy<Value = FromRenderer> {
         (any::<u64>(), ".*")
             .prop_map(|(batch_id, reason)| FromRenderer::Rejected { batch_id, reason }),
         ".*".prop_map(|message| FromRenderer::Error { message }),
+        any::<u64>().prop_map(|nonce| FromRenderer::Pong { nonce }),
     ]
 }
 fn to_sma() -> impl Strategy<Value = ViewerToSma> {

@@ -12,7 +12,7 @@ use protocol::frame::DEFAULT_MAX_FRAME;
 use tokio::net::TcpListener;
 
 use crate::reference::{ReferenceSettings, render_to_files};
-use crate::service::Service;
+use crate::service::{DEFAULT_MAX_BATCHES, Service, default_liveness};
 use crate::vector_level::{self, VectorLevel};
 use crate::world::World;
 
@@ -51,6 +51,16 @@ pub enum Command {
         /// An SMA that has not completed its handshake within this many milliseconds is closed.
         #[arg(long, default_value_t = PortLimits::default().handshake_deadline.as_millis() as u64)]
         handshake_deadline_ms: u64,
+        /// Also join the SMA whose renderer port is at `host:port` (its `--renderer-listen`),
+        /// again and again while it runs; repeat for several SMAs.
+        #[arg(long = "join")]
+        join: Vec<String>,
+        /// Batches one SMA connection may hold at once; one more is refused with a reason.
+        #[arg(long, default_value_t = DEFAULT_MAX_BATCHES)]
+        max_batches: usize,
+        /// A frame begun must be complete within this many milliseconds, or the link is closed.
+        #[arg(long, default_value_t = default_liveness().frame_timeout.as_millis() as u64)]
+        frame_timeout_ms: u64,
     },
     /// Render a named viewpoint per pixel with the same estimator: linear EXR plus a PNG beside it.
     Reference {
@@ -119,12 +129,20 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             max_frame,
             max_connections,
             handshake_deadline_ms,
+            join,
+            max_batches,
+            frame_timeout_ms,
         } => {
-            let port = PortLimits {
+            let world = Arc::new(load_world(&scene)?);
+            let mut service = Service::new(world, threads, max_frame)?;
+            service.port = PortLimits {
                 max_connections,
                 handshake_deadline: Duration::from_millis(handshake_deadline_ms),
             };
-            serve(&scene, &listen, threads, max_frame, port)
+            service.join = join;
+            service.max_batches = max_batches.max(1);
+            service.liveness.frame_timeout = Duration::from_millis(frame_timeout_ms.max(1));
+            serve(service, &listen)
         }
         Command::Reference {
             scene,
@@ -166,16 +184,7 @@ fn load_world(spec: &str) -> anyhow::Result<World> {
     Ok(world)
 }
 
-fn serve(
-    spec: &str,
-    listen: &str,
-    threads: usize,
-    max_frame: usize,
-    port: PortLimits,
-) -> anyhow::Result<()> {
-    let world = Arc::new(load_world(spec)?);
-    let mut service = Service::new(world, threads, max_frame)?;
-    service.port = port;
+fn serve(service: Service, listen: &str) -> anyhow::Result<()> {
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -236,10 +245,13 @@ mod tests {
             "127.0.0.1:0",
             "--threads",
             "2",
+            "--join",
+            "sma:7300",
         ])
         .unwrap();
         assert!(
-            matches!(cli.command, Command::Serve { ref scene, threads: 2, .. } if scene == "cornell")
+            matches!(cli.command, Command::Serve { ref scene, threads: 2, ref join, .. }
+                if scene == "cornell" && join == &["sma:7300"])
         );
         let cli = Cli::try_parse_from([
             "renderer",

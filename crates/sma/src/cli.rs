@@ -10,6 +10,7 @@ use anyhow::Context;
 use clap::Parser;
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use protocol::admission::PortLimits;
+use protocol::liveness::Liveness;
 
 use crate::config::{ScheduleConfig, SmaConfig};
 use crate::criteria::{CriterionKind, CriterionSettings};
@@ -40,7 +41,8 @@ fn criterion_parser() -> impl TypedValueParser<Value = CriterionKind> {
     about = "Shading Management Agent: visibility, shading cache, refinement",
     long_about = "Shading Management Agent (SMA): loads the scene, asks the renderers for samples \
                   of what the viewers see, caches them and refines where shading varies. It \
-                  connects to renderers (--renderer) and accepts viewers (--listen).",
+                  connects to renderers (--renderer), lets renderers join \
+                  (--renderer-listen) and accepts viewers (--listen).",
     after_help = "Renderer, SMA and viewers on several machines: see \"Running on three machines \
                   of a LAN\" in the README."
 )]
@@ -51,9 +53,34 @@ pub struct Cli {
     /// Address to accept viewers on.
     #[arg(long, default_value_t = defaults().listen)]
     pub listen: String,
-    /// A renderer `host:port`; repeat for several.
-    #[arg(long = "renderer", required = true)]
+    /// A renderer `host:port` to connect to; repeat for several.
+    #[arg(long = "renderer", required_unless_present = "renderer_listen")]
     pub renderers: Vec<String>,
+    /// Address of a port on which renderers join (`renderer serve --join ADDR`); the bound
+    /// address is printed as "sma renderers listening on ADDR".
+    #[arg(long)]
+    pub renderer_listen: Option<String>,
+    /// Renderers served at once on the renderer port; one past this is refused.
+    #[arg(long, default_value_t = defaults().renderer_port.max_connections)]
+    pub max_renderers: usize,
+    /// Milliseconds between heartbeats to each renderer.
+    #[arg(long, default_value_t = defaults().liveness.heartbeat.as_millis() as u64)]
+    pub heartbeat_ms: u64,
+    /// A renderer that sends nothing, heartbeat answers included, for this many milliseconds
+    /// is lost: its batches go to the others and its link reconnects.
+    #[arg(long, default_value_t = defaults().liveness.silence.as_millis() as u64)]
+    pub silence_ms: u64,
+    /// A frame begun on any link must be complete within this many milliseconds.
+    #[arg(long, default_value_t = defaults().liveness.frame_timeout.as_millis() as u64)]
+    pub frame_timeout_ms: u64,
+    /// A batch is lost once this many times its expected time at its renderer's measured rate
+    /// has passed.
+    #[arg(long, default_value_t = defaults().deadline_factor)]
+    pub deadline_factor: f64,
+    /// KiB of updates that may wait for one viewer that does not read; past them it is
+    /// disconnected (a single update larger than this disconnects it too).
+    #[arg(long, default_value_t = defaults().viewer_backlog_bytes >> 10)]
+    pub viewer_backlog_kib: usize,
     /// Refinement criterion (each viewer may change its own with SetCriterion).
     #[arg(long, default_value_t = defaults().schedule.criterion, value_parser = criterion_parser())]
     pub criterion: CriterionKind,
@@ -162,6 +189,19 @@ impl Cli {
         SmaConfig {
             listen: self.listen.clone(),
             renderers: self.renderers.clone(),
+            renderer_listen: self.renderer_listen.clone(),
+            renderer_port: PortLimits {
+                max_connections: self.max_renderers,
+                handshake_deadline: Duration::from_millis(self.handshake_deadline_ms),
+            },
+            liveness: Liveness {
+                heartbeat: Duration::from_millis(self.heartbeat_ms.max(1)),
+                silence: Duration::from_millis(self.silence_ms.max(1)),
+                frame_timeout: Duration::from_millis(self.frame_timeout_ms.max(1)),
+            },
+            deadline_factor: self.deadline_factor,
+            first_deadline: defaults().first_deadline,
+            viewer_backlog_bytes: self.viewer_backlog_kib << 10,
             max_frame: self.max_frame,
             viewer_port: PortLimits {
                 max_connections: self.max_viewers,
@@ -228,6 +268,10 @@ async fn serve(cli: Cli) -> anyhow::Result<()> {
     let running = crate::server::start(cli.config(), scene, ctrl_c).await?;
     // The launcher and tests read this line to learn the port when `--listen` asks for port 0.
     conventions::listening::announce("sma", running.addr)?;
+    // After the viewers' line, which a reader of the first `listening on` line takes.
+    if let Some(addr) = running.renderer_addr {
+        conventions::listening::announce("sma renderers", addr)?;
+    }
     running.stopped().await
 }
 
@@ -242,6 +286,13 @@ mod tests {
         assert_eq!(from_flags.listen, defaults.listen);
         assert_eq!(from_flags.renderers, ["r:1"]);
         assert_eq!(from_flags.max_frame, defaults.max_frame);
+        assert_eq!(from_flags.liveness, defaults.liveness);
+        assert_eq!(from_flags.renderer_port, defaults.renderer_port);
+        assert_eq!(from_flags.deadline_factor, defaults.deadline_factor);
+        assert_eq!(
+            from_flags.viewer_backlog_bytes,
+            defaults.viewer_backlog_bytes
+        );
         assert_eq!(
             format!("{:?}", from_flags.schedule),
             format!("{:?}", defaults.schedule)
@@ -250,6 +301,15 @@ mod tests {
             format!("{:?}", from_flags.mesh),
             format!("{:?}", defaults.mesh)
         );
+    }
+
+    #[test]
+    fn renderers_are_dialed_or_join_a_renderer_port_but_one_way_is_given() {
+        let cli = Cli::try_parse_from(["sma", "--renderer-listen", "0.0.0.0:7300"]).unwrap();
+        let config = cli.config();
+        assert_eq!(config.renderer_listen.as_deref(), Some("0.0.0.0:7300"));
+        assert!(config.renderers.is_empty());
+        assert!(Cli::try_parse_from(["sma"]).is_err());
     }
 
     #[test]

@@ -6,6 +6,7 @@ use std::time::Duration;
 
 use protocol::admission::PortLimits;
 use protocol::frame::DEFAULT_MAX_FRAME;
+use protocol::liveness::Liveness;
 
 use crate::criteria::{CriterionKind, CriterionSettings};
 use crate::mesh::MeshParams;
@@ -15,8 +16,22 @@ use crate::mesh::MeshParams;
 pub struct SmaConfig {
     /// Address to accept viewers on; port 0 lets the OS pick (the bound address is reported).
     pub listen: String,
-    /// Renderer `host:port`s.
+    /// Renderer `host:port`s the SMA dials.
     pub renderers: Vec<String>,
+    /// Address of the port renderers join on (`renderer serve --join`); none: no such port.
+    pub renderer_listen: Option<String>,
+    /// Renderers served at once on `renderer_listen`, and their handshake deadline.
+    pub renderer_port: PortLimits,
+    /// The farm's liveness rule (DESIGN.md §2): heartbeats, silence, frame timeout; the viewer
+    /// links use its frame timeout.
+    pub liveness: Liveness,
+    /// A batch is lost once this many times its expected time at its renderer's measured rate
+    /// has passed (plus the silence limit).
+    pub deadline_factor: f64,
+    /// A batch's deadline before its renderer's rate is measured.
+    pub first_deadline: Duration,
+    /// Bytes of updates that may wait for one viewer; past them it is disconnected.
+    pub viewer_backlog_bytes: usize,
     /// Largest frame accepted or sent.
     pub max_frame: usize,
     /// Viewers served at once on `listen`, and their handshake deadline.
@@ -30,6 +45,15 @@ impl Default for SmaConfig {
         SmaConfig {
             listen: "127.0.0.1:7200".into(),
             renderers: Vec::new(),
+            renderer_listen: None,
+            renderer_port: PortLimits::default(),
+            liveness: Liveness::default(),
+            // A renderer slowed to a quarter by another job on its host is slow, not lost.
+            deadline_factor: 4.0,
+            // Until a renderer has answered once its heartbeats alone tell a hung one.
+            first_deadline: Duration::from_secs(30),
+            // Two maximum frames: the largest single update always fits.
+            viewer_backlog_bytes: 2 * DEFAULT_MAX_FRAME,
             max_frame: DEFAULT_MAX_FRAME,
             viewer_port: PortLimits::default(),
             mesh: MeshParams::default(),

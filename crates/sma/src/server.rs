@@ -18,10 +18,16 @@ use crate::schedule::Schedule;
 use crate::viewer_link::{self, ViewerEvent, ViewerId, ViewerLinkConfig, scene_info};
 use crate::visibility::Gpu;
 
+/// Events waiting for the schedule from the viewers, and from the pool: past this their
+/// senders wait (the schedule takes every waiting event each turn).
+const EVENT_QUEUE: usize = 1024;
+
 /// A started SMA.
 pub struct Running {
     /// Where viewers connect (the actual port when `--listen` asked for port 0).
     pub addr: SocketAddr,
+    /// Where renderers join, when the SMA has a renderer port.
+    pub renderer_addr: Option<SocketAddr>,
     shutdown: watch::Sender<bool>,
     schedule: JoinHandle<anyhow::Result<()>>,
 }
@@ -66,7 +72,16 @@ pub async fn start(
         shutdown.await;
         let _ = on_shutdown.send(true);
     });
-    let (pool_tx, pool_rx) = mpsc::unbounded_channel();
+    let joining = match &config.renderer_listen {
+        Some(addr) => Some(
+            TcpListener::bind(addr)
+                .await
+                .with_context(|| format!("listening for renderers on {addr}"))?,
+        ),
+        None => None,
+    };
+    let renderer_addr = joining.as_ref().map(|l| l.local_addr()).transpose()?;
+    let (pool_tx, pool_rx) = mpsc::channel(EVENT_QUEUE);
     let pool_config = PoolConfig {
         renderers: config.renderers.clone(),
         fingerprint: scene.fingerprint,
@@ -74,13 +89,19 @@ pub async fn start(
         max_frame: config.max_frame,
         backoff_min: Duration::from_millis(100),
         backoff_max: Duration::from_secs(5),
+        liveness: config.liveness,
+        deadline_factor: config.deadline_factor,
+        first_deadline: config.first_deadline,
+        renderer_port: config.renderer_port,
     };
-    let pool = pool::spawn(pool_config, pool_tx, shutdown_rx.clone());
+    let pool = pool::spawn(pool_config, pool_tx, joining, shutdown_rx.clone());
     let link = ViewerLinkConfig {
         scene_info: scene_info(&scene, config.schedule.criterion),
         fingerprint: scene.fingerprint,
         max_frame: config.max_frame,
         handshake_deadline: config.viewer_port.handshake_deadline,
+        frame_timeout: config.liveness.frame_timeout,
+        backlog_bytes: config.viewer_backlog_bytes,
     };
     let schedule = Schedule::new(config.schedule, &scene, mesh, gpu, pool);
     tracing::debug!(adapter = %schedule.adapter(), scene = %scene.name, "visibility device");
@@ -88,7 +109,7 @@ pub async fn start(
         .await
         .with_context(|| format!("listening on {}", config.listen))?;
     let addr = listener.local_addr()?;
-    let (viewer_tx, viewer_rx) = mpsc::unbounded_channel();
+    let (viewer_tx, viewer_rx) = mpsc::channel(EVENT_QUEUE);
     tokio::spawn(accept_viewers(
         listener,
         ConnectionLimit::new(config.viewer_port.max_connections),
@@ -99,6 +120,7 @@ pub async fn start(
     let schedule = spawn_schedule(schedule, viewer_rx, pool_rx, shutdown_rx)?;
     Ok(Running {
         addr,
+        renderer_addr,
         shutdown: shutdown_tx,
         schedule,
     })
@@ -108,8 +130,8 @@ pub async fn start(
 /// block for milliseconds and must not stall the tasks serving viewers and renderers.
 fn spawn_schedule(
     schedule: Schedule,
-    viewers: mpsc::UnboundedReceiver<ViewerEvent>,
-    pool: mpsc::UnboundedReceiver<PoolEvent>,
+    viewers: mpsc::Receiver<ViewerEvent>,
+    pool: mpsc::Receiver<PoolEvent>,
     shutdown: watch::Receiver<bool>,
 ) -> anyhow::Result<JoinHandle<anyhow::Result<()>>> {
     std::thread::Builder::new()
@@ -134,7 +156,7 @@ async fn accept_viewers(
     listener: TcpListener,
     limit: ConnectionLimit,
     config: ViewerLinkConfig,
-    events: mpsc::UnboundedSender<ViewerEvent>,
+    events: mpsc::Sender<ViewerEvent>,
     mut shutdown: watch::Receiver<bool>,
 ) {
     let mut next_id: ViewerId = 1;

@@ -1,15 +1,18 @@
 //! One accepted viewer (DESIGN.md §2, §8): handshake, `SceneInfo` first, then its messages go to
-//! the schedule and the schedule's messages go out. A malformed, oversized or unknown frame, or a
-//! camera no renderer could use, gets an `Error` reply and this connection closes; every other
-//! viewer is unaffected.
+//! the schedule and the schedule's messages go out. A malformed, oversized, unknown or stalled
+//! frame, or a camera no renderer could use, gets an `Error` reply and this connection closes; a
+//! viewer that stops reading is disconnected once its backlog passes a bound; every other viewer
+//! is unaffected.
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Duration;
 
-use protocol::connection::{SceneCheck, accept_handshake_within, refuse_handshake};
+use protocol::connection::{SceneCheck, TcpWriter, accept_handshake_within, refuse_handshake};
 use protocol::viewer_link::{Camera, SceneInfo, SkyInfo, SmaToViewer, SunInfo, ViewerToSma};
-use protocol::{Fingerprint, ProtocolError, Role, split_tcp};
+use protocol::{Fingerprint, ProtocolError, Role, frame, split_tcp};
 use tokio::net::TcpStream;
-use tokio::sync::{mpsc, watch};
+use tokio::sync::{Notify, mpsc, oneshot, watch};
 
 use crate::criteria::CriterionKind;
 
@@ -22,17 +25,9 @@ pub const MAX_IMAGE_SIDE: u32 = 8192;
 /// What a viewer connection tells the schedule.
 #[derive(Debug)]
 pub enum ViewerEvent {
-    Joined {
-        id: ViewerId,
-        outbox: mpsc::UnboundedSender<SmaToViewer>,
-    },
-    Message {
-        id: ViewerId,
-        message: ViewerToSma,
-    },
-    Left {
-        id: ViewerId,
-    },
+    Joined { id: ViewerId, outbox: Outbox },
+    Message { id: ViewerId, message: ViewerToSma },
+    Left { id: ViewerId },
 }
 
 /// What every viewer connection needs to know.
@@ -43,6 +38,92 @@ pub struct ViewerLinkConfig {
     pub max_frame: usize,
     /// A viewer that has not completed its handshake by then is closed (DESIGN.md §8).
     pub handshake_deadline: Duration,
+    /// A frame begun must be complete within this long.
+    pub frame_timeout: Duration,
+    /// Bytes of updates that may wait for one viewer; past them it is disconnected.
+    pub backlog_bytes: usize,
+}
+
+/// Messages queued for one viewer and not yet written to it.
+const BACKLOG_MESSAGES: usize = 4096;
+
+/// The schedule's side of one viewer's link: messages are encoded here and counted while they
+/// wait, so a viewer that stops reading holds at most `backlog_bytes` of the SMA's memory. Past
+/// that bound its later messages are dropped and its link is closed with the reason logged; the
+/// schedule never waits for it, so other viewers and the renderers go on.
+#[derive(Debug)]
+pub struct Outbox {
+    payloads: mpsc::Sender<Vec<u8>>,
+    backlog: Arc<Backlog>,
+}
+
+#[derive(Debug, Default)]
+struct Backlog {
+    bytes: AtomicUsize,
+    limit: usize,
+    cut: AtomicBool,
+    overflow: Notify,
+}
+
+impl Outbox {
+    pub fn send(&self, message: SmaToViewer) {
+        if self.backlog.cut.load(Ordering::Relaxed) {
+            return;
+        }
+        let payload = match frame::encode(&message) {
+            Ok(payload) => payload,
+            Err(e) => {
+                tracing::warn!(error = %e, "a message for a viewer did not encode");
+                return;
+            }
+        };
+        let len = payload.len();
+        let waiting = self.backlog.bytes.fetch_add(len, Ordering::Relaxed) + len;
+        if waiting > self.backlog.limit || self.payloads.try_send(payload).is_err() {
+            self.backlog.cut.store(true, Ordering::Relaxed);
+            self.backlog.overflow.notify_one();
+        }
+    }
+}
+
+/// Why a viewer's link ended.
+enum End {
+    /// It left, or the server is shutting down.
+    Quiet,
+    Protocol(ProtocolError),
+    /// It stopped reading and its backlog passed the bound.
+    Backlog,
+    /// The writing task ended: the outbox closed, or a write failed.
+    Written(Option<ProtocolError>),
+}
+
+/// Writes one viewer's queued payloads until the outbox closes, a write fails, or `stop`.
+/// Returns the writer, for a last word.
+async fn write_out(
+    mut writer: TcpWriter<SmaToViewer>,
+    mut outgoing: mpsc::Receiver<Vec<u8>>,
+    backlog: Arc<Backlog>,
+    mut stop: oneshot::Receiver<()>,
+) -> (TcpWriter<SmaToViewer>, Result<(), ProtocolError>) {
+    let result = loop {
+        let payload = tokio::select! {
+            payload = outgoing.recv() => payload,
+            _ = &mut stop => break Ok(()),
+        };
+        let Some(payload) = payload else {
+            break Ok(());
+        };
+        let len = payload.len();
+        let sent = tokio::select! {
+            sent = writer.send_payload(payload) => sent,
+            _ = &mut stop => break Ok(()),
+        };
+        backlog.bytes.fetch_sub(len, Ordering::Relaxed);
+        if let Err(e) = sent {
+            break Err(e);
+        }
+    };
+    (writer, result)
 }
 
 /// Serves one viewer until it leaves, breaks the protocol, or the server shuts down.
@@ -50,7 +131,7 @@ pub async fn serve(
     stream: TcpStream,
     id: ViewerId,
     config: ViewerLinkConfig,
-    events: mpsc::UnboundedSender<ViewerEvent>,
+    events: mpsc::Sender<ViewerEvent>,
     mut shutdown: watch::Receiver<bool>,
 ) {
     let peer = stream
@@ -77,43 +158,73 @@ pub async fn serve(
     {
         return;
     }
+    reader.set_frame_timeout(config.frame_timeout);
     tracing::info!(viewer = id, %peer, "viewer connected");
-    let (outbox, mut outgoing) = mpsc::unbounded_channel();
-    if events.send(ViewerEvent::Joined { id, outbox }).is_err() {
+    let (payloads, outgoing) = mpsc::channel(BACKLOG_MESSAGES);
+    let backlog = Arc::new(Backlog {
+        limit: config.backlog_bytes,
+        ..Backlog::default()
+    });
+    let outbox = Outbox {
+        payloads,
+        backlog: Arc::clone(&backlog),
+    };
+    if events
+        .send(ViewerEvent::Joined { id, outbox })
+        .await
+        .is_err()
+    {
         return;
     }
+    // Writing has its own task, so a viewer's cameras are read even while a write to it is
+    // blocked, and its backlog's overflow is seen at once.
+    let (stop_writing, stopped) = oneshot::channel();
+    let mut writing = tokio::spawn(write_out(writer, outgoing, Arc::clone(&backlog), stopped));
     let ended = loop {
         tokio::select! {
             incoming = reader.recv() => match incoming.and_then(checked) {
-                Ok(ViewerToSma::Bye) => break None,
+                Ok(ViewerToSma::Bye) => break End::Quiet,
                 Ok(message) => {
-                    if events.send(ViewerEvent::Message { id, message }).is_err() {
-                        break None;
+                    if events.send(ViewerEvent::Message { id, message }).await.is_err() {
+                        break End::Quiet;
                     }
                 }
-                Err(e) if e.is_disconnect() => break None,
-                Err(e) => break Some(e),
+                Err(e) if e.is_disconnect() => break End::Quiet,
+                Err(e) => break End::Protocol(e),
             },
-            message = outgoing.recv() => match message {
-                Some(message) => {
-                    if let Err(e) = writer.send(&message).await {
-                        break (!e.is_disconnect()).then_some(e);
-                    }
-                }
-                None => break None,
-            },
-            _ = shutdown.changed() => break None,
+            written = &mut writing => break End::Written(written.ok().and_then(|(_, r)| r.err())),
+            _ = backlog.overflow.notified() => break End::Backlog,
+            _ = shutdown.changed() => break End::Quiet,
         }
     };
-    if let Some(e) = ended {
-        tracing::warn!(viewer = id, %peer, error = %e, "closing viewer after a protocol error");
-        let _ = writer
-            .send(&SmaToViewer::Error {
-                message: e.to_string(),
-            })
-            .await;
+    match ended {
+        End::Quiet => writing.abort(),
+        End::Written(None) => {}
+        End::Written(Some(e)) if e.is_disconnect() => {}
+        End::Written(Some(e)) => {
+            tracing::warn!(viewer = id, %peer, error = %e, "closing viewer: a write failed");
+        }
+        End::Protocol(e) => {
+            tracing::warn!(viewer = id, %peer, error = %e, "closing viewer after a protocol error");
+            let _ = stop_writing.send(());
+            if let Ok((mut writer, _)) = writing.await {
+                let error = SmaToViewer::Error {
+                    message: e.to_string(),
+                };
+                let _ = tokio::time::timeout(config.frame_timeout, writer.send(&error)).await;
+            }
+        }
+        End::Backlog => {
+            writing.abort();
+            tracing::warn!(
+                viewer = id,
+                %peer,
+                bound_bytes = config.backlog_bytes,
+                "disconnecting a viewer that does not read: its backlog of updates passed the bound"
+            );
+        }
     }
-    let _ = events.send(ViewerEvent::Left { id });
+    let _ = events.send(ViewerEvent::Left { id }).await;
     tracing::info!(viewer = id, %peer, "viewer left");
 }
 

@@ -92,6 +92,48 @@ impl Process {
         Some((ticks(14)? + ticks(15)?) / CLOCK_TICKS_PER_SECOND)
     }
 
+    /// Stops the child with SIGSTOP (a hung host: its sockets stay open, it answers nothing).
+    pub fn pause(&self) {
+        self.signal(libc::SIGSTOP);
+    }
+
+    /// Lets a paused child go on (SIGCONT).
+    pub fn resume(&self) {
+        self.signal(libc::SIGCONT);
+    }
+
+    fn signal(&self, signal: libc::c_int) {
+        // SAFETY: kill(2) with a child's pid and a signal number has no memory effects here.
+        unsafe {
+            libc::kill(self.child.id() as libc::pid_t, signal);
+        }
+    }
+
+    /// The child's resident memory (`VmRSS`), bytes, while it runs on Linux.
+    pub fn resident_bytes(&self) -> Option<u64> {
+        let status = std::fs::read_to_string(format!("/proc/{}/status", self.child.id())).ok()?;
+        let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
+        let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        Some(kib * 1024)
+    }
+
+    /// The address of the child's `"{who} listening on ADDR"` line, once its log has it.
+    pub fn announced(&self, who: &str, timeout: Duration) -> anyhow::Result<SocketAddr> {
+        let deadline = std::time::Instant::now() + timeout;
+        let prefix = format!("{who} listening on ");
+        loop {
+            let text = self.log_text();
+            let line = text.lines().find(|l| l.starts_with(&prefix));
+            if let Some(addr) = line.and_then(conventions::listening::parse) {
+                return Ok(addr);
+            }
+            if std::time::Instant::now() > deadline {
+                return Err(self.failure(&format!("printed no `{prefix}` line")));
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
     /// The exit status once the child has ended.
     pub fn exited(&mut self) -> Option<ExitStatus> {
         self.child.try_wait().ok().flatten()
@@ -161,6 +203,17 @@ pub fn start_renderer(
     threads: Option<usize>,
     log: Option<&Path>,
 ) -> anyhow::Result<Server> {
+    start_renderer_with(exe, scene, threads, &[], log)
+}
+
+/// [`start_renderer`] with more `walkthrough renderer serve` flags (e.g. `--join SMA`).
+pub fn start_renderer_with(
+    exe: &Path,
+    scene: &str,
+    threads: Option<usize>,
+    flags: &[String],
+    log: Option<&Path>,
+) -> anyhow::Result<Server> {
     let mut args = strings(&[
         "renderer",
         "serve",
@@ -172,6 +225,7 @@ pub fn start_renderer(
     if let Some(threads) = threads {
         args.extend(["--threads".to_string(), threads.to_string()]);
     }
+    args.extend(flags.iter().cloned());
     start_server(exe, "renderer", &args, log)
 }
 

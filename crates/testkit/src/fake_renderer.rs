@@ -59,7 +59,18 @@ async fn serve(listener: TcpListener, scene: Scene, shading: Shading, fault: Fau
         {
             continue;
         }
-        while let Ok(ToRenderer::ShadeBatch(batch)) = reader.recv().await {
+        loop {
+            let batch = match reader.recv().await {
+                Ok(ToRenderer::ShadeBatch(batch)) => batch,
+                // Heartbeats are answered like a real renderer's, however the batches go.
+                Ok(ToRenderer::Ping { nonce }) => {
+                    if writer.send(&FromRenderer::Pong { nonce }).await.is_err() {
+                        break;
+                    }
+                    continue;
+                }
+                _ => break,
+            };
             batches += 1;
             match fault {
                 Fault::Die(n) if n == batches => return, // listener and link dropped

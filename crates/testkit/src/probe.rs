@@ -113,6 +113,34 @@ impl Probe {
         .with_context(|| format!("not converged within {timeout:?}; last {:?}", self.stats))?
     }
 
+    /// Reads until a `Stats` satisfies `done`, within `timeout`.
+    pub async fn until_stats(
+        &mut self,
+        timeout: Duration,
+        mut done: impl FnMut(&Stats) -> bool,
+    ) -> anyhow::Result<Stats> {
+        tokio::time::timeout(timeout, async {
+            loop {
+                let message = self.reader.recv().await?;
+                if let SmaToViewer::Stats(stats) = &message
+                    && done(stats)
+                {
+                    let stats = *stats;
+                    self.apply(message)?;
+                    return Ok(stats);
+                }
+                self.apply(message)?;
+            }
+        })
+        .await
+        .with_context(|| {
+            format!(
+                "no satisfying stats within {timeout:?}; last {:?}",
+                self.stats
+            )
+        })?
+    }
+
     /// Applies one message to the table; the epoch it closes, if it is one.
     fn apply(&mut self, message: SmaToViewer) -> anyhow::Result<Option<Epoch>> {
         match message {

@@ -10,6 +10,7 @@ use std::time::Duration;
 
 use protocol::connection::{TcpReader, TcpWriter, connect_handshake};
 use protocol::frame::DEFAULT_MAX_FRAME;
+use protocol::liveness::Liveness;
 use protocol::viewer_link::{SceneInfo, SmaToViewer, Stats, ViewerToSma};
 use protocol::{Hello, ProtocolError, Role, split_tcp};
 use tokio::sync::mpsc;
@@ -156,6 +157,8 @@ async fn connect(
         Role::Sma,
     )
     .await?;
+    // An SMA stalled halfway through a frame is lost like one gone (DESIGN.md §8).
+    reader.set_frame_timeout(Liveness::default().frame_timeout);
     match reader.recv().await? {
         SmaToViewer::SceneInfo(info) => Ok((reader, writer, info)),
         SmaToViewer::Error { message } => Err(ProtocolError::Remote(message)),

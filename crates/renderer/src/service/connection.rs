@@ -2,24 +2,39 @@
 //! run concurrently on the rayon pool and are answered as each finishes, so the reply order is not
 //! the request order (replies carry the batch id). After `Bye`, the end of the peer's stream or a
 //! shutdown, batches not yet answered are dropped (the SMA re-issues a lost renderer's work).
+//!
+//! Liveness and bounds (DESIGN.md §2, §8): heartbeats are answered from this task, never queued
+//! behind the workers; an SMA silent past the link's silence limit is gone, and a frame stalled
+//! halfway is cut off; a connection holds at most `max_batches` batches, and one more is refused
+//! with a `Rejected` that says so, so replies waiting to go out are bounded too.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::time::Duration;
 
-use protocol::ProtocolError;
-use protocol::connection::{SceneCheck, accept_handshake_within, refuse_handshake, split_tcp};
-use protocol::handshake::Role;
+use protocol::connection::{
+    SceneCheck, TcpReader, TcpWriter, accept_handshake_within, connect_handshake, refuse_handshake,
+    split_tcp,
+};
+use protocol::handshake::{Hello, Role};
 use protocol::renderer_link::{FromRenderer, ShadeBatch, ToRenderer};
+use protocol::{Fingerprint, ProtocolError};
 use tokio::net::TcpStream;
 use tokio::sync::{mpsc, watch};
+use tokio::time::Instant;
 
 use super::{MAX_BOUNCES, MAX_PATHS, Service};
 use crate::shade::shade_batch;
 
+/// Replies other than radiance (pongs, refusals) that may wait for the writer at once, beyond
+/// one per batch held: past them the reader waits for the writer, and TCP holds the SMA back.
+const SMALL_REPLIES: usize = 16;
+
+/// Serves an SMA that connected to this renderer's port.
 pub async fn handle(
     stream: TcpStream,
     service: Arc<Service>,
-    mut stop: watch::Receiver<bool>,
+    stop: watch::Receiver<bool>,
 ) -> Result<(), ProtocolError> {
     let (mut reader, mut writer) = split_tcp::<ToRenderer, FromRenderer>(stream, service.max_frame);
     let fingerprint = service.world.scene.fingerprint;
@@ -32,10 +47,48 @@ pub async fn handle(
         service.port.handshake_deadline,
     )
     .await?;
+    serve_link(reader, writer, service, stop).await
+}
 
-    let (replies, mut outbox) = mpsc::unbounded_channel::<FromRenderer>();
+/// Joins the SMA at `addr` (its renderer port, DESIGN.md §2): connects, shakes hands as a
+/// renderer with the scene fingerprint, then serves it as if it had connected here.
+pub async fn join(
+    addr: &str,
+    service: Arc<Service>,
+    stop: watch::Receiver<bool>,
+) -> Result<(), ProtocolError> {
+    let deadline = service.port.handshake_deadline;
+    let connected = tokio::time::timeout(deadline, connect(addr, &service)).await;
+    let (reader, writer) =
+        connected.unwrap_or(Err(ProtocolError::HandshakeTimeout { deadline }))?;
+    tracing::info!(sma = %addr, "joined the SMA");
+    serve_link(reader, writer, service, stop).await
+}
+
+async fn connect(
+    addr: &str,
+    service: &Service,
+) -> Result<(TcpReader<ToRenderer>, TcpWriter<FromRenderer>), ProtocolError> {
+    let stream = TcpStream::connect(addr).await?;
+    let (mut reader, mut writer) = split_tcp(stream, service.max_frame);
+    let fingerprint: Fingerprint = service.world.scene.fingerprint;
+    let hello = Hello::new(Role::Renderer, Some(fingerprint));
+    connect_handshake(&mut reader, &mut writer, hello, Role::Sma).await?;
+    Ok((reader, writer))
+}
+
+/// The link after its handshake, whichever side connected.
+async fn serve_link(
+    mut reader: TcpReader<ToRenderer>,
+    mut writer: TcpWriter<FromRenderer>,
+    service: Arc<Service>,
+    mut stop: watch::Receiver<bool>,
+) -> Result<(), ProtocolError> {
+    reader.set_frame_timeout(service.liveness.frame_timeout);
+    let (replies, mut outbox) = mpsc::channel::<FromRenderer>(service.max_batches + SMALL_REPLIES);
     // Set when the link ends, so queued batches of a gone peer are skipped.
     let closed = Arc::new(AtomicBool::new(false));
+    let held = Arc::new(AtomicUsize::new(0));
     let send_loop = tokio::spawn(async move {
         while let Some(msg) = outbox.recv().await {
             let last = matches!(msg, FromRenderer::Error { .. });
@@ -45,35 +98,92 @@ pub async fn handle(
         }
     });
 
+    let silence = service.liveness.silence;
+    let mut heard = Instant::now();
     let outcome = loop {
-        tokio::select! {
+        let msg = tokio::select! {
             _ = stop.changed() => break Ok(()),
-            msg = reader.recv() => match msg {
-                Ok(ToRenderer::ShadeBatch(batch)) => match check(&batch) {
-                    Ok(()) => start_batch(&service, batch, replies.clone(), Arc::clone(&closed)),
-                    Err(reason) => {
-                        let _ = replies.send(FromRenderer::Rejected { batch_id: batch.batch_id, reason });
-                    }
-                },
-                Ok(ToRenderer::Bye) => break Ok(()),
-                Err(e) if e.is_disconnect() => break Ok(()),
-                Err(e) => {
-                    // Malformed, oversized or unknown frame: say why, then close (DESIGN.md §8).
-                    let _ = replies.send(FromRenderer::Error { message: e.to_string() });
-                    break Err(e);
+            _ = tokio::time::sleep_until(heard + silence) => {
+                break Err(silent(silence));
+            }
+            msg = reader.recv() => msg,
+        };
+        heard = Instant::now();
+        let reply = match msg {
+            Ok(ToRenderer::ShadeBatch(batch)) => {
+                match take(&service, batch, &replies, &closed, &held) {
+                    Some(reply) => reply,
+                    None => continue,
                 }
             }
+            Ok(ToRenderer::Ping { nonce }) => FromRenderer::Pong { nonce },
+            Ok(ToRenderer::Bye) => break Ok(()),
+            Err(e) if e.is_disconnect() => break Ok(()),
+            Err(e) => {
+                // Malformed, oversized, unknown or stalled frame: say why, then close (DESIGN.md §8).
+                let _ = replies.try_send(FromRenderer::Error {
+                    message: e.to_string(),
+                });
+                break Err(e);
+            }
+        };
+        if replies.send(reply).await.is_err() {
+            break Ok(());
         }
     };
     closed.store(true, Ordering::Relaxed);
     drop(replies);
     if outcome.is_err() {
-        // Let the error reply go out before the socket closes.
-        let _ = send_loop.await;
+        // Let the error reply go out before the socket closes, but not wait on a peer that
+        // reads nothing.
+        let _ = tokio::time::timeout(silence, send_loop).await;
     } else {
         send_loop.abort();
     }
     outcome
+}
+
+fn silent(silence: Duration) -> ProtocolError {
+    ProtocolError::Io(std::io::Error::new(
+        std::io::ErrorKind::TimedOut,
+        format!("the SMA said nothing for {silence:?}"),
+    ))
+}
+
+/// Starts `batch` on the workers, or the reply that refuses it.
+fn take(
+    service: &Arc<Service>,
+    batch: ShadeBatch,
+    replies: &mpsc::Sender<FromRenderer>,
+    closed: &Arc<AtomicBool>,
+    held: &Arc<AtomicUsize>,
+) -> Option<FromRenderer> {
+    let batch_id = batch.batch_id;
+    if let Err(reason) = check(&batch) {
+        return Some(FromRenderer::Rejected { batch_id, reason });
+    }
+    // One reply place per batch held, so a worker never waits for the writer.
+    let permit = (held.load(Ordering::Relaxed) < service.max_batches)
+        .then(|| replies.clone().try_reserve_owned().ok())
+        .flatten();
+    let Some(permit) = permit else {
+        let reason = format!(
+            "this renderer holds at most {} batches per connection; batch refused",
+            service.max_batches
+        );
+        return Some(FromRenderer::Rejected { batch_id, reason });
+    };
+    held.fetch_add(1, Ordering::Relaxed);
+    let world = Arc::clone(&service.world);
+    let (closed, held) = (Arc::clone(closed), Arc::clone(held));
+    service.pool.spawn(move || {
+        if !closed.load(Ordering::Relaxed) {
+            let (radiance, _) = shade_batch(&world, &batch);
+            permit.send(FromRenderer::Radiance(radiance));
+        }
+        held.fetch_sub(1, Ordering::Relaxed);
+    });
+    None
 }
 
 /// Tells an SMA that arrived past the connection bound that it is refused, then closes.
@@ -98,20 +208,4 @@ fn check(batch: &ShadeBatch) -> Result<(), String> {
         return Err(format!("bounces {:?} above {MAX_BOUNCES}", q.bounces));
     }
     Ok(())
-}
-
-fn start_batch(
-    service: &Arc<Service>,
-    batch: ShadeBatch,
-    replies: mpsc::UnboundedSender<FromRenderer>,
-    closed: Arc<AtomicBool>,
-) {
-    let world = Arc::clone(&service.world);
-    service.pool.spawn(move || {
-        if closed.load(Ordering::Relaxed) {
-            return;
-        }
-        let (radiance, _) = shade_batch(&world, &batch);
-        let _ = replies.send(FromRenderer::Radiance(radiance));
-    });
 }

@@ -1,4 +1,5 @@
-//! The renderer service (DESIGN.md §2, §8): accepts SMA connections on a TCP listener, one task per
+//! The renderer service (DESIGN.md §2, §8): accepts SMA connections on a TCP listener, and joins
+//! the SMAs it is told to (their renderer ports, reconnecting with backoff), one task per
 //! connection, and answers shade batches computed on a rayon pool. A peer's bad input is answered
 //! and its connection closed; the server itself never panics on it and keeps serving the others.
 
@@ -6,8 +7,10 @@ mod connection;
 
 use std::future::Future;
 use std::sync::Arc;
+use std::time::Duration;
 
 use protocol::admission::{Admission, ConnectionLimit, PortLimits};
+use protocol::liveness::Liveness;
 use tokio::net::TcpListener;
 use tokio::sync::watch;
 use tokio::task::JoinSet;
@@ -18,6 +21,12 @@ use crate::world::World;
 pub const MAX_PATHS: u32 = 1 << 20;
 /// Largest finite bounce depth a batch may ask for.
 pub const MAX_BOUNCES: u32 = 1024;
+/// Batches one connection holds at once by default: the SMA keeps a few in flight per renderer
+/// (DESIGN.md §2), so this is room for a deeper pipeline, not a queue of minutes.
+pub const DEFAULT_MAX_BATCHES: usize = 64;
+
+/// First and longest wait before joining an SMA again.
+const JOIN_RETRY: (Duration, Duration) = (Duration::from_millis(100), Duration::from_secs(5));
 
 /// What every connection shares.
 pub struct Service {
@@ -26,6 +35,21 @@ pub struct Service {
     pub max_frame: usize,
     /// SMAs served at once, and their handshake deadline (DESIGN.md §8).
     pub port: PortLimits,
+    /// When an SMA counts as gone, and how long a frame may take.
+    pub liveness: Liveness,
+    /// Batches one connection may hold at once; one more is refused.
+    pub max_batches: usize,
+    /// SMA renderer ports to join, besides accepting SMAs on the listener.
+    pub join: Vec<String>,
+}
+
+/// The renderer's side of the link only frees a gone SMA's connection (nothing here waits on
+/// the SMA), so it waits long: 20 s, against the SMA's 500 ms heartbeats.
+pub fn default_liveness() -> Liveness {
+    Liveness {
+        silence: Duration::from_secs(20),
+        ..Liveness::default()
+    }
 }
 
 impl Service {
@@ -40,6 +64,9 @@ impl Service {
             pool: Arc::new(pool),
             max_frame,
             port: PortLimits::default(),
+            liveness: default_liveness(),
+            max_batches: DEFAULT_MAX_BATCHES,
+            join: Vec::new(),
         })
     }
 
@@ -54,6 +81,9 @@ impl Service {
         let (stop_tx, stop_rx) = watch::channel(false);
         let mut connections = JoinSet::new();
         let limit = ConnectionLimit::new(service.port.max_connections);
+        for addr in service.join.clone() {
+            connections.spawn(join_forever(addr, Arc::clone(&service), stop_rx.clone()));
+        }
         tokio::pin!(shutdown);
         loop {
             tokio::select! {
@@ -96,5 +126,30 @@ impl Service {
         let _ = stop_tx.send(true);
         while connections.join_next().await.is_some() {}
         Ok(())
+    }
+}
+
+/// Joins the SMA at `addr` until shutdown: after a link ends (or cannot start), again after a
+/// pause that doubles up to a few seconds, and starts short again once a link was up.
+async fn join_forever(addr: String, service: Arc<Service>, mut stop: watch::Receiver<bool>) {
+    let mut retry = JOIN_RETRY.0;
+    while !*stop.borrow() {
+        let started = tokio::time::Instant::now();
+        let ended = tokio::select! {
+            ended = connection::join(&addr, Arc::clone(&service), stop.clone()) => ended,
+            _ = stop.changed() => return,
+        };
+        if started.elapsed() > service.liveness.silence {
+            retry = JOIN_RETRY.0;
+        }
+        match ended {
+            Ok(()) => tracing::info!(sma = %addr, "left the SMA"),
+            Err(e) => tracing::warn!(sma = %addr, retry_in = ?retry, "joining the SMA: {e}"),
+        }
+        tokio::select! {
+            _ = tokio::time::sleep(retry) => {}
+            _ = stop.changed() => return,
+        }
+        retry = (retry * 2).min(JOIN_RETRY.1);
     }
 }

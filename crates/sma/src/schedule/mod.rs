@@ -157,8 +157,8 @@ impl Schedule {
     /// Runs until shutdown or until both channels close.
     pub async fn run(
         mut self,
-        mut viewers: mpsc::UnboundedReceiver<ViewerEvent>,
-        mut pool: mpsc::UnboundedReceiver<PoolEvent>,
+        mut viewers: mpsc::Receiver<ViewerEvent>,
+        mut pool: mpsc::Receiver<PoolEvent>,
         mut shutdown: watch::Receiver<bool>,
     ) -> anyhow::Result<()> {
         let mut stats = tokio::time::interval(self.config.stats_every);
@@ -444,7 +444,12 @@ impl Schedule {
             else {
                 break;
             };
-            self.pool.submit(batch);
+            // A full pool queue gives the batch back: its samples are asked for again later.
+            if let Err(batch) = self.pool.submit(batch) {
+                self.requests.finished(&batch);
+                self.owed.queue_changed();
+                break;
+            }
         }
     }
 

@@ -5,7 +5,6 @@
 use std::time::Instant;
 
 use protocol::viewer_link::{Camera, Epoch, SmaToViewer};
-use tokio::sync::mpsc;
 
 use super::display::Display;
 use super::pending::PendingRefinement;
@@ -14,11 +13,12 @@ use super::waits::ViewWait;
 use crate::cache::ShadingCache;
 use crate::criteria::Criterion;
 use crate::mesh::{NodeId, SubdivisionMesh};
+use crate::viewer_link::Outbox;
 use crate::visibility::LeafView;
 
 /// One connected viewer.
 pub struct Viewer {
-    outbox: mpsc::UnboundedSender<SmaToViewer>,
+    outbox: Outbox,
     pub camera: Option<Camera>,
     /// When the camera last changed (refinement waits for it to rest).
     pub camera_at: Instant,
@@ -50,7 +50,7 @@ pub struct SyncInput<'a> {
 }
 
 impl Viewer {
-    pub fn new(outbox: mpsc::UnboundedSender<SmaToViewer>, criterion: Box<dyn Criterion>) -> Self {
+    pub fn new(outbox: Outbox, criterion: Box<dyn Criterion>) -> Self {
         Viewer {
             outbox,
             camera: None,
@@ -70,7 +70,7 @@ impl Viewer {
 
     pub fn send(&self, message: SmaToViewer) {
         // A viewer that left is removed by its `Left` event.
-        let _ = self.outbox.send(message);
+        self.outbox.send(message);
     }
 
     /// A new camera: its epoch is owed, a pass comes first, the criterion starts over.

@@ -1,0 +1,425 @@
+//! The renderer pool (DESIGN.md §2): whichever renderers are there now — dialed at `--renderer`
+//! addresses, or joined on the SMA's renderer port — each kept busy with a bounded number of
+//! outstanding batches, sent where they will finish first at each renderer's measured rate.
+//!
+//! A renderer is lost when its link goes down, when it stops answering heartbeats, or when a
+//! batch it holds passes its deadline (its expected time at that renderer's rate, times a
+//! factor). A lost renderer's batches go back to the front of the queue and are re-issued
+//! elsewhere; its link closes and reconnects with backoff (a joined one rejoins by itself). A
+//! batch is answered at most once: a reply counts only from the connection that holds the batch
+//! now, so a late answer is ignored and no reply enters the cache twice. With no renderer
+//! answering, batches wait in the queue and the SMA says so; they go out when one answers.
+//!
+//! One task per renderer connection and one dispatcher task that owns the queue and the
+//! in-flight table, in the style of tokio's mini-redis. Every channel between them is bounded.
+
+mod link;
+mod rate;
+
+use std::collections::{BTreeMap, HashMap, VecDeque};
+use std::time::Duration;
+
+use protocol::Fingerprint;
+use protocol::admission::{ConnectionLimit, PortLimits};
+use protocol::liveness::Liveness;
+use protocol::renderer_link::{FromRenderer, Radiance, ShadeBatch};
+use tokio::net::TcpListener;
+use tokio::sync::{mpsc, watch};
+use tokio::time::Instant;
+
+use link::{Dialed, LinkEvent};
+use rate::Rate;
+
+/// A batch rejected or answered badly this many times is given back to the schedule as failed.
+const MAX_ATTEMPTS: u32 = 3;
+/// Batches the schedule may have handed over and the dispatcher not yet taken: the schedule
+/// keeps a few per renderer in flight, so this is never reached by a sane farm.
+const SUBMIT_QUEUE: usize = 4096;
+/// News from the link tasks waiting for the dispatcher.
+const LINK_QUEUE: usize = 256;
+
+#[derive(Clone, Debug)]
+pub struct PoolConfig {
+    /// `host:port` of each renderer the SMA dials.
+    pub renderers: Vec<String>,
+    /// The scene both sides must have loaded.
+    pub fingerprint: Fingerprint,
+    /// Batches in flight per renderer: enough to hide a round trip, few enough that a camera
+    /// change is not stuck behind stale work.
+    pub depth: usize,
+    pub max_frame: usize,
+    pub backoff_min: Duration,
+    pub backoff_max: Duration,
+    pub liveness: Liveness,
+    /// A batch is lost once this many times its expected time has passed (plus the silence
+    /// limit, for the round trip and a loaded host's scheduling).
+    pub deadline_factor: f64,
+    /// A batch's deadline before its renderer's rate is measured.
+    pub first_deadline: Duration,
+    /// Renderers the renderer port serves at once, and their handshake deadline.
+    pub renderer_port: PortLimits,
+}
+
+/// What the pool tells the schedule.
+#[derive(Debug)]
+pub enum PoolEvent {
+    /// A batch answered, checked to hold one value per point.
+    Shaded {
+        batch: ShadeBatch,
+        radiance: Radiance,
+    },
+    /// A batch no renderer would take; its points are not shaded.
+    Failed { batch: ShadeBatch, reason: String },
+    /// The number of renderers answering changed.
+    Renderers { connected: usize },
+}
+
+/// The schedule's side of the pool.
+#[derive(Clone)]
+pub struct PoolHandle {
+    submit: mpsc::Sender<ShadeBatch>,
+}
+
+impl PoolHandle {
+    /// Queues a batch; it is dispatched as soon as a renderer has room. A full queue gives the
+    /// batch back, for the schedule to ask again later.
+    pub fn submit(&self, batch: ShadeBatch) -> Result<(), ShadeBatch> {
+        self.submit.try_send(batch).map_err(|e| e.into_inner())
+    }
+}
+
+/// Starts the dispatcher, one link task per dialed renderer, and the renderer port's acceptor
+/// when `joining` is given.
+pub fn spawn(
+    config: PoolConfig,
+    events: mpsc::Sender<PoolEvent>,
+    joining: Option<TcpListener>,
+    shutdown: watch::Receiver<bool>,
+) -> PoolHandle {
+    let (submit, submitted) = mpsc::channel(SUBMIT_QUEUE);
+    let (link_tx, link_rx) = mpsc::channel(LINK_QUEUE);
+    for (index, addr) in config.renderers.iter().enumerate() {
+        let link = Dialed {
+            index,
+            addr: addr.clone(),
+            config: config.clone(),
+            events: link_tx.clone(),
+        };
+        tokio::spawn(link.run(shutdown.clone()));
+    }
+    if let Some(listener) = joining {
+        let limit = ConnectionLimit::new(config.renderer_port.max_connections);
+        tokio::spawn(link::accept_joining(
+            listener,
+            limit,
+            config.renderers.len(),
+            config.clone(),
+            link_tx,
+            shutdown,
+        ));
+    }
+    let dispatcher = Dispatcher {
+        config,
+        links: BTreeMap::new(),
+        rates: HashMap::new(),
+        queue: VecDeque::new(),
+        in_flight: HashMap::new(),
+        news: VecDeque::new(),
+        answering: 0,
+        none_answering: false,
+    };
+    tokio::spawn(dispatcher.run(submitted, link_rx, events));
+    PoolHandle { submit }
+}
+
+/// A connection that is up.
+struct Slot {
+    generation: u64,
+    name: String,
+    joined: bool,
+    batches: mpsc::Sender<ShadeBatch>,
+    outstanding: usize,
+    /// The units of the batches it holds.
+    units: f64,
+}
+
+struct InFlight {
+    index: usize,
+    generation: u64,
+    batch: ShadeBatch,
+    attempts: u32,
+    sent: Instant,
+    deadline: Instant,
+}
+
+struct Dispatcher {
+    config: PoolConfig,
+    links: BTreeMap<usize, Slot>,
+    /// Measured rates, kept across a dialed renderer's reconnections.
+    rates: HashMap<usize, Rate>,
+    queue: VecDeque<(ShadeBatch, u32)>,
+    in_flight: HashMap<u64, InFlight>,
+    /// Events for the schedule, sent in order once a turn of the dispatcher is done.
+    news: VecDeque<PoolEvent>,
+    /// The renderers answering, as last told to the schedule.
+    answering: usize,
+    /// Every renderer there was stopped answering, and none has answered since.
+    none_answering: bool,
+}
+
+impl Dispatcher {
+    async fn run(
+        mut self,
+        mut submitted: mpsc::Receiver<ShadeBatch>,
+        mut links: mpsc::Receiver<LinkEvent>,
+        events: mpsc::Sender<PoolEvent>,
+    ) {
+        loop {
+            let due = self.in_flight.values().map(|f| f.deadline).min();
+            tokio::select! {
+                batch = submitted.recv() => match batch {
+                    Some(batch) => self.queue.push_back((batch, 0)),
+                    None => return,
+                },
+                Some(event) = links.recv() => self.on_link_event(event),
+                _ = sleep_until(due), if due.is_some() => self.expire(Instant::now()),
+            }
+            self.dispatch();
+            self.report_answering();
+            while let Some(event) = self.news.pop_front() {
+                if events.send(event).await.is_err() {
+                    return;
+                }
+            }
+        }
+    }
+
+    fn on_link_event(&mut self, event: LinkEvent) {
+        match event {
+            LinkEvent::Up {
+                index,
+                generation,
+                name,
+                joined,
+                batches,
+            } => {
+                let slot = Slot {
+                    generation,
+                    name,
+                    joined,
+                    batches,
+                    outstanding: 0,
+                    units: 0.0,
+                };
+                self.links.insert(index, slot);
+            }
+            LinkEvent::Down {
+                index,
+                generation,
+                reason,
+            } => self.lose(index, generation, &reason),
+            LinkEvent::Reply {
+                index,
+                generation,
+                reply,
+            } => self.on_reply(index, generation, reply),
+        }
+    }
+
+    /// Drops one connection of a renderer: its batches go back to the front of the queue, in
+    /// their original order, and its link task, its batch channel closed, ends the connection.
+    fn lose(&mut self, index: usize, generation: u64, reason: &str) {
+        let Some(slot) = self
+            .links
+            .get(&index)
+            .filter(|s| s.generation == generation)
+        else {
+            return;
+        };
+        let held = slot.outstanding;
+        tracing::warn!(renderer = %slot.name, %reason, held, "renderer lost; re-issuing its batches");
+        let joined = slot.joined;
+        self.links.remove(&index);
+        if joined {
+            self.rates.remove(&index);
+        }
+        let mut lost: Vec<u64> = self
+            .in_flight
+            .iter()
+            .filter(|(_, f)| f.index == index && f.generation == generation)
+            .map(|(id, _)| *id)
+            .collect();
+        lost.sort_unstable_by(|a, b| b.cmp(a));
+        for id in lost {
+            if let Some(flight) = self.in_flight.remove(&id) {
+                self.queue.push_front((flight.batch, flight.attempts));
+            }
+        }
+    }
+
+    /// Every renderer holding a batch past its deadline is lost.
+    fn expire(&mut self, now: Instant) {
+        let mut late: Vec<(usize, u64, Duration)> = self
+            .in_flight
+            .values()
+            .filter(|f| f.deadline <= now)
+            .map(|f| (f.index, f.generation, f.deadline - f.sent))
+            .collect();
+        late.sort_unstable_by_key(|&(index, generation, _)| (index, generation));
+        late.dedup_by_key(|&mut (index, generation, _)| (index, generation));
+        for (index, generation, allowed) in late {
+            let reason = format!("a batch is not answered within its deadline of {allowed:.1?}");
+            self.lose(index, generation, &reason);
+        }
+    }
+
+    fn on_reply(&mut self, index: usize, generation: u64, reply: FromRenderer) {
+        let (batch_id, outcome) = match reply {
+            FromRenderer::Radiance(radiance) => (radiance.batch_id, Ok(radiance)),
+            FromRenderer::Rejected { batch_id, reason } => (batch_id, Err(reason)),
+            FromRenderer::Error { message } => {
+                tracing::warn!(renderer = index, %message, "renderer reported an error");
+                return;
+            }
+            FromRenderer::Pong { .. } => return,
+        };
+        // Only the connection that holds the batch now may answer it (at most once).
+        let owned = self
+            .in_flight
+            .get(&batch_id)
+            .is_some_and(|f| f.index == index && f.generation == generation);
+        if !owned {
+            tracing::debug!(
+                renderer = index,
+                batch_id,
+                "reply for a batch this link does not hold (late, or re-issued)"
+            );
+            return;
+        }
+        let flight = self.in_flight.remove(&batch_id).expect("checked above");
+        let units = rate::units(&flight.batch);
+        if let Some(slot) = self.links.get_mut(&index) {
+            slot.outstanding = slot.outstanding.saturating_sub(1);
+            slot.units = (slot.units - units).max(0.0);
+        }
+        match outcome.and_then(|r| checked(&flight.batch, r)) {
+            Ok(radiance) => {
+                let rate = self.rates.entry(index).or_default();
+                rate.answered(units, flight.sent.into_std(), Instant::now().into_std());
+                self.news.push_back(PoolEvent::Shaded {
+                    batch: flight.batch,
+                    radiance,
+                });
+            }
+            Err(reason) => self.retry(flight.batch, flight.attempts + 1, reason),
+        }
+    }
+
+    fn retry(&mut self, batch: ShadeBatch, attempts: u32, reason: String) {
+        if attempts >= MAX_ATTEMPTS {
+            tracing::warn!(batch_id = batch.batch_id, %reason, "batch failed {attempts} times");
+            self.news.push_back(PoolEvent::Failed { batch, reason });
+        } else {
+            self.queue.push_front((batch, attempts));
+        }
+    }
+
+    /// Hands queued batches to renderers with room, each to the one that would finish it first
+    /// at its measured rate (one not yet measured first, so it gets measured).
+    fn dispatch(&mut self) {
+        while let Some((batch, attempts)) = self.queue.pop_front() {
+            let units = rate::units(&batch);
+            let finish = |(index, slot): (&usize, &Slot)| {
+                let rate = self.rates.get(index).copied().unwrap_or_default();
+                let seconds = rate.expected(slot.units + units).map(|d| d.as_secs_f64());
+                (seconds.unwrap_or(0.0), slot.outstanding, *index)
+            };
+            let best = self
+                .links
+                .iter()
+                .filter(|(_, s)| s.outstanding < self.config.depth.max(1))
+                .map(finish)
+                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            let Some((_, _, index)) = best else {
+                self.queue.push_front((batch, attempts));
+                return;
+            };
+            let rate = self.rates.get(&index).copied().unwrap_or_default();
+            let slot = self.links.get_mut(&index).expect("chosen among the links");
+            let allowed = rate::deadline(
+                &rate,
+                slot.units + units,
+                self.config.deadline_factor,
+                self.config.liveness.silence,
+                self.config.first_deadline,
+            );
+            if slot.batches.try_send(batch.clone()).is_err() {
+                // The link task ended; its Down is on its way.
+                let generation = slot.generation;
+                self.queue.push_front((batch, attempts));
+                self.lose(index, generation, "its link task ended");
+                continue;
+            }
+            slot.outstanding += 1;
+            slot.units += units;
+            let now = Instant::now();
+            let flight = InFlight {
+                index,
+                generation: slot.generation,
+                batch,
+                attempts,
+                sent: now,
+                deadline: now + allowed,
+            };
+            self.in_flight.insert(flight.batch.batch_id, flight);
+        }
+    }
+
+    /// Tells the schedule when the number of renderers answering changed, and says so in the
+    /// log when none is answering, or when one answers again.
+    fn report_answering(&mut self) {
+        let connected = self.links.len();
+        if self.answering == connected {
+            return;
+        }
+        if connected == 0 {
+            tracing::warn!(
+                waiting = self.queue.len(),
+                "no renderer is answering; the view keeps what it shows and its work waits"
+            );
+            self.none_answering = true;
+        } else if self.none_answering {
+            tracing::info!(
+                renderers = connected,
+                "a renderer answers again; work resumes"
+            );
+            self.none_answering = false;
+        }
+        self.answering = connected;
+        self.news.push_back(PoolEvent::Renderers { connected });
+    }
+}
+
+async fn sleep_until(at: Option<Instant>) {
+    if let Some(at) = at {
+        tokio::time::sleep_until(at).await;
+    }
+}
+
+/// A reply must carry one value, variance, path count and flag byte per point. What the values
+/// are is judged per point by the schedule: one bad point does not cost the batch's others.
+fn checked(batch: &ShadeBatch, radiance: Radiance) -> Result<Radiance, String> {
+    let n = batch.points.len();
+    let lengths = [
+        radiance.rgb.len(),
+        radiance.luminance_variance.len(),
+        radiance.paths.len(),
+        radiance.flags.len(),
+    ];
+    if lengths.iter().any(|&l| l != n) {
+        return Err(format!(
+            "reply holds {lengths:?} values, variances, path counts and flags for {n} points"
+        ));
+    }
+    Ok(radiance)
+}
