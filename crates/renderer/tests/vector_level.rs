@@ -18,7 +18,8 @@ fn render_forced(level: &str, dir: &std::path::Path) -> (f64, String) {
         .args(["--bounces", "unbounded", "--threads", "2", "--out"])
         .arg(&out)
         .env(VAR, level)
-        .env("RUST_LOG", "info")
+        // The level is said at debug (the start-up lines a person reads stay few).
+        .env("RUST_LOG", "debug")
         .env("NO_COLOR", "1")
         .output()
         .expect("run renderer reference");

@@ -70,7 +70,7 @@ fn start_xvfb(reaper: &mut Reaper) -> String {
 }
 
 fn wait_for<T>(what: &str, mut poll: impl FnMut() -> Option<T>) -> T {
-    let deadline = Instant::now() + Duration::from_secs(30);
+    let deadline = Instant::now() + Duration::from_secs(60);
     loop {
         if let Some(t) = poll() {
             return t;

@@ -11,10 +11,12 @@ use std::time::Instant;
 
 use anyhow::Context;
 
+use crate::bench::convergence::cpu;
 use crate::bench::convergence::manifest::{self, ViewRecord};
 use crate::bench::convergence::record::{self, Measurement, run_labels, run_rows, time_to_reach};
 use crate::bench::convergence::{GROUND_TRUTH_SEED, INTERACTIVE_BOUNCES};
 use crate::bench::metrics::Reference;
+use testkit::loopback::CpuShares;
 
 mod targets;
 
@@ -44,6 +46,8 @@ pub(crate) struct Direct {
 pub(crate) struct ViewResult {
     record: ViewRecord,
     rows: Vec<Measurement>,
+    /// CPU seconds of each run's processes (`bench convergence`'s `-cpu.csv`).
+    cpu: Vec<(String, CpuShares)>,
     direct: Direct,
 }
 
@@ -57,9 +61,11 @@ pub fn run(args: AccuracyConfig) -> anyhow::Result<()> {
         );
         let direct = direct_render(&exe, &record, &args)?;
         let rows = record::read_csv(&args.convergence.join(format!("{}.csv", record.stem())))?;
+        let cpu = cpu::read_csv(&args.convergence.join(format!("{}-cpu.csv", record.stem())))?;
         results.push(ViewResult {
             record,
             rows,
+            cpu,
             direct,
         });
     }

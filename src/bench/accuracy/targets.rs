@@ -37,30 +37,35 @@ pub(crate) fn section(results: &[ViewResult]) -> String {
         md,
         "Judged on `{BEST_NOISE_AWARE}`, the best noise-aware criterion (the speed-up on the best criterion of \
          each view). Busy: the lowest renderer busy share over {BUSY_WINDOW_S:.0}-s windows from the first \
-         picture (the first snapshot showing a triangle) to the stated end (`converged`) or the run's end.\n"
+         picture (the first snapshot showing a triangle) to the stated end (`converged`) or the run's end, as \
+         the SMA measured it; and the renderer's CPU time over the whole run as a share of the machine's \
+         cores, which says whether the renderer computed while it held work. The target needs both.\n"
     );
     md.push_str(
-        "| view | busy (min over windows) | FLIP at 5 / 20 / 60 s | direct render's FLIP | best speed-up to FLIP 0.1 | at equal paths |\n\
-         |---|---:|---:|---:|---:|---|\n",
+        "| view | busy (min over windows) | renderer CPU share | FLIP at 5 / 20 / 60 s | direct render's FLIP | best speed-up to FLIP 0.1 | at equal paths |\n\
+         |---|---:|---:|---:|---:|---:|---|\n",
     );
     let mut verdicts = Verdicts::default();
     for v in results {
         let best = run_rows(&v.rows, BEST_NOISE_AWARE);
         let busy = min_window_busy(&best);
+        let cpu_share = renderer_cpu_share(v, BEST_NOISE_AWARE);
         let flips = PLATEAU_TIMES.map(|t| by_time(&best, t).map(|m| m.error.flip));
         let speedup = best_speedup(v);
         let (wins, paths_text) = equal_paths(&v.rows);
-        verdicts.add(v, busy, &best, flips, speedup, wins);
+        let never_idle = busy.zip(cpu_share).map(|(b, c)| b.min(c));
+        verdicts.add(v, never_idle, &best, flips, speedup, wins);
         let flip_text: Vec<String> = flips
             .iter()
             .map(|f| f.map_or("—".into(), |f| format!("{f:.3}")))
             .collect();
         let _ = writeln!(
             md,
-            "| {} {} | {} | {} | {:.3} | {} | {paths_text} |",
+            "| {} {} | {} | {} | {} | {:.3} | {} | {paths_text} |",
             v.record.label,
             v.record.view,
             busy.map_or("—".into(), |b| format!("{b:.2}")),
+            cpu_share.map_or("—".into(), |c| format!("{c:.2}")),
             flip_text.join(" / "),
             v.direct.flip,
             speedup.map_or("not reached".into(), |s| format!("{s:.1}×")),
@@ -117,7 +122,7 @@ impl Verdicts {
             let _ = writeln!(md, "- {text}");
         };
         line(format!(
-            "Never idle (busy ≥ {BUSY_SHARE} in every {BUSY_WINDOW_S:.0}-s window, every view): {} ({} of {n}).",
+            "Never idle (busy ≥ {BUSY_SHARE} in every {BUSY_WINDOW_S:.0}-s window and renderer CPU share ≥ {BUSY_SHARE}, every view): {} ({} of {n}).",
             verdict(all(self.never_idle)),
             self.never_idle
         ));
@@ -186,6 +191,13 @@ fn min_window_busy(run: &[&Measurement]) -> Option<f64> {
     lowest
 }
 
+/// The renderers' CPU seconds over `run` as a share of the machine's cores and the wall time.
+fn renderer_cpu_share(v: &ViewResult, run: &str) -> Option<f64> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as f64;
+    let (_, c) = v.cpu.iter().find(|(r, _)| r == run)?;
+    Some(c.renderers_s / (c.wall_s * cores).max(1e-9))
+}
+
 /// The best speed-up to [`TARGET_FLIP`] over the view's criteria, `None` when none reaches it.
 fn best_speedup(v: &ViewResult) -> Option<f64> {
     run_labels(&v.rows)
@@ -237,6 +249,7 @@ mod tests {
     use super::*;
     use crate::bench::convergence::manifest::ViewRecord;
     use crate::bench::convergence::record::test_measurement;
+    use testkit::loopback::CpuShares;
 
     /// A run of `criterion` with one snapshot a second: FLIP from `flip(t)`, busy `busy(t)`.
     fn run(
@@ -257,8 +270,17 @@ mod tests {
             .collect()
     }
 
-    fn view(name: &str, direct_seconds: f64, rows: Vec<Measurement>) -> ViewResult {
+    /// The renderer computed for `share` of the cores over a 60-s run.
+    fn view(name: &str, direct_seconds: f64, rows: Vec<Measurement>, share: f64) -> ViewResult {
+        let cores = std::thread::available_parallelism().unwrap().get() as f64;
+        let cpu = CpuShares {
+            wall_s: 60.0,
+            renderers_s: share * 60.0 * cores,
+            sma_s: 1.0,
+            viewer_s: 1.0,
+        };
         ViewResult {
+            cpu: vec![(BEST_NOISE_AWARE.to_string(), cpu)],
             record: ViewRecord {
                 label: "bracara".into(),
                 scene: "bracara".into(),
@@ -296,12 +318,12 @@ mod tests {
     #[test]
     fn a_busy_falling_view_meets_what_it_can() {
         // The best criterion reaches 0.1 at 2 s (0.5 / (1 + 2·2) = 0.1): 40 s / 2 s = 20×.
-        let md = section(&[view("MC", 40.0, rows(2.0, 0.95))]);
-        assert!(md.contains("| bracara MC | 0.95 |"), "{md}");
+        let md = section(&[view("MC", 40.0, rows(2.0, 0.95), 0.9)]);
+        assert!(md.contains("| bracara MC | 0.95 | 0.90 |"), "{md}");
         assert!(md.contains("| 20.0× |"), "{md}");
         assert!(
             md.contains(
-                "Never idle (busy ≥ 0.8 in every 5-s window, every view): **met** (1 of 1)"
+                "Never idle (busy ≥ 0.8 in every 5-s window and renderer CPU share ≥ 0.8, every view): **met** (1 of 1)"
             ),
             "{md}"
         );
@@ -311,13 +333,23 @@ mod tests {
 
     #[test]
     fn idle_windows_and_a_worse_criterion_are_missed() {
-        let md = section(&[view("VT", 40.0, rows(0.5, 0.3))]);
-        assert!(md.contains("| bracara VT | 0.30 |"), "{md}");
+        let md = section(&[view("VT", 40.0, rows(0.5, 0.3), 0.9)]);
+        assert!(md.contains("| bracara VT | 0.30 | 0.90 |"), "{md}");
         assert!(md.contains("no at 268.4 M paths"), "{md}");
         assert!(
             md.contains(
-                "Never idle (busy ≥ 0.8 in every 5-s window, every view): **missed** (0 of 1)"
+                "Never idle (busy ≥ 0.8 in every 5-s window and renderer CPU share ≥ 0.8, every view): **missed** (0 of 1)"
             ),
+            "{md}"
+        );
+    }
+
+    #[test]
+    fn a_renderer_that_holds_work_but_does_not_compute_is_idle() {
+        let md = section(&[view("VR", 40.0, rows(2.0, 1.0), 0.1)]);
+        assert!(md.contains("| bracara VR | 1.00 | 0.10 |"), "{md}");
+        assert!(
+            md.contains("CPU share ≥ 0.8, every view): **missed** (0 of 1)"),
             "{md}"
         );
     }

@@ -13,10 +13,12 @@
 //! One task per renderer connection and one dispatcher task that owns the queue and the
 //! in-flight table, in the style of tokio's mini-redis. Every channel between them is bounded.
 
+mod busy;
 mod link;
 mod rate;
 
 use std::collections::{BTreeMap, HashMap, VecDeque};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use protocol::Fingerprint;
@@ -27,6 +29,7 @@ use tokio::net::TcpListener;
 use tokio::sync::{mpsc, watch};
 use tokio::time::Instant;
 
+use busy::BusyMeter;
 use link::{Dialed, LinkEvent};
 use rate::Rate;
 
@@ -78,6 +81,7 @@ pub enum PoolEvent {
 #[derive(Clone)]
 pub struct PoolHandle {
     submit: mpsc::Sender<ShadeBatch>,
+    busy: Arc<Mutex<BusyMeter>>,
 }
 
 impl PoolHandle {
@@ -85,6 +89,12 @@ impl PoolHandle {
     /// batch back, for the schedule to ask again later.
     pub fn submit(&self, batch: ShadeBatch) -> Result<(), ShadeBatch> {
         self.submit.try_send(batch).map_err(|e| e.into_inner())
+    }
+
+    /// The renderers' busy share since the previous call (0..1; see `busy`).
+    pub fn take_busy(&self) -> f32 {
+        let mut meter = self.busy.lock().unwrap_or_else(|e| e.into_inner());
+        meter.take(std::time::Instant::now())
     }
 }
 
@@ -118,7 +128,9 @@ pub fn spawn(
             shutdown,
         ));
     }
+    let busy = Arc::new(Mutex::new(BusyMeter::new(std::time::Instant::now())));
     let dispatcher = Dispatcher {
+        busy: Arc::clone(&busy),
         config,
         links: BTreeMap::new(),
         rates: HashMap::new(),
@@ -129,7 +141,7 @@ pub fn spawn(
         none_answering: false,
     };
     tokio::spawn(dispatcher.run(submitted, link_rx, events));
-    PoolHandle { submit }
+    PoolHandle { submit, busy }
 }
 
 /// A connection that is up.
@@ -154,6 +166,8 @@ struct InFlight {
 
 struct Dispatcher {
     config: PoolConfig,
+    /// Shared with the schedule's handle, which reads it for `Stats`.
+    busy: Arc<Mutex<BusyMeter>>,
     links: BTreeMap<usize, Slot>,
     /// Measured rates, kept across a dialed renderer's reconnections.
     rates: HashMap<usize, Rate>,
@@ -185,6 +199,7 @@ impl Dispatcher {
                 _ = sleep_until(due), if due.is_some() => self.expire(Instant::now()),
             }
             self.dispatch();
+            self.observe_busy();
             self.report_answering();
             while let Some(event) = self.news.pop_front() {
                 if events.send(event).await.is_err() {
@@ -192,6 +207,12 @@ impl Dispatcher {
                 }
             }
         }
+    }
+
+    fn observe_busy(&self) {
+        let holding = self.links.values().filter(|s| s.outstanding > 0).count();
+        let mut meter = self.busy.lock().unwrap_or_else(|e| e.into_inner());
+        meter.observe(std::time::Instant::now(), holding, self.links.len());
     }
 
     fn on_link_event(&mut self, event: LinkEvent) {

@@ -21,7 +21,6 @@
 //! refinement rounds and the luminance image, [`waits`] the small state machines of what the work
 //! waits for.
 
-mod busy;
 mod coarsening;
 mod display;
 mod pending;
@@ -49,7 +48,6 @@ use crate::mesh::SubdivisionMesh;
 use crate::pool::{PoolEvent, PoolHandle};
 use crate::viewer_link::{ViewerEvent, ViewerId};
 use crate::visibility::{Gpu, LuminancePass, Visibility};
-use busy::BusyMeter;
 use coarsening::Coarsening;
 use pending::PendingRefinement;
 use plan::{Aging, MorePaths, NeedsInput, Qualities};
@@ -89,7 +87,6 @@ pub struct Schedule {
     samples_since_pass: u64,
     /// `samples` and `paths` at the previous `Stats`.
     counted_at_last_stats: (u64, u64),
-    busy: BusyMeter,
     last_stats: Instant,
     frame: u64,
     refine_turn: usize,
@@ -143,7 +140,6 @@ impl Schedule {
             paths: 0,
             samples_since_pass: 0,
             counted_at_last_stats: (0, 0),
-            busy: BusyMeter::new(Instant::now()),
             last_stats: Instant::now(),
             frame: 0,
             refine_turn: 0,
@@ -183,11 +179,6 @@ impl Schedule {
                 self.on_pool_event(event);
             }
             self.turn()?;
-            self.busy.observe(
-                Instant::now(),
-                self.requests.batches_in_flight(),
-                self.renderers,
-            );
         }
     }
 
@@ -508,7 +499,7 @@ impl Schedule {
         let stats = Stats {
             samples_per_sec: rate,
             paths_per_sec: paths_rate,
-            renderer_busy: self.busy.take(self.last_stats),
+            renderer_busy: self.pool.take_busy(),
             leaves: self.mesh.leaf_count() as u64,
             cached_samples: self.cache.len() as u64,
             renderers: self.renderers as u32,

@@ -1,9 +1,10 @@
 //! How much of the wall time the renderers had work in hand (DESIGN.md §3: rest time is meant for
-//! shading). The pool fills every renderer with room before queueing (`pool`), so while at least
-//! as many batches are unanswered as renderers are connected, every renderer holds one; with
-//! fewer, only that many do. The meter integrates `min(batches, renderers) / renderers` over time,
-//! as the schedule sees it: a batch is counted from its submission to its answer, so the time on
-//! the wire (loopback: well under a millisecond) counts as busy.
+//! shading). The dispatcher tells the meter, after each of its events, how many connected
+//! renderers hold at least one batch sent and not yet answered; the meter integrates that share
+//! over time. It is measured where the links are, not in the schedule: a reply counts the moment
+//! it arrives, however long the schedule takes to use it, so a schedule too busy to send more
+//! work shows as idle renderers. Only the time on the wire (loopback: well under a millisecond)
+//! counts as busy without being so.
 
 use std::time::Instant;
 
@@ -27,13 +28,13 @@ impl BusyMeter {
         }
     }
 
-    /// The schedule's counts after an event; the level holds until the next call.
-    pub fn observe(&mut self, now: Instant, batches_in_flight: usize, renderers: usize) {
+    /// The dispatcher's counts after an event; the level holds until the next call.
+    pub fn observe(&mut self, now: Instant, holding: usize, renderers: usize) {
         self.accumulate(now);
         self.level = if renderers == 0 {
             0.0
         } else {
-            batches_in_flight.min(renderers) as f64 / renderers as f64
+            holding.min(renderers) as f64 / renderers as f64
         };
     }
 
@@ -62,7 +63,7 @@ mod tests {
         let t0 = Instant::now();
         let at = |ms| t0 + Duration::from_millis(ms);
         let mut meter = BusyMeter::new(t0);
-        meter.observe(at(0), 4, 2); // both renderers busy for 500 ms
+        meter.observe(at(0), 2, 2); // both renderers busy for 500 ms
         meter.observe(at(500), 1, 2); // one of two for 250 ms
         meter.observe(at(750), 0, 2); // none for 250 ms
         let share = meter.take(at(1000));
