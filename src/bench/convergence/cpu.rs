@@ -54,8 +54,8 @@ pub fn read_csv(path: &Path) -> anyhow::Result<Vec<(String, CpuShares)>> {
 /// Each process's CPU time as a share of the machine's cores over the run.
 pub fn table(runs: &[(String, CpuShares)]) -> String {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as f64;
-    let mut md = format!(
-        "| run | wall (s) | renderer | SMA | viewer | idle |\n|---|---:|---:|---:|---:|---:|\n"
+    let mut md = String::from(
+        "| run | wall (s) | renderer | SMA | viewer | idle |\n|---|---:|---:|---:|---:|---:|\n",
     );
     for (run, c) in runs {
         let share = |s: f64| s / (c.wall_s * cores).max(1e-9);

@@ -32,7 +32,7 @@ mod viewers;
 mod waits;
 
 use std::collections::{BTreeMap, HashMap};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use glam::Vec3;
@@ -58,6 +58,15 @@ use waits::Owed;
 
 /// Rejected answers for one key before the schedule stops asking for it.
 const MAX_REJECTIONS: u8 = 3;
+
+/// Viewers are brought up to date at most this often while the camera rests (at once after a
+/// pass): each sync walks every visible leaf, and done after every answered batch it took the
+/// SMA's whole core and left the renderers waiting for work (DESIGN.md §3).
+const SYNC_INTERVAL: Duration = Duration::from_millis(50);
+
+/// A criterion that found nothing is asked again once this many new samples have come, not after
+/// every batch: a round evaluates every visible leaf.
+const NEW_INPUT_SAMPLES: u64 = 1024;
 
 pub struct Schedule {
     config: ScheduleConfig,
@@ -85,6 +94,8 @@ pub struct Schedule {
     /// Paths traced for `samples` (DESIGN.md §10: cost is counted in paths).
     paths: u64,
     samples_since_pass: u64,
+    samples_since_input: u64,
+    last_sync: Instant,
     /// `samples` and `paths` at the previous `Stats`.
     counted_at_last_stats: (u64, u64),
     last_stats: Instant,
@@ -139,6 +150,8 @@ impl Schedule {
             samples: 0,
             paths: 0,
             samples_since_pass: 0,
+            samples_since_input: 0,
+            last_sync: Instant::now(),
             counted_at_last_stats: (0, 0),
             last_stats: Instant::now(),
             frame: 0,
@@ -159,7 +172,7 @@ impl Schedule {
     ) -> anyhow::Result<()> {
         let mut stats = tokio::time::interval(self.config.stats_every);
         loop {
-            let (work_now, rest_at) = self.waiting_for();
+            let (work_now, wake_at) = self.waiting_for();
             tokio::select! {
                 biased;
                 _ = shutdown.changed() => return Ok(()),
@@ -169,7 +182,7 @@ impl Schedule {
                 },
                 Some(event) = pool.recv() => self.on_pool_event(event),
                 _ = stats.tick() => self.report_stats(),
-                _ = sleep_until(rest_at), if rest_at.is_some() => {}
+                _ = sleep_until(wake_at), if wake_at.is_some() => {}
                 _ = std::future::ready(()), if work_now => {}
             }
             while let Ok(event) = viewers.try_recv() {
@@ -273,7 +286,11 @@ impl Schedule {
                 let n = batch.points.len() as u64;
                 // New samples are new input for every criterion: one that had found nothing may
                 // find something now.
-                self.viewers.values_mut().for_each(|v| v.wait.new_input());
+                self.samples_since_input += n;
+                if self.samples_since_input >= NEW_INPUT_SAMPLES {
+                    self.samples_since_input = 0;
+                    self.viewers.values_mut().for_each(|v| v.wait.new_input());
+                }
                 self.samples += n;
                 self.paths += radiance.paths.iter().map(|&p| u64::from(p)).sum::<u64>();
                 self.samples_since_pass += n;
@@ -316,11 +333,18 @@ impl Schedule {
                 .values_mut()
                 .for_each(|v| v.wait.leaves_changed());
         }
+        let frame = self.frame;
         self.run_passes()?;
         self.commit_ready_groups();
-        self.owed = turns::feed(self.owed, self);
-        if self.owed.resync() {
+        let sync_now = self.sync_due(self.frame != frame);
+        let owed = self.owed;
+        self.owed = turns::feed(if sync_now { owed } else { owed.resync_later() }, self);
+        if owed.resync() && !sync_now {
+            self.owed.samples_arrived();
+        }
+        if sync_now {
             self.sync_viewers();
+            self.last_sync = Instant::now();
         }
         if let Some(id) = self.refinement_candidate() {
             self.refine_round(id)?;
@@ -479,14 +503,30 @@ impl Schedule {
         )
     }
 
-    /// Whether a turn has work without any new event, and else when a camera comes to rest.
+    /// Whether a turn has work without any new event, and else when to wake: a camera coming to
+    /// rest, or a sync that was rate-limited.
     fn waiting_for(&self) -> (bool, Option<Instant>) {
         let (views, gate, now) = (self.turn_views(), self.refine_gate(), Instant::now());
         let candidate = turns::refinement_candidate(&gate, &views, self.refine_turn, now);
-        (
-            turns::has_work_now(self.owed, &views, candidate),
+        let sync_at = self.owed.resync().then(|| self.last_sync + SYNC_INTERVAL);
+        let owed = match sync_at {
+            Some(at) if at > now => self.owed.resync_later(),
+            _ => self.owed,
+        };
+        let wake = [
             turns::next_rest(&gate, &views, now),
+            sync_at.filter(|&at| at > now),
+        ];
+        (
+            turns::has_work_now(owed, &views, candidate),
+            wake.into_iter().flatten().min(),
         )
+    }
+
+    /// Whether the viewers are due a sync now: owed one, and a pass just ran or the last sync is
+    /// [`SYNC_INTERVAL`] old.
+    fn sync_due(&self, pass_ran: bool) -> bool {
+        self.owed.resync() && (pass_ran || self.last_sync.elapsed() >= SYNC_INTERVAL)
     }
 
     fn report_stats(&mut self) {

@@ -112,6 +112,14 @@ impl Owed {
         self.resync = false;
     }
 
+    /// The same debts with the viewers' sync left for a later turn (it is rate-limited).
+    pub fn resync_later(self) -> Owed {
+        Owed {
+            resync: false,
+            ..self
+        }
+    }
+
     pub fn any(self) -> bool {
         self.replan || self.resync
     }
