@@ -51,11 +51,13 @@ pub fn read_csv(path: &Path) -> anyhow::Result<Vec<(String, CpuShares)>> {
         .collect()
 }
 
-/// Each process's CPU time as a share of the machine's cores over the run.
+/// Each process's CPU time as a share of the machine's cores over the run (the SMA's includes the
+/// threads of Mesa's llvmpipe, which draws its visibility passes); the rest went to other processes
+/// or was idle.
 pub fn table(runs: &[(String, CpuShares)]) -> String {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as f64;
     let mut md = String::from(
-        "| run | wall (s) | renderer | SMA | viewer | idle |\n|---|---:|---:|---:|---:|---:|\n",
+        "| run | wall (s) | renderer | SMA | viewer | other or idle |\n|---|---:|---:|---:|---:|---:|\n",
     );
     for (run, c) in runs {
         let share = |s: f64| s / (c.wall_s * cores).max(1e-9);
