@@ -2,8 +2,9 @@
 //! memory targets are checked here, never by timed tests; `walkthrough bench report` regenerates
 //! BENCHMARKS.md in one command, one section per part:
 //!
-//! - [`protocol`], [`scene`], [`renderer`], [`sma_core`], [`sma_service`], [`viewer`]: the
-//!   sections of `bench report` (internals through each crate's `bench` feature);
+//! - [`protocol`], [`scene`], [`renderer`], [`sma_core`], [`sma_service`], [`viewer`], [`farm`]:
+//!   the sections of `bench report` (internals through each crate's `bench` feature; the farm's
+//!   faults and uneven hosts with real processes);
 //! - [`convergence`] and [`accuracy`]: the end-to-end measurements of DESIGN.md §10, with
 //!   [`metrics`], [`plots`] and [`strips`];
 //! - [`ray_throughput`]: the ray-throughput table of the [`renderer`] section;
@@ -11,6 +12,7 @@
 
 pub mod accuracy;
 pub mod convergence;
+pub mod farm;
 pub mod machine;
 pub mod metrics;
 pub mod plots;

@@ -13,6 +13,7 @@ const SECTIONS: &[Section] = &[
     ("sma-core", super::sma_core::section),
     ("sma-service", super::sma_service::section),
     ("viewer", super::viewer::section),
+    ("farm", super::farm::section),
 ];
 
 /// Sections written by the long end-to-end benchmarks (`bench convergence`, `bench accuracy`).

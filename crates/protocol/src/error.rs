@@ -17,6 +17,8 @@ pub enum ProtocolError {
     Truncated,
     #[error("a frame begun was not complete within {after:?}: the peer stalled halfway")]
     FrameStalled { after: std::time::Duration },
+    #[error("the peer took no part of a frame for {after:?}: it stopped reading")]
+    WriteStalled { after: std::time::Duration },
     #[error("connection closed by peer")]
     Closed,
     #[error("unknown message kind (tag not known to this protocol version)")]

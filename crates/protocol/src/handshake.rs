@@ -9,7 +9,7 @@ use crate::types::Fingerprint;
 /// "WKTH": walkthrough.
 pub const MAGIC: [u8; 4] = *b"WKTH";
 /// Bumped on any incompatible change of a message.
-pub const PROTOCOL_VERSION: u16 = 5;
+pub const PROTOCOL_VERSION: u16 = 6;
 
 /// Who is speaking.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]

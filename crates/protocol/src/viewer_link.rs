@@ -124,6 +124,10 @@ pub enum ViewerToSma {
     Pause,
     Resume,
     Bye,
+    /// The answer to `Ping`, sent by the viewer's link at once, whatever its front end is doing.
+    Pong {
+        nonce: u64,
+    },
 }
 
 /// SMA -> viewer.
@@ -153,6 +157,12 @@ pub enum SmaToViewer {
     },
     Error {
         message: String,
+    },
+    /// A heartbeat (DESIGN.md §8): a viewer answers `Pong` with the same nonce; one that does not
+    /// within the SMA's silence limit is lost. A viewer hears the SMA at least this often, so a
+    /// silent SMA is lost too.
+    Ping {
+        nonce: u64,
     },
 }
 

@@ -230,6 +230,7 @@ fn viewer_link_seeds() -> Vec<(String, Vec<u8>)> {
         ("pause", ViewerToSma::Pause),
         ("resume", ViewerToSma::Resume),
         ("bye", ViewerToSma::Bye),
+        ("pong", ViewerToSma::Pong { nonce: 11 }),
     ];
     let triangle = |id| ShownTriangle {
         id,
@@ -329,6 +330,7 @@ fn viewer_link_seeds() -> Vec<(String, Vec<u8>)> {
                 message: "unknown criterion".into(),
             },
         ),
+        ("ping", SmaToViewer::Ping { nonce: u64::MAX }),
     ];
     let mut out = seeds("to-sma", &to_sma);
     out.extend(seeds("to-viewer", &to_viewer));

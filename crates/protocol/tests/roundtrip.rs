@@ -145,6 +145,7 @@ fn to_sma() -> impl Strategy<Value = ViewerToSma> {
         Just(ViewerToSma::Pause),
         Just(ViewerToSma::Resume),
         Just(ViewerToSma::Bye),
+        any::<u64>().prop_map(|nonce| ViewerToSma::Pong { nonce }),
     ]
 }
 fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
@@ -211,6 +212,7 @@ fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
         ("[a-z-]{0,8}", any::<bool>())
             .prop_map(|(criterion, paused)| SmaToViewer::Refinement { criterion, paused }),
         ".*".prop_map(|message| SmaToViewer::Error { message }),
+        any::<u64>().prop_map(|nonce| SmaToViewer::Ping { nonce }),
     ]
 }
 

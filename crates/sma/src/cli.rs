@@ -77,10 +77,19 @@ pub struct Cli {
     /// has passed.
     #[arg(long, default_value_t = defaults().deadline_factor)]
     pub deadline_factor: f64,
-    /// KiB of updates that may wait for one viewer that does not read; past them it is
-    /// disconnected (a single update larger than this disconnects it too).
+    /// A batch sent to a renderer whose rate is not measured yet (before its first answer) is
+    /// lost after this many milliseconds.
+    #[arg(long, default_value_t = defaults().first_deadline.as_millis() as u64)]
+    pub first_deadline_ms: u64,
+    /// KiB of changes that may wait for one viewer that reads slowly or not at all; past them it
+    /// is disconnected. What waits is the latest state of each triangle, not every step, so a
+    /// slow viewer needs at most about 90 bytes per triangle it could be shown.
     #[arg(long, default_value_t = defaults().viewer_backlog_bytes >> 10)]
     pub viewer_backlog_kib: usize,
+    /// A viewer that answers no heartbeat (sent every --heartbeat-ms) for this many
+    /// milliseconds is lost and its connection closed.
+    #[arg(long, default_value_t = defaults().viewer_silence.as_millis() as u64)]
+    pub viewer_silence_ms: u64,
     /// Refinement criterion (each viewer may change its own with SetCriterion).
     #[arg(long, default_value_t = defaults().schedule.criterion, value_parser = criterion_parser())]
     pub criterion: CriterionKind,
@@ -200,8 +209,9 @@ impl Cli {
                 frame_timeout: Duration::from_millis(self.frame_timeout_ms.max(1)),
             },
             deadline_factor: self.deadline_factor,
-            first_deadline: defaults().first_deadline,
+            first_deadline: Duration::from_millis(self.first_deadline_ms.max(1)),
             viewer_backlog_bytes: self.viewer_backlog_kib << 10,
+            viewer_silence: Duration::from_millis(self.viewer_silence_ms.max(1)),
             max_frame: self.max_frame,
             viewer_port: PortLimits {
                 max_connections: self.max_viewers,
@@ -289,6 +299,8 @@ mod tests {
         assert_eq!(from_flags.liveness, defaults.liveness);
         assert_eq!(from_flags.renderer_port, defaults.renderer_port);
         assert_eq!(from_flags.deadline_factor, defaults.deadline_factor);
+        assert_eq!(from_flags.first_deadline, defaults.first_deadline);
+        assert_eq!(from_flags.viewer_silence, defaults.viewer_silence);
         assert_eq!(
             from_flags.viewer_backlog_bytes,
             defaults.viewer_backlog_bytes

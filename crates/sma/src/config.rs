@@ -30,8 +30,11 @@ pub struct SmaConfig {
     pub deadline_factor: f64,
     /// A batch's deadline before its renderer's rate is measured.
     pub first_deadline: Duration,
-    /// Bytes of updates that may wait for one viewer; past them it is disconnected.
+    /// Bytes of changes that may wait for one viewer; past them it is disconnected.
     pub viewer_backlog_bytes: usize,
+    /// A viewer that answers no heartbeat for this long is lost (pinged every
+    /// `liveness.heartbeat`).
+    pub viewer_silence: Duration,
     /// Largest frame accepted or sent.
     pub max_frame: usize,
     /// Viewers served at once on `listen`, and their handshake deadline.
@@ -54,6 +57,9 @@ impl Default for SmaConfig {
             first_deadline: Duration::from_secs(30),
             // Two maximum frames: the largest single update always fits.
             viewer_backlog_bytes: 2 * DEFAULT_MAX_FRAME,
+            // A viewer's link answers from its own thread, but its machine may be a laptop
+            // under load; ten seconds tells a partitioned one from a busy one.
+            viewer_silence: Duration::from_secs(10),
             max_frame: DEFAULT_MAX_FRAME,
             viewer_port: PortLimits::default(),
             mesh: MeshParams::default(),

@@ -101,6 +101,8 @@ pub async fn start(
         max_frame: config.max_frame,
         handshake_deadline: config.viewer_port.handshake_deadline,
         frame_timeout: config.liveness.frame_timeout,
+        heartbeat: config.liveness.heartbeat,
+        silence: config.viewer_silence,
         backlog_bytes: config.viewer_backlog_bytes,
     };
     let schedule = Schedule::new(config.schedule, &scene, mesh, gpu, pool);

@@ -480,6 +480,43 @@ async fn two_viewers_share_one_cache_and_a_bad_frame_closes_only_its_viewer() {
     sma.stop().await.unwrap();
 }
 
+/// The viewer link's heartbeat (DESIGN.md §8): a viewer that reads everything but answers no
+/// ping is lost after the silence limit; one that answers stays, however long it rests.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_viewer_that_answers_no_heartbeat_is_lost_and_one_that_answers_stays() {
+    if !gpu_available() {
+        return;
+    }
+    let scene = diffuse_wall();
+    let (renderer, _log) = fake_renderer(scene.clone(), Fault::None).await;
+    let mut config = config(vec![renderer], false);
+    config.liveness.heartbeat = Duration::from_millis(100);
+    config.viewer_silence = Duration::from_millis(500);
+    // Statistics keep the live viewer reading (and so answering) while it rests.
+    config.schedule.stats_every = Duration::from_millis(100);
+    let (sma, mut live) = start_with_probe(&config, &scene).await;
+    let mut hung = Probe::connect(&sma.addr.to_string()).await.unwrap();
+    hung.answer_pings = false;
+    // Both read everything; only `live` answers pings.
+    let started = std::time::Instant::now();
+    let hung_reads = tokio::time::timeout(WAIT, async {
+        loop {
+            if let Err(e) = hung.next_epoch().await {
+                return (e, started.elapsed());
+            }
+        }
+    });
+    let live_rests = live.until_stats(WAIT, |_| started.elapsed() >= 6 * config.viewer_silence);
+    let (closed, rested) = tokio::join!(hung_reads, live_rests);
+    let (closed, after) = closed.expect("the SMA kept a viewer that answers no heartbeat");
+    eprintln!("lost after {after:?}: {closed:#}");
+    assert!(after >= config.viewer_silence);
+    // Far past the silence limit, the viewer that answers is still served.
+    rested.unwrap();
+    view_completely(&mut live, "front").await;
+    sma.stop().await.unwrap();
+}
+
 /// The stated end of DESIGN.md §5: a resting viewer's noisy samples get more paths, rung by rung
 /// up to the ladder's cap, with the renderer kept busy meanwhile; the SMA then says `converged`
 /// and asks for nothing more.

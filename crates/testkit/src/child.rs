@@ -109,6 +109,18 @@ impl Process {
         }
     }
 
+    /// Keeps every thread of the child, and those it starts later, on CPU `cpu` alone: a host of
+    /// its own for the farm benchmark on one machine. Linux only; an error elsewhere.
+    pub fn pin_to_cpu(&self, cpu: usize) -> anyhow::Result<()> {
+        let tasks = std::fs::read_dir(format!("/proc/{}/task", self.child.id()))
+            .with_context(|| format!("listing {}'s threads", self.name))?;
+        for task in tasks {
+            let tid: libc::pid_t = task?.file_name().to_string_lossy().parse()?;
+            pin_thread(tid, cpu)?;
+        }
+        Ok(())
+    }
+
     /// The child's resident memory (`VmRSS`), bytes, while it runs on Linux.
     pub fn resident_bytes(&self) -> Option<u64> {
         let status = std::fs::read_to_string(format!("/proc/{}/status", self.child.id())).ok()?;
@@ -176,6 +188,24 @@ fn log_file(path: &Path) -> anyhow::Result<File> {
         .append(true)
         .open(path)
         .with_context(|| format!("opening {}", path.display()))
+}
+
+/// Keeps thread `tid` (0: the caller) on CPU `cpu`; threads it starts later inherit the mask.
+pub fn pin_thread(tid: libc::pid_t, cpu: usize) -> anyhow::Result<()> {
+    // SAFETY: a zeroed cpu_set_t is the empty set; CPU_SET writes within it for cpu <
+    // CPU_SETSIZE (checked); sched_setaffinity reads `size_of` bytes of it.
+    let status = unsafe {
+        anyhow::ensure!(cpu < libc::CPU_SETSIZE as usize, "no CPU {cpu}");
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        libc::CPU_SET(cpu, &mut set);
+        libc::sched_setaffinity(tid, std::mem::size_of::<libc::cpu_set_t>(), &set)
+    };
+    anyhow::ensure!(
+        status == 0,
+        "pinning thread {tid} to CPU {cpu}: {}",
+        std::io::Error::last_os_error()
+    );
+    Ok(())
 }
 
 /// A child server and the address it reported.

@@ -1,5 +1,6 @@
 //! A scripted SMA stand-in over loopback: it accepts viewers, shakes hands as the SMA does, sends
-//! `SceneInfo` first, then sends whatever the test queues and reports what the viewer sends.
+//! `SceneInfo` first, pings every half second as the SMA does, then sends whatever the test
+//! queues and reports what the viewer sends.
 
 use std::sync::mpsc;
 use std::time::Duration;
@@ -27,6 +28,8 @@ pub enum Command {
     Send(SmaToViewer),
     /// Close the current session (the viewer should reconnect).
     Drop,
+    /// Send nothing more in this session, pings included: an SMA that hangs.
+    Mute,
 }
 
 pub struct StandIn {
@@ -63,6 +66,10 @@ impl StandIn {
 
     pub fn drop_session(&self) {
         self.commands.send(Command::Drop).expect("stand-in gone");
+    }
+
+    pub fn mute(&self) {
+        self.commands.send(Command::Mute).expect("stand-in gone");
     }
 
     /// The next thing seen that `pick` accepts, skipping others; panics after `WAIT`.
@@ -120,16 +127,22 @@ async fn serve(
             continue;
         }
         let _ = seen.send(Seen::Session(session));
+        let mut heartbeat = tokio::time::interval(Duration::from_millis(500));
+        let mut muted = false;
         loop {
             tokio::select! {
                 msg = reader.recv() => match msg {
                     Ok(msg) => { let _ = seen.send(Seen::Message(msg)); }
                     Err(_) => break,
                 },
+                _ = heartbeat.tick(), if !muted => {
+                    if writer.send(&SmaToViewer::Ping { nonce: 1 }).await.is_err() { break; }
+                }
                 cmd = commands.recv() => match cmd {
                     Some(Command::Send(msg)) => {
-                        if writer.send(&msg).await.is_err() { break; }
+                        if !muted && writer.send(&msg).await.is_err() { break; }
                     }
+                    Some(Command::Mute) => muted = true,
                     Some(Command::Drop) | None => break,
                 },
             }

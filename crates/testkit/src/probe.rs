@@ -30,6 +30,8 @@ pub struct Probe {
     /// Every `Stats`, in order.
     pub stats_seen: Vec<Stats>,
     next_seq: u64,
+    /// Heartbeats are answered (as a viewer's link does); false plays a viewer that hangs.
+    pub answer_pings: bool,
 }
 
 impl Probe {
@@ -61,11 +63,27 @@ impl Probe {
             stats: None,
             stats_seen: Vec::new(),
             next_seq: 0,
+            answer_pings: true,
         })
     }
 
     pub async fn send(&mut self, message: ViewerToSma) -> anyhow::Result<()> {
         Ok(self.writer.send(&message).await?)
+    }
+
+    /// The next message that is not a heartbeat; heartbeats are answered at once, as a viewer's
+    /// link does (the SMA loses a viewer that answers none for its silence limit), unless
+    /// `answer_pings` is off.
+    pub async fn read(&mut self) -> anyhow::Result<SmaToViewer> {
+        loop {
+            match self.reader.recv().await? {
+                SmaToViewer::Ping { nonce } if self.answer_pings => {
+                    self.send(ViewerToSma::Pong { nonce }).await?
+                }
+                SmaToViewer::Ping { .. } => {}
+                message => return Ok(message),
+            }
+        }
     }
 
     /// Sends a camera for a named viewpoint of the scene; returns its seq.
@@ -91,7 +109,7 @@ impl Probe {
     /// Applies messages up to and including the next `Epoch`, checking the table.
     pub async fn next_epoch(&mut self) -> anyhow::Result<Epoch> {
         loop {
-            let message = self.reader.recv().await?;
+            let message = self.read().await?;
             if let Some(epoch) = self.apply(message)? {
                 return Ok(epoch);
             }
@@ -102,7 +120,7 @@ impl Probe {
     pub async fn until_converged(&mut self, timeout: Duration) -> anyhow::Result<Stats> {
         tokio::time::timeout(timeout, async {
             loop {
-                let message = self.reader.recv().await?;
+                let message = self.read().await?;
                 self.apply(message)?;
                 if let Some(stats) = self.stats.filter(|s| s.converged) {
                     return Ok(stats);
@@ -121,7 +139,7 @@ impl Probe {
     ) -> anyhow::Result<Stats> {
         tokio::time::timeout(timeout, async {
             loop {
-                let message = self.reader.recv().await?;
+                let message = self.read().await?;
                 if let SmaToViewer::Stats(stats) = &message
                     && done(stats)
                 {
@@ -186,7 +204,7 @@ impl Probe {
                 self.stats = Some(stats);
                 self.stats_seen.push(stats);
             }
-            SmaToViewer::SceneInfo(_) => {}
+            SmaToViewer::SceneInfo(_) | SmaToViewer::Ping { .. } => {}
             SmaToViewer::Error { message } => bail!("the SMA reported an error: {message}"),
         }
         Ok(None)

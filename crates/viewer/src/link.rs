@@ -38,6 +38,10 @@ pub enum LinkEvent {
 }
 
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
+/// An SMA pings its viewers every heartbeat (half a second by default); one that has sent
+/// nothing at all for this long is lost, and the link reconnects (DESIGN.md §8). The SMA's own
+/// limit for a viewer is the same by default.
+pub const SMA_SILENCE: Duration = Duration::from_secs(10);
 const FIRST_RETRY: Duration = Duration::from_millis(100);
 const MAX_RETRY: Duration = Duration::from_secs(5);
 
@@ -176,16 +180,30 @@ async fn session(
     inbox: &mut mpsc::UnboundedReceiver<ViewerToSma>,
 ) -> SessionEnd {
     let mut staging = Staging::default();
+    let silence = tokio::time::sleep(SMA_SILENCE);
+    tokio::pin!(silence);
     loop {
         tokio::select! {
-            msg = reader.recv() => match msg {
-                Ok(msg) => match staging.stage(msg) {
-                    Staged::Held => {}
-                    Staged::Closed(update) => notify(LinkEvent::Update(update)),
-                    Staged::Other(other) => notify(other_event(other)),
-                },
-                Err(e) => return SessionEnd::Lost(e.to_string()),
-            },
+            msg = reader.recv() => {
+                silence.as_mut().reset(tokio::time::Instant::now() + SMA_SILENCE);
+                match msg {
+                    // Answered here, on the link's own thread, whatever the front end is doing.
+                    Ok(SmaToViewer::Ping { nonce }) => {
+                        if let Err(e) = writer.send(&ViewerToSma::Pong { nonce }).await {
+                            return SessionEnd::Lost(e.to_string());
+                        }
+                    }
+                    Ok(msg) => match staging.stage(msg) {
+                        Staged::Held => {}
+                        Staged::Closed(update) => notify(LinkEvent::Update(update)),
+                        Staged::Other(other) => notify(other_event(other)),
+                    },
+                    Err(e) => return SessionEnd::Lost(e.to_string()),
+                }
+            }
+            _ = &mut silence => {
+                return SessionEnd::Lost(format!("the SMA sent nothing for {SMA_SILENCE:?}"));
+            }
             out = inbox.recv() => match out {
                 None => return SessionEnd::Finished,
                 Some(msg) => {
@@ -227,5 +245,6 @@ fn kind(msg: &SmaToViewer) -> &'static str {
         SmaToViewer::Stats(_) => "Stats",
         SmaToViewer::Refinement { .. } => "Refinement",
         SmaToViewer::Error { .. } => "Error",
+        SmaToViewer::Ping { .. } => "Ping",
     }
 }

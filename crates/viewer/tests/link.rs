@@ -223,6 +223,35 @@ fn a_dropped_link_reconnects_and_starts_from_an_empty_table() {
 }
 
 #[test]
+fn the_link_answers_heartbeats_and_leaves_an_sma_that_falls_silent() {
+    let sma = StandIn::start(scene());
+    let mut viewer = Viewer::connect(&sma.addr);
+    sma.expect("first session", |s| {
+        matches!(s, Seen::Session(1)).then_some(())
+    });
+    sma.expect("an answer to a ping", |s| {
+        matches!(s, Seen::Message(ViewerToSma::Pong { nonce: 1 })).then_some(())
+    });
+    // Pings stop and nothing else comes: the SMA hangs with its socket open.
+    sma.mute();
+    let muted = std::time::Instant::now();
+    let why = viewer.until("disconnection", |e| match e {
+        LinkEvent::Disconnected(why) => Some(why.clone()),
+        _ => None,
+    });
+    assert!(why.contains("sent nothing"), "{why}");
+    assert!(
+        muted.elapsed() >= viewer::link::SMA_SILENCE / 2,
+        "lost {:?} after the SMA fell silent",
+        muted.elapsed()
+    );
+    sma.expect("second session", |s| {
+        matches!(s, Seen::Session(2)).then_some(())
+    });
+    viewer.link.close();
+}
+
+#[test]
 fn view_state_asks_to_restate_on_every_new_session() {
     let mut state = ViewState::default();
     assert_eq!(

@@ -12,9 +12,6 @@ use crate::cache::ShadingCache;
 use crate::mesh::{NodeId, SubdivisionMesh};
 use crate::visible_set::shown_id;
 
-/// Inserts are split so no frame nears the protocol's maximum (about 80 bytes a triangle).
-const MAX_TRIANGLES_PER_MESSAGE: usize = 100_000;
-
 #[derive(Debug, Default)]
 pub struct Display {
     /// Shown triangles and the radiance last sent for each.
@@ -75,15 +72,12 @@ impl Display {
         if !removed.is_empty() {
             messages.push(SmaToViewer::Remove { ids: removed });
         }
-        for chunk in inserts.chunks(MAX_TRIANGLES_PER_MESSAGE) {
-            messages.push(SmaToViewer::Insert {
-                triangles: chunk.to_vec(),
-            });
+        // The viewer's outbox splits them into frames of a safe size as it writes.
+        if !inserts.is_empty() {
+            messages.push(SmaToViewer::Insert { triangles: inserts });
         }
-        for chunk in updates.chunks(MAX_TRIANGLES_PER_MESSAGE) {
-            messages.push(SmaToViewer::Update {
-                triangles: chunk.to_vec(),
-            });
+        if !updates.is_empty() {
+            messages.push(SmaToViewer::Update { triangles: updates });
         }
         messages
     }

@@ -240,7 +240,8 @@ impl Schedule {
             }
             ViewerToSma::Pause => viewer.paused = true,
             ViewerToSma::Resume => viewer.paused = false,
-            ViewerToSma::Bye => {}
+            // The viewer's link keeps these to itself (`viewer_link::serve`).
+            ViewerToSma::Bye | ViewerToSma::Pong { .. } => return,
         }
         let viewer = &self.viewers[&id];
         viewer.send(self.refinement_state(viewer));

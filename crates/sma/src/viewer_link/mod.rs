@@ -1,20 +1,24 @@
 //! One accepted viewer (DESIGN.md §2, §8): handshake, `SceneInfo` first, then its messages go to
 //! the schedule and the schedule's messages go out. A malformed, oversized, unknown or stalled
 //! frame, or a camera no renderer could use, gets an `Error` reply and this connection closes; a
-//! viewer that stops reading is disconnected once its backlog passes a bound; every other viewer
-//! is unaffected.
+//! viewer gets the latest state of its triangles however slowly it reads (`outbox`), is pinged
+//! every heartbeat and lost when it answers none within the silence limit, and is disconnected
+//! should what waits for it pass a bound; every other viewer is unaffected.
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Duration;
 
 use protocol::connection::{SceneCheck, TcpWriter, accept_handshake_within, refuse_handshake};
 use protocol::viewer_link::{Camera, SceneInfo, SkyInfo, SmaToViewer, SunInfo, ViewerToSma};
-use protocol::{Fingerprint, ProtocolError, Role, frame, split_tcp};
+use protocol::{Fingerprint, ProtocolError, Role, split_tcp};
 use tokio::net::TcpStream;
-use tokio::sync::{Notify, mpsc, oneshot, watch};
+use tokio::sync::{mpsc, oneshot, watch};
 
 use crate::criteria::CriterionKind;
+
+mod outbox;
+
+pub use outbox::Outbox;
+use outbox::Outgoing;
 
 /// Identifies one viewer connection for the life of the process.
 pub type ViewerId = u64;
@@ -38,52 +42,15 @@ pub struct ViewerLinkConfig {
     pub max_frame: usize,
     /// A viewer that has not completed its handshake by then is closed (DESIGN.md §8).
     pub handshake_deadline: Duration,
-    /// A frame begun must be complete within this long.
+    /// A frame begun must be complete within this long, in either direction: a viewer whose
+    /// socket takes none of a frame for this long is cut off.
     pub frame_timeout: Duration,
-    /// Bytes of updates that may wait for one viewer; past them it is disconnected.
+    /// How often the viewer is pinged.
+    pub heartbeat: Duration,
+    /// A viewer that has not answered a ping this long after it reached its socket is lost.
+    pub silence: Duration,
+    /// Bytes of changes that may wait for one viewer; past them it is disconnected.
     pub backlog_bytes: usize,
-}
-
-/// Messages queued for one viewer and not yet written to it.
-const BACKLOG_MESSAGES: usize = 4096;
-
-/// The schedule's side of one viewer's link: messages are encoded here and counted while they
-/// wait, so a viewer that stops reading holds at most `backlog_bytes` of the SMA's memory. Past
-/// that bound its later messages are dropped and its link is closed with the reason logged; the
-/// schedule never waits for it, so other viewers and the renderers go on.
-#[derive(Debug)]
-pub struct Outbox {
-    payloads: mpsc::Sender<Vec<u8>>,
-    backlog: Arc<Backlog>,
-}
-
-#[derive(Debug, Default)]
-struct Backlog {
-    bytes: AtomicUsize,
-    limit: usize,
-    cut: AtomicBool,
-    overflow: Notify,
-}
-
-impl Outbox {
-    pub fn send(&self, message: SmaToViewer) {
-        if self.backlog.cut.load(Ordering::Relaxed) {
-            return;
-        }
-        let payload = match frame::encode(&message) {
-            Ok(payload) => payload,
-            Err(e) => {
-                tracing::warn!(error = %e, "a message for a viewer did not encode");
-                return;
-            }
-        };
-        let len = payload.len();
-        let waiting = self.backlog.bytes.fetch_add(len, Ordering::Relaxed) + len;
-        if waiting > self.backlog.limit || self.payloads.try_send(payload).is_err() {
-            self.backlog.cut.store(true, Ordering::Relaxed);
-            self.backlog.overflow.notify_one();
-        }
-    }
 }
 
 /// Why a viewer's link ended.
@@ -91,39 +58,82 @@ enum End {
     /// It left, or the server is shutting down.
     Quiet,
     Protocol(ProtocolError),
-    /// It stopped reading and its backlog passed the bound.
+    /// It stopped reading and the changes waiting for it passed the bound.
     Backlog,
-    /// The writing task ended: the outbox closed, or a write failed.
+    /// It answered no ping within the silence limit.
+    Silent,
+    /// The writing task ended: the outbox closed, or a write failed or stalled.
     Written(Option<ProtocolError>),
 }
 
-/// Writes one viewer's queued payloads until the outbox closes, a write fails, or `stop`.
-/// Returns the writer, for a last word.
+/// Writes what waits for one viewer until a write fails or stalls, or `stop`. Returns the
+/// writer, for a last word.
 async fn write_out(
     mut writer: TcpWriter<SmaToViewer>,
-    mut outgoing: mpsc::Receiver<Vec<u8>>,
-    backlog: Arc<Backlog>,
+    outgoing: Outgoing,
+    frame_timeout: Duration,
     mut stop: oneshot::Receiver<()>,
 ) -> (TcpWriter<SmaToViewer>, Result<(), ProtocolError>) {
-    let result = loop {
-        let payload = tokio::select! {
-            payload = outgoing.recv() => payload,
+    let result = 'writing: loop {
+        let messages = tokio::select! {
+            messages = outgoing.next() => messages,
             _ = &mut stop => break Ok(()),
         };
-        let Some(payload) = payload else {
-            break Ok(());
-        };
-        let len = payload.len();
-        let sent = tokio::select! {
-            sent = writer.send_payload(payload) => sent,
-            _ = &mut stop => break Ok(()),
-        };
-        backlog.bytes.fetch_sub(len, Ordering::Relaxed);
-        if let Err(e) = sent {
-            break Err(e);
+        for message in messages {
+            let sent = tokio::select! {
+                sent = tokio::time::timeout(frame_timeout, writer.send(&message)) => sent,
+                _ = &mut stop => break 'writing Ok(()),
+            };
+            match sent {
+                Ok(Ok(())) => outgoing.written(&message),
+                Ok(Err(e)) => break 'writing Err(e),
+                Err(_) => {
+                    break 'writing Err(ProtocolError::WriteStalled {
+                        after: frame_timeout,
+                    });
+                }
+            }
         }
     };
     (writer, result)
+}
+
+/// The heartbeat of one viewer link: one ping out at a time; the viewer is lost when a ping has
+/// been on its socket for `silence` unanswered. Only the answer counts: a viewer that sends
+/// cameras but reads nothing proves its writing, not that it takes what the SMA writes.
+struct Heartbeat {
+    nonce: u64,
+    answered: bool,
+    silence: Duration,
+}
+
+impl Heartbeat {
+    fn new(silence: Duration) -> Self {
+        Heartbeat {
+            nonce: 0,
+            answered: true,
+            silence,
+        }
+    }
+
+    fn pong(&mut self, nonce: u64) {
+        self.answered |= nonce == self.nonce;
+    }
+
+    /// On each tick: false when the viewer is lost; otherwise pings it if no ping is out.
+    fn tick(&mut self, outbox: &Outbox) -> bool {
+        if self.answered {
+            self.nonce += 1;
+            self.answered = false;
+            outbox.send(SmaToViewer::Ping { nonce: self.nonce });
+            return true;
+        }
+        // Not yet written (waiting behind other changes) is not lost: a write that stalls is
+        // cut off by the frame timeout.
+        outbox
+            .ping_written(self.nonce)
+            .is_none_or(|written| written.elapsed() < self.silence)
+    }
 }
 
 /// Serves one viewer until it leaves, breaks the protocol, or the server shuts down.
@@ -160,17 +170,12 @@ pub async fn serve(
     }
     reader.set_frame_timeout(config.frame_timeout);
     tracing::info!(viewer = id, %peer, "viewer connected");
-    let (payloads, outgoing) = mpsc::channel(BACKLOG_MESSAGES);
-    let backlog = Arc::new(Backlog {
-        limit: config.backlog_bytes,
-        ..Backlog::default()
-    });
-    let outbox = Outbox {
-        payloads,
-        backlog: Arc::clone(&backlog),
-    };
+    let (outbox, outgoing) = outbox::outbox(config.backlog_bytes);
     if events
-        .send(ViewerEvent::Joined { id, outbox })
+        .send(ViewerEvent::Joined {
+            id,
+            outbox: outbox.clone(),
+        })
         .await
         .is_err()
     {
@@ -179,11 +184,15 @@ pub async fn serve(
     // Writing has its own task, so a viewer's cameras are read even while a write to it is
     // blocked, and its backlog's overflow is seen at once.
     let (stop_writing, stopped) = oneshot::channel();
-    let mut writing = tokio::spawn(write_out(writer, outgoing, Arc::clone(&backlog), stopped));
+    let mut writing = tokio::spawn(write_out(writer, outgoing, config.frame_timeout, stopped));
+    let mut heartbeat = Heartbeat::new(config.silence);
+    let mut ticks = tokio::time::interval(config.heartbeat);
+    ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let ended = loop {
         tokio::select! {
             incoming = reader.recv() => match incoming.and_then(checked) {
                 Ok(ViewerToSma::Bye) => break End::Quiet,
+                Ok(ViewerToSma::Pong { nonce }) => heartbeat.pong(nonce),
                 Ok(message) => {
                     if events.send(ViewerEvent::Message { id, message }).await.is_err() {
                         break End::Quiet;
@@ -192,8 +201,11 @@ pub async fn serve(
                 Err(e) if e.is_disconnect() => break End::Quiet,
                 Err(e) => break End::Protocol(e),
             },
+            _ = ticks.tick() => if !heartbeat.tick(&outbox) {
+                break End::Silent;
+            },
             written = &mut writing => break End::Written(written.ok().and_then(|(_, r)| r.err())),
-            _ = backlog.overflow.notified() => break End::Backlog,
+            _ = outbox.overflowed() => break End::Backlog,
             _ = shutdown.changed() => break End::Quiet,
         }
     };
@@ -214,13 +226,22 @@ pub async fn serve(
                 let _ = tokio::time::timeout(config.frame_timeout, writer.send(&error)).await;
             }
         }
+        End::Silent => {
+            writing.abort();
+            tracing::warn!(
+                viewer = id,
+                %peer,
+                silence_ms = config.silence.as_millis() as u64,
+                "disconnecting a viewer that answers no heartbeat"
+            );
+        }
         End::Backlog => {
             writing.abort();
             tracing::warn!(
                 viewer = id,
                 %peer,
                 bound_bytes = config.backlog_bytes,
-                "disconnecting a viewer that does not read: its backlog of updates passed the bound"
+                "disconnecting a viewer that does not read: the changes waiting for it passed the bound"
             );
         }
     }
