@@ -21,8 +21,10 @@ use testkit::probe::Probe;
 
 use crate::bench::stats::median;
 
-const WIDTH: u32 = 512;
-const HEIGHT: u32 = 384;
+/// The hung renderer's view: large enough that the view takes several times the silence limit.
+const HUNG_VIEW: (u32, u32) = (1024, 768);
+/// The uneven renderers' view: its first picture comes quickly; the ladder then keeps them busy.
+const THROUGHPUT_VIEW: (u32, u32) = (512, 384);
 const WAIT: Duration = Duration::from_secs(600);
 /// The SMA's statistics period while throughput is read from them.
 const STATS_SECS: &str = "0.5";
@@ -54,9 +56,10 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
     };
     let runtime = tokio::runtime::Runtime::new()?;
     let mut md = format!(
-        "## Renderer farm\n\nScene {scene}, view {view} at {WIDTH}×{HEIGHT}, unrefined mesh; \
+        "## Renderer farm\n\nScene {scene}, view {view}, unrefined mesh; \
          real processes on loopback; the SMA at its default liveness rule (heartbeat 500 ms, \
-         3 s of silence); medians of {runs} runs.\n\n"
+         3 s of silence); medians of {runs} runs. Load average when the run started: {}.\n\n",
+        crate::bench::machine::load_average()
     );
     runtime.block_on(hung_renderer(&farm, runs, &mut md))?;
     runtime.block_on(uneven_renderers(&farm, runs, quick, &mut md))?;
@@ -105,29 +108,32 @@ impl Farm<'_> {
     }
 }
 
-/// Seconds from the camera to the view's completion (every sample at the scene's quality).
+/// Seconds from the camera to the view's completion (every sample at the scene's quality: the
+/// SMA runs with the quality ladder capped there).
 async fn completion(probe: &mut Probe, view: &str) -> anyhow::Result<f64> {
     let start = Instant::now();
-    let camera = probe.view(view, WIDTH, HEIGHT).await?;
+    let camera = probe.view(view, HUNG_VIEW.0, HUNG_VIEW.1).await?;
     probe.complete(camera.seq, WAIT).await?;
     Ok(start.elapsed().as_secs_f64())
 }
 
 async fn hung_renderer(farm: &Farm<'_>, runs: usize, md: &mut String) -> anyhow::Result<()> {
     let (mut alone, mut hung, mut detection) = (Vec::new(), Vec::new(), Vec::new());
+    let preset = scene::load(farm.scene)?.settings.quality.paths.to_string();
+    let at_preset = ["--max-paths", preset.as_str()];
     for _ in 0..runs {
         let b = farm.renderer("b")?;
-        let sma = farm.sma(&[&b], &[])?;
+        let sma = farm.sma(&[&b], &at_preset)?;
         let mut probe = farm.viewer(&sma, 1).await?;
         alone.push(completion(&mut probe, farm.view).await?);
         drop((probe, sma, b));
 
         let a = farm.renderer("a")?;
         let b = farm.renderer("b")?;
-        let sma = farm.sma(&[&a, &b], &[])?;
+        let sma = farm.sma(&[&a, &b], &at_preset)?;
         let mut probe = farm.viewer(&sma, 2).await?;
         let start = Instant::now();
-        let camera = probe.view(farm.view, WIDTH, HEIGHT).await?;
+        let camera = probe.view(farm.view, HUNG_VIEW.0, HUNG_VIEW.1).await?;
         // Both hold batches once the first answers are in.
         probe
             .until(WAIT, |e| e.camera_seq == camera.seq && e.samples > 0)
@@ -146,12 +152,15 @@ async fn hung_renderer(farm: &Farm<'_>, runs: usize, md: &mut String) -> anyhow:
     let (alone, hung, detection) = (median(alone), median(hung), median(detection));
     writeln!(
         md,
-        "### A renderer that hangs while it holds batches\n\n\
+        "### A renderer that hangs while it holds batches\n\n{}×{}, the quality ladder capped at \
+         the scene's preset: complete means every visible sample at the scene's quality.\n\n\
          | configuration | view complete (s) |\n|---|---:|\n\
          | one renderer alone | {alone:.1} |\n\
          | two, one stopped with SIGSTOP after the first answers | {hung:.1} |\n\n\
          Ratio {:.2} (target ≤ 2). The SMA called the stopped renderer lost {detection:.1} s \
          after SIGSTOP (the silence limit is 3 s), and re-issued its batches to the other.\n",
+        HUNG_VIEW.0,
+        HUNG_VIEW.1,
         hung / alone
     )?;
     Ok(())
@@ -184,12 +193,15 @@ async fn uneven_renderers(
     writeln!(
         md,
         "### A fast and a slow renderer\n\n\
-         Paths traced per second, read from the SMA's statistics over {} s once the view is \
-         complete (the quality ladder then keeps both busy). Fast: one worker thread with CPU 0 \
+         {}×{}. Paths traced per second, read from the SMA's statistics over {} s once every visible \
+         triangle is shown (the quality ladder, uncapped and with no stated end, then keeps both \
+         busy). Fast: one worker thread with CPU 0 \
          to itself; slow: one worker thread on CPU 1, which a busy loop shares.\n\n\
          | renderers | paths/s |\n|---|---:|\n\
          | fast alone | {fast:.0} |\n| slow alone | {slow:.0} |\n| both | {both:.0} |\n\n\
          Both together reach {:.0} % of the sum of their rates alone (target ≥ 90 %).\n",
+        THROUGHPUT_VIEW.0,
+        THROUGHPUT_VIEW.1,
         window.as_secs(),
         100.0 * both / (fast + slow)
     )?;
@@ -226,8 +238,14 @@ async fn throughput(farm: &Farm<'_>, hosts: &[Host], window: Duration) -> anyhow
     // No stated end: more paths are always wanted, up to a cap far above a window's worth.
     let sma = farm.sma(&refs, &["--display-error", "0", "--max-paths", "1048576"])?;
     let mut probe = farm.viewer(&sma, hosts.len()).await?;
-    let camera = probe.view(farm.view, WIDTH, HEIGHT).await?;
-    probe.complete(camera.seq, WAIT).await?;
+    let camera = probe
+        .view(farm.view, THROUGHPUT_VIEW.0, THROUGHPUT_VIEW.1)
+        .await?;
+    probe
+        .until(WAIT, |e| {
+            e.camera_seq == camera.seq && e.shown > 0 && e.shown == e.visible_leaves
+        })
+        .await?;
     let seen = probe.stats_seen.len();
     let start = Instant::now();
     probe

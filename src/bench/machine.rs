@@ -24,3 +24,12 @@ pub fn describe() -> String {
         .unwrap_or(0.0);
     format!("{cpu}, {cores} cores, {mem_gib:.0} GiB, no GPU unless stated (wgpu on Mesa)")
 }
+
+/// The one-minute load average now, as `/proc/loadavg` gives it: how busy other processes kept
+/// the machine while a figure was measured.
+pub fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|load| load.split_whitespace().next().map(str::to_string))
+        .unwrap_or_else(|| "unknown".into())
+}
