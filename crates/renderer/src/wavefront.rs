@@ -182,11 +182,13 @@ impl Wave {
     }
 
     fn trace_shadows(&mut self, world: &World, shadow: &ShadowStream, counts: &mut RayCounts) {
-        // The blocker of the last blocked ray: the next rays of the same point (same origin,
-        // toward the same light) are most often blocked by it too.
-        let mut last = None;
+        // The blocker of the last blocked ray toward each kind of light: the next rays of the
+        // same point toward it (same origin, nearly the same direction for the sun) are most
+        // often blocked by it too.
+        let mut last = [None; 3];
         for ((&p, &origin), ray) in shadow.path.iter().zip(&shadow.origin).zip(&shadow.ray) {
-            if !world.occluded_after(origin, ray.dir, ray.tmax, ray.kind, &mut last, counts) {
+            let last = &mut last[light_slot(ray.kind)];
+            if !world.occluded_after(origin, ray.dir, ray.tmax, ray.kind, last, counts) {
                 self.radiance[p as usize] += ray.contribution;
             }
         }
@@ -232,6 +234,15 @@ impl Wave {
         self.surface.clear();
         self.wo.clear();
         self.depth.clear();
+    }
+}
+
+/// Which of `trace_shadows`' remembered blockers a shadow ray uses.
+fn light_slot(kind: RayKind) -> usize {
+    match kind {
+        RayKind::ShadowSun => 0,
+        RayKind::ShadowSky => 1,
+        _ => 2,
     }
 }
 
