@@ -11,9 +11,10 @@ use glam::Vec3;
 use protocol::Side;
 use protocol::renderer_link::{Quality, SampleKey, ShadeBatch, ShadePoint};
 
+use renderer::estimator::Estimator;
 use renderer::internals::SceneBvh;
 use renderer::point::front_point_hit_by;
-use renderer::reference::camera_for;
+use renderer::reference::{ReferenceSettings, camera_for, render};
 use renderer::sampling::luminance;
 use renderer::shade_batch;
 use renderer::vector_level::VectorLevel;
@@ -38,6 +39,8 @@ pub(super) struct Config {
     error_points: usize,
     reference_paths: u32,
     path_levels: &'static [u32],
+    /// Size and paths per pixel of the timed reference renders.
+    image: (u32, u32, u32),
 }
 
 const FULL: Config = Config {
@@ -48,6 +51,7 @@ const FULL: Config = Config {
     error_points: 200,
     reference_paths: 16_384,
     path_levels: &[4, 16, 64, 256, 1024],
+    image: (256, 192, 16),
 };
 
 const QUICK: Config = Config {
@@ -58,6 +62,7 @@ const QUICK: Config = Config {
     error_points: 12,
     reference_paths: 256,
     path_levels: &[4, 16, 64],
+    image: (64, 48, 4),
 };
 
 const BOUNCE_LEVELS: [Option<u32>; 4] = [Some(0), Some(1), Some(2), None];
@@ -100,6 +105,7 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
     let mut scenes: Vec<(World, &str)> = sponza.into_iter().map(|s| (s, "S1")).collect();
     scenes.push((bracara, "VR"));
     md += &samples_per_second(&mut scenes, cfg)?;
+    md += &reference_times(&mut scenes, cfg)?;
     for (world, view) in &scenes {
         md += &error_and_time(world, view, cfg)?;
     }
@@ -168,14 +174,21 @@ fn visible_points(world: &World, view: &str, n: usize) -> anyhow::Result<Vec<Sha
     Ok(points.into_iter().step_by(step).take(n).collect())
 }
 
-/// Samples per second of the full estimator with the ray queries at the baseline and at the best
-/// vector level, timed in turn within each run: medians, and the median per-run ratio.
+/// Samples per second of the full estimator, one path at a time and as ray streams, with the ray
+/// queries at the baseline and at the best vector level: all four timed in turn within each run;
+/// medians, and the medians of the per-run ratios.
 fn samples_per_second(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Result<String> {
     let best = VectorLevel::detected();
     let name = best.name();
     let mut md = format!(
-        "### Shading samples per second (points of the view's visible surfaces)\n\n| scene | view | quality | points | samples/s, baseline | samples/s, {name} | {name} / baseline | rays/sample |\n|---|---|---|---:|---:|---:|---:|---:|\n",
+        "### Shading samples per second (points of the view's visible surfaces)\n\n\"path\": one path at a time; \"wavefront\": up to 4096 paths (64 points of 64 paths) advance together, their shadow rays then their continuation rays traced as streams, a shadow ray trying the previous one's blocker first (DESIGN.md §7). Same points and seeds, same answers in distribution; each estimator's figures include all of its work.\n\n| scene | view | quality | points | path, baseline | path, {name} | wavefront, baseline | wavefront, {name} | {name} / baseline (path) | wavefront / path ({name}) | rays/sample |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
+    let variants = [
+        (Estimator::Path, VectorLevel::Baseline),
+        (Estimator::Path, best),
+        (Estimator::Wavefront, VectorLevel::Baseline),
+        (Estimator::Wavefront, best),
+    ];
     for (world, view) in scenes.iter_mut() {
         let points = visible_points(world, view, cfg.points)?;
         for (label, quality) in [
@@ -189,9 +202,10 @@ fn samples_per_second(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Res
                 points: points.clone(),
             };
             let mut rays = 0;
-            let per_run: Vec<[f64; 2]> = (0..cfg.runs)
+            let per_run: Vec<[f64; 4]> = (0..cfg.runs)
                 .map(|_| {
-                    [VectorLevel::Baseline, best].map(|level| {
+                    variants.map(|(estimator, level)| {
+                        world.estimator = estimator;
                         world.bvh.set_vector_level(level);
                         let start = Instant::now();
                         rays = shade_batch(world, &batch).1.total();
@@ -200,17 +214,72 @@ fn samples_per_second(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Res
                 })
                 .collect();
             world.bvh.set_vector_level(best);
-            let [portable, fastest] =
-                [0, 1].map(|k| median(per_run.iter().map(|r| r[k]).collect()));
-            let ratio = median(per_run.iter().map(|r| r[1] / r[0]).collect());
+            world.estimator = Estimator::default();
+            let rates: [f64; 4] =
+                std::array::from_fn(|k| median(per_run.iter().map(|r| r[k]).collect()));
+            let level_ratio = median(per_run.iter().map(|r| r[1] / r[0]).collect());
+            let estimator_ratio = median(per_run.iter().map(|r| r[3] / r[1]).collect());
             writeln!(
                 md,
-                "| {} | {view} | {label} | {} | {portable:.0} | {fastest:.0} | {ratio:.2}× | {:.0} |",
+                "| {} | {view} | {label} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {level_ratio:.2}× | {estimator_ratio:.2}× | {:.0} |",
                 world.scene.name,
                 points.len(),
+                rates[0],
+                rates[1],
+                rates[2],
+                rates[3],
                 rays as f64 / points.len() as f64
             )?;
         }
+    }
+    md.push('\n');
+    Ok(md)
+}
+
+/// Wall time of a reference render of each view, one path at a time and as ray streams, timed in
+/// turn within each run at the best vector level. Same pixels, paths per pixel and bounce depth,
+/// so the same noise: the mean luminances show the answers agree.
+fn reference_times(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Result<String> {
+    let (width, height, spp) = cfg.image;
+    let settings = ReferenceSettings {
+        width,
+        height,
+        spp,
+        bounces: Quality::INTERACTIVE.bounces,
+        seed: 1,
+    };
+    let mut md = format!(
+        "### Reference render time ({width}×{height}, {spp} paths per pixel, 2 bounces; s, median of {})\n\n| scene | view | path s | wavefront s | path / wavefront | mean luminance, path | mean luminance, wavefront |\n|---|---|---:|---:|---:|---:|---:|\n",
+        cfg.runs
+    );
+    for (world, view) in scenes.iter_mut() {
+        let camera = camera_for(world, view, width, height)?;
+        let mut means = [0.0; 2];
+        let per_run: Vec<[f64; 2]> = (0..cfg.runs)
+            .map(|_| {
+                std::array::from_fn(|k| {
+                    world.estimator = Estimator::ALL[k];
+                    let start = Instant::now();
+                    let (image, _) = render(world, &camera, &settings, None);
+                    let secs = start.elapsed().as_secs_f64();
+                    means[k] = image
+                        .pixels
+                        .iter()
+                        .map(|&p| luminance(p) as f64)
+                        .sum::<f64>()
+                        / image.pixels.len() as f64;
+                    secs
+                })
+            })
+            .collect();
+        world.estimator = Estimator::default();
+        let [path, wavefront] = [0, 1].map(|k| median(per_run.iter().map(|r| r[k]).collect()));
+        let ratio = median(per_run.iter().map(|r| r[0] / r[1]).collect());
+        writeln!(
+            md,
+            "| {} | {view} | {path:.2} | {wavefront:.2} | {ratio:.2}× | {:.4} | {:.4} |",
+            world.scene.name, means[0], means[1]
+        )?;
     }
     md.push('\n');
     Ok(md)

@@ -90,13 +90,26 @@ impl SceneBvh {
     /// True when something lies on the segment `origin + t dir`, t in (0, tmax); stops at the
     /// first hit found.
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+        self.occluder(origin, dir, tmax).is_some()
+    }
+
+    /// A primitive (BVH order) on the segment `origin + t dir`, t in (0, tmax): the first one
+    /// found, not the nearest.
+    pub(crate) fn occluder(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<u32> {
         let ray = Ray::new(origin.into(), dir.into(), 0.0, tmax);
         match self.level {
             // SAFETY: as in `closest_hit`.
             #[cfg(target_arch = "x86_64")]
-            VectorLevel::V3 => unsafe { x86_64_v3::occluded(self, ray) },
-            _ => self.occluded_inline(ray),
+            VectorLevel::V3 => unsafe { x86_64_v3::occluder(self, ray) },
+            _ => self.occluder_inline(ray),
         }
+    }
+
+    /// Whether primitive `prim` (an [`occluder`](Self::occluder)) lies on the segment: the
+    /// traversal's own triangle test, so a segment it blocks is one the traversal finds blocked.
+    pub(crate) fn blocks(&self, prim: u32, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+        let ray = Ray::new(origin.into(), dir.into(), 0.0, tmax);
+        self.prims[prim as usize].intersect(&ray) < tmax
     }
 
     /// `closest_hit`'s body, inlined into each level's entry point: obvhs's `traverse!` loop over
@@ -127,13 +140,13 @@ impl SceneBvh {
         })
     }
 
-    /// `occluded`'s body, inlined like `closest_hit_inline`; stops at the first hit, as in
+    /// `occluder`'s body, inlined like `closest_hit_inline`; stops at the first hit, as in
     /// `CwBvh::ray_traverse_miss`.
     #[inline(always)]
-    fn occluded_inline(&self, ray: Ray) -> bool {
+    fn occluder_inline(&self, ray: Ray) -> Option<u32> {
         let mut state = self.bvh.new_traversal(ray.direction);
         let mut node;
-        let mut occluded = false;
+        let mut occluder = None;
         'traversal: {
             obvhs::traverse!(
                 self.bvh,
@@ -142,13 +155,13 @@ impl SceneBvh {
                 node.intersect_ray(&ray, state.oct_inv4),
                 {
                     if self.prims[state.primitive_id as usize].intersect(&ray) < ray.tmax {
-                        occluded = true;
+                        occluder = Some(state.primitive_id);
                         break 'traversal;
                     }
                 }
             );
         }
-        occluded
+        occluder
     }
 
     /// Number of BVH primitive references (more than triangles when the preset splits).
@@ -168,8 +181,8 @@ mod x86_64_v3 {
     }
 
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,movbe,f16c")]
-    pub(super) unsafe fn occluded(bvh: &SceneBvh, ray: Ray) -> bool {
-        bvh.occluded_inline(ray)
+    pub(super) unsafe fn occluder(bvh: &SceneBvh, ray: Ray) -> Option<u32> {
+        bvh.occluder_inline(ray)
     }
 }
 
@@ -237,6 +250,17 @@ mod tests {
         assert!(bvh.occluded(o, Vec3::NEG_Y, 2.0));
         assert!(!bvh.occluded(o, Vec3::NEG_Y, 0.5));
         assert!(!bvh.occluded(o, Vec3::Y, 10.0));
+    }
+
+    #[test]
+    fn an_occluder_found_blocks_its_segment_and_not_a_shorter_one() {
+        let bvh = SceneBvh::build(&quad_mesh(0.0), BuildPreset::Slow);
+        let o = Vec3::new(0.1, 1.0, 0.1);
+        let prim = bvh.occluder(o, Vec3::NEG_Y, 2.0).expect("the quad blocks");
+        assert!(bvh.blocks(prim, o, Vec3::NEG_Y, 2.0));
+        assert!(!bvh.blocks(prim, o, Vec3::NEG_Y, 0.5));
+        assert!(!bvh.blocks(prim, o, Vec3::Y, 10.0));
+        assert_eq!(bvh.occluder(o, Vec3::Y, 10.0), None);
     }
 
     #[test]

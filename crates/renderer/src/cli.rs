@@ -11,6 +11,7 @@ use protocol::admission::PortLimits;
 use protocol::frame::DEFAULT_MAX_FRAME;
 use tokio::net::TcpListener;
 
+use crate::estimator::Estimator;
 use crate::reference::{ReferenceSettings, render_to_files};
 use crate::service::{DEFAULT_MAX_BATCHES, Service, default_liveness};
 use crate::vector_level::{self, VectorLevel};
@@ -61,6 +62,10 @@ pub enum Command {
         /// A frame begun must be complete within this many milliseconds, or the link is closed.
         #[arg(long, default_value_t = default_liveness().frame_timeout.as_millis() as u64)]
         frame_timeout_ms: u64,
+        /// How paths are scheduled: "wavefront" (ray streams) or "path" (one path at a time);
+        /// the answers are the same in distribution (DESIGN.md §7).
+        #[arg(long, default_value = Estimator::default().name())]
+        estimator: EstimatorChoice,
     },
     /// Render a named viewpoint per pixel with the same estimator: linear EXR plus a PNG beside it.
     Reference {
@@ -95,6 +100,10 @@ pub enum Command {
         /// Worker threads (0 = one per core).
         #[arg(long, default_value_t = 0)]
         threads: usize,
+        /// How paths are scheduled: "wavefront" (ray streams) or "path" (one path at a time);
+        /// the answers are the same in distribution (DESIGN.md §7).
+        #[arg(long, default_value = Estimator::default().name())]
+        estimator: EstimatorChoice,
     },
 }
 
@@ -115,6 +124,21 @@ impl std::str::FromStr for BounceDepth {
     }
 }
 
+/// An estimator on the command line, by its name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EstimatorChoice(pub Estimator);
+
+impl std::str::FromStr for EstimatorChoice {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Estimator::ALL
+            .into_iter()
+            .find(|e| e.name() == s)
+            .map(EstimatorChoice)
+            .ok_or_else(|| format!("{s:?}: expected \"wavefront\" or \"path\""))
+    }
+}
+
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     conventions::logging::init();
     // A malformed or unavailable forced level is a plain error here, not the panic of the first
@@ -132,8 +156,9 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             join,
             max_batches,
             frame_timeout_ms,
+            estimator,
         } => {
-            let world = Arc::new(load_world(&scene)?);
+            let world = Arc::new(load_world(&scene, estimator.0)?);
             let mut service = Service::new(world, threads, max_frame)?;
             service.port = PortLimits {
                 max_connections,
@@ -155,6 +180,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             seed,
             l_white,
             threads,
+            estimator,
         } => {
             let settings = ReferenceSettings {
                 width,
@@ -163,15 +189,17 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
                 bounces: bounces.0,
                 seed,
             };
-            reference(&scene, &view, &settings, &out, l_white, threads)
+            let world = load_world(&scene, estimator.0)?;
+            reference(&world, &view, &settings, &out, l_white, threads)
         }
     }
 }
 
-fn load_world(spec: &str) -> anyhow::Result<World> {
+fn load_world(spec: &str, estimator: Estimator) -> anyhow::Result<World> {
     let start = Instant::now();
     let scene = scene::load(spec).with_context(|| format!("loading scene {spec:?}"))?;
-    let world = World::new(scene);
+    let mut world = World::new(scene);
+    world.estimator = estimator;
     tracing::debug!(
         scene = %world.scene.name,
         triangles = world.triangle_count(),
@@ -179,6 +207,7 @@ fn load_world(spec: &str) -> anyhow::Result<World> {
         total_ms = start.elapsed().as_secs_f64() * 1e3,
         effects = ?world.effects(),
         vector_level = world.bvh.vector_level().name(),
+        estimator = world.estimator.name(),
         "scene ready"
     );
     Ok(world)
@@ -206,19 +235,18 @@ fn serve(service: Service, listen: &str) -> anyhow::Result<()> {
 }
 
 fn reference(
-    spec: &str,
+    world: &World,
     view: &str,
     s: &ReferenceSettings,
     out: &std::path::Path,
     l_white: Option<f32>,
     threads: usize,
 ) -> anyhow::Result<()> {
-    let world = load_world(spec)?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()?;
     let start = Instant::now();
-    let (_, counts) = pool.install(|| render_to_files(&world, view, s, out, l_white))?;
+    let (_, counts) = pool.install(|| render_to_files(world, view, s, out, l_white))?;
     let secs = start.elapsed().as_secs_f64();
     tracing::info!(
         seconds = secs,
@@ -270,6 +298,8 @@ mod tests {
             "unbounded",
             "--out",
             "x.exr",
+            "--estimator",
+            "path",
         ])
         .unwrap();
         assert!(matches!(
@@ -277,9 +307,15 @@ mod tests {
             Command::Reference {
                 bounces: BounceDepth(None),
                 width: 64,
+                estimator: EstimatorChoice(Estimator::Path),
                 ..
             }
         ));
+        for name in ["wavefront", "path"] {
+            let e: EstimatorChoice = name.parse().unwrap();
+            assert_eq!(e.0.name(), name);
+        }
+        assert!("streams".parse::<EstimatorChoice>().is_err());
         assert!(
             Cli::try_parse_from([
                 "renderer",

@@ -4,12 +4,18 @@
 //! counted exactly once. Bounce depth counts diffuse and glossy bounces; mirror
 //! bounces are free up to `MAX_MIRROR_CHAIN` so a mirror still shows its reflection at the
 //! direct-light-only quality.
+//!
+//! Two schedules of the same estimator share every step below: [`path_radiance`] follows one path
+//! at a time; `wavefront` advances a batch of paths together, one stream of rays at a time. Which
+//! one runs is [`Estimator`], a field of the [`World`].
 
 use glam::Vec3;
 
+use crate::bvh::Hit;
 use crate::counters::{RayCounts, RayKind};
 use crate::material::{Bsdf, BsdfSample};
 use crate::sampling::{Rng, uniform3};
+use crate::wavefront::{Start, trace_paths};
 use crate::world::{Surface, World};
 use rand::RngExt;
 
@@ -18,7 +24,62 @@ const ROULETTE_AFTER: u32 = 3;
 /// Longest chain of mirror reflections followed (two facing mirrors would loop forever).
 const MAX_MIRROR_CHAIN: u32 = 8;
 /// Safety cap on unbounded paths; roulette ends them long before in any scene with albedo < 1.
-const MAX_DEPTH: u32 = 1024;
+pub(crate) const MAX_DEPTH: u32 = 1024;
+
+/// How the paths of a batch are scheduled (DESIGN.md §7): the answers are the same in
+/// distribution, only the order of the work differs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Estimator {
+    /// One path at a time, each ray traced as soon as it is known.
+    #[default]
+    Path,
+    /// Paths advanced together: every path's shadow rays as one stream, then its continuation
+    /// rays as another (`wavefront`).
+    Wavefront,
+}
+
+impl Estimator {
+    pub const ALL: [Estimator; 2] = [Estimator::Path, Estimator::Wavefront];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Estimator::Path => "path",
+            Estimator::Wavefront => "wavefront",
+        }
+    }
+}
+
+/// `paths` estimates of the radiance leaving `surface` toward unit `wo` (as [`path_radiance`]),
+/// each handed to `f` as it completes, scheduled by the world's [`Estimator`].
+#[allow(clippy::too_many_arguments)]
+pub fn for_each_path(
+    world: &World,
+    surface: Surface,
+    wo: Vec3,
+    paths: u32,
+    max_bounces: Option<u32>,
+    rng: &mut Rng,
+    counts: &mut RayCounts,
+    mut f: impl FnMut(Vec3),
+) {
+    match world.estimator {
+        Estimator::Path => {
+            for _ in 0..paths {
+                f(path_radiance(world, surface, wo, max_bounces, rng, counts));
+            }
+        }
+        Estimator::Wavefront => {
+            let start = Start {
+                surface,
+                wo,
+                paths,
+                stream: 0,
+            };
+            let rngs = std::slice::from_mut(rng);
+            trace_paths(world, &[start], max_bounces, rngs, counts, |_, l| f(l));
+        }
+    }
+}
 
 /// One path's estimate of the radiance leaving `surface` toward unit `wo`, excluding the surface's
 /// own emission. `max_bounces`: `Some(0)` = direct light only, `None` = unbounded with roulette.
@@ -27,7 +88,7 @@ const MAX_DEPTH: u32 = 1024;
 /// vertex that ray is cosine-distributed, exactly the sky's next-event density, so it spares a
 /// shadow ray at the same variance) and by next-event estimation at the vertex where the path
 /// ends.
-pub fn path_radiance(
+pub(crate) fn path_radiance(
     world: &World,
     surface: Surface,
     wo: Vec3,
@@ -39,35 +100,30 @@ pub fn path_radiance(
     let mut throughput = Vec3::ONE;
     let mut s = surface;
     let mut wo = wo;
-    let mut depth = Depth {
-        bounces: 0,
-        mirror_chain: 0,
-    };
+    let mut depth = Depth::START;
     for _ in 0..MAX_DEPTH {
         let bsdf = world.bsdf(s.triangle);
         let origin = world.offset.origin(s.position, s.normal);
         let next = continuation(world, bsdf, &s, wo, max_bounces, depth, throughput, rng);
-        radiance +=
-            throughput * direct_light(world, &s, origin, wo, bsdf, next.is_none(), rng, counts);
+        let mut direct = Vec3::ZERO;
+        shadow_rays(world, &s, origin, wo, bsdf, next.is_none(), rng, |ray| {
+            if !world.occluded(origin, ray.dir, ray.tmax, ray.kind, counts) {
+                direct += ray.contribution;
+            }
+        });
+        radiance += throughput * direct;
         let Some((sample, next_throughput)) = next else {
             break;
         };
         throughput = next_throughput;
-        let mirror = sample.kind == RayKind::Mirror;
-        let Some(hit) = world.trace(origin, sample.dir, sample.kind, counts) else {
-            radiance += throughput * world.lights.escaped_radiance(sample.dir, mirror);
+        let hit = world.trace(origin, sample.dir, sample.kind, counts);
+        let arrived = arrive(world, origin, sample.dir, sample.kind, hit, depth);
+        radiance += throughput * arrived.seen;
+        let Some((next_surface, next_depth)) = arrived.next else {
             break;
         };
-        if mirror {
-            radiance += throughput * world.emission(hit.triangle, sample.dir);
-            depth.mirror_chain += 1;
-        } else {
-            depth = Depth {
-                bounces: depth.bounces + 1,
-                mirror_chain: 0,
-            };
-        }
-        s = world.surface_at(origin, sample.dir, hit);
+        s = next_surface;
+        depth = next_depth;
         wo = -sample.dir;
     }
     radiance
@@ -75,17 +131,24 @@ pub fn path_radiance(
 
 /// Bounces taken so far: diffuse and glossy ones count against the quality's depth, mirror ones
 /// against `MAX_MIRROR_CHAIN`.
-#[derive(Clone, Copy)]
-struct Depth {
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Depth {
     bounces: u32,
     mirror_chain: u32,
+}
+
+impl Depth {
+    pub(crate) const START: Depth = Depth {
+        bounces: 0,
+        mirror_chain: 0,
+    };
 }
 
 /// The ray that continues the path from `s`, with the throughput after it, or `None` where the
 /// path ends: no lobe sampled, depth exhausted, an effect the scene does not call for, or
 /// Russian roulette.
 #[allow(clippy::too_many_arguments)]
-fn continuation(
+pub(crate) fn continuation(
     world: &World,
     bsdf: &Bsdf,
     s: &Surface,
@@ -115,10 +178,20 @@ fn continuation(
     (next.max_element() > 0.0).then_some((sample, next))
 }
 
-/// Next-event estimation: one sample of each light, each with its shadow ray; the sky only when
-/// `sky_here` (no continuation ray will see it).
+/// A shadow ray of next-event estimation and what it brings (before the path's throughput)
+/// when nothing blocks it.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ShadowRay {
+    pub(crate) dir: Vec3,
+    pub(crate) tmax: f32,
+    pub(crate) kind: RayKind,
+    pub(crate) contribution: Vec3,
+}
+
+/// Next-event estimation: one sample of each light, each handed to `emit` as a shadow ray from
+/// `origin`; the sky only when `sky_here` (no continuation ray will see it).
 #[allow(clippy::too_many_arguments)]
-fn direct_light(
+pub(crate) fn shadow_rays(
     world: &World,
     s: &Surface,
     origin: Vec3,
@@ -126,9 +199,8 @@ fn direct_light(
     bsdf: &Bsdf,
     sky_here: bool,
     rng: &mut Rng,
-    counts: &mut RayCounts,
-) -> Vec3 {
-    let mut sum = Vec3::ZERO;
+    mut emit: impl FnMut(ShadowRay),
+) {
     for light in &world.lights.lights {
         if light.seen_by_escaping_rays() && !sky_here {
             continue;
@@ -146,10 +218,60 @@ fn direct_light(
         } else {
             f32::INFINITY
         };
-        if tmax <= 0.0 || world.occluded(origin, ls.dir, tmax, light.shadow_kind(), counts) {
-            continue;
+        if tmax > 0.0 {
+            emit(ShadowRay {
+                dir: ls.dir,
+                tmax,
+                kind: light.shadow_kind(),
+                contribution: f * s.normal.dot(ls.dir) * ls.radiance_over_pdf,
+            });
         }
-        sum += f * s.normal.dot(ls.dir) * ls.radiance_over_pdf;
     }
-    sum
+}
+
+/// What a continuation ray found: the radiance it sees itself (before the path's throughput),
+/// and the next vertex with the depth there, `None` where the path leaves the scene.
+pub(crate) struct Arrival {
+    pub(crate) seen: Vec3,
+    pub(crate) next: Option<(Surface, Depth)>,
+}
+
+/// The continuation ray from `origin` along `dir` met `hit`: an escaping ray sees the sky (and,
+/// through a mirror, the sun's disc); a mirror ray sees the emitter it hits.
+pub(crate) fn arrive(
+    world: &World,
+    origin: Vec3,
+    dir: Vec3,
+    kind: RayKind,
+    hit: Option<Hit>,
+    depth: Depth,
+) -> Arrival {
+    let mirror = kind == RayKind::Mirror;
+    let Some(hit) = hit else {
+        return Arrival {
+            seen: world.lights.escaped_radiance(dir, mirror),
+            next: None,
+        };
+    };
+    let (seen, depth) = if mirror {
+        (
+            world.emission(hit.triangle, dir),
+            Depth {
+                mirror_chain: depth.mirror_chain + 1,
+                ..depth
+            },
+        )
+    } else {
+        (
+            Vec3::ZERO,
+            Depth {
+                bounces: depth.bounces + 1,
+                mirror_chain: 0,
+            },
+        )
+    };
+    Arrival {
+        seen,
+        next: Some((world.surface_at(origin, dir, hit), depth)),
+    }
 }

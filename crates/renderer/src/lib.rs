@@ -2,7 +2,8 @@
 //! (DESIGN.md §2, §7), plus per-pixel reference images (DESIGN.md §10).
 //!
 //! - [`world`]: a scene prepared for tracing ([`bvh`], [`lights`], [`material`], [`offset`]);
-//! - [`estimator`]: path tracing with next-event estimation;
+//! - [`estimator`]: path tracing with next-event estimation, one path at a time or as ray
+//!   streams (`wavefront`);
 //! - [`point`]: shading points from (triangle, barycentrics, side), hidden-point relocation;
 //! - [`shade`]: points and batches at a quality, deterministic per (seed, index);
 //! - [`service`]: the TCP server of the renderer link;
@@ -24,6 +25,7 @@ pub mod service;
 pub(crate) mod shade;
 pub mod tonemap;
 pub mod vector_level;
+pub(crate) mod wavefront;
 pub mod world;
 
 pub use counters::{RayCounts, RayKind};

@@ -1,5 +1,5 @@
-//! Reference images (DESIGN.md §7, §10): the same estimator per pixel for a named viewpoint, a box
-//! filter over each pixel, written as linear EXR plus a Drago-tone-mapped PNG beside it. They are
+//! Reference images (DESIGN.md §7, §10): the same estimator per pixel for a named viewpoint (the
+//! world's `Estimator`, as for shade batches), a box filter over each pixel, written as linear EXR plus a Drago-tone-mapped PNG beside it. They are
 //! the ground truth of the convergence benchmark, like the Radiance images of thesis appendix B.
 
 use std::path::Path;
@@ -12,9 +12,10 @@ use protocol::viewer_link::Camera;
 use rayon::prelude::*;
 
 use crate::counters::{RayCounts, RayKind};
-use crate::estimator::path_radiance;
+use crate::estimator::{Estimator, path_radiance};
 use crate::sampling::{Rng, stream, uniform2};
 use crate::tonemap;
+use crate::wavefront::{Start, WAVE_PATHS, trace_paths};
 use crate::world::World;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -76,12 +77,15 @@ pub fn render(
         .into_par_iter()
         .map(|y| {
             let mut counts = RayCounts::default();
-            let row = (0..s.width)
-                .map(|x| {
-                    let mut rng = stream(s.seed, y as u64 * width as u64 + x as u64);
-                    pixel(world, camera, s, x, y, &mut rng, &mut counts)
-                })
+            let mut rngs: Vec<Rng> = (0..s.width)
+                .map(|x| stream(s.seed, y as u64 * width as u64 + x as u64))
                 .collect();
+            let row = match world.estimator {
+                Estimator::Path => (0..s.width)
+                    .map(|x| pixel(world, camera, s, x, y, &mut rngs[x as usize], &mut counts))
+                    .collect(),
+                Estimator::Wavefront => row_as_waves(world, camera, s, y, &mut rngs, &mut counts),
+            };
             if let Some(bar) = progress {
                 bar.inc(1);
             }
@@ -135,11 +139,82 @@ fn pixel(
                     + path_radiance(world, surface, -dir, s.bounces, rng, counts)
             }
         };
-        if l.is_finite() {
-            sum += l.max(Vec3::ZERO);
-        }
+        add_finite(&mut sum, l);
     }
     (sum / spp as f32, covered)
+}
+
+/// A non-finite sample is dropped (counted as black), a negative channel clamped.
+fn add_finite(sum: &mut Vec3, l: Vec3) {
+    if l.is_finite() {
+        *sum += l.max(Vec3::ZERO);
+    }
+}
+
+/// Row `y` as [`pixel`] computes it, with the paths scheduled as waves (`wavefront`): a group of
+/// pixels' camera rays traced as one stream, then the paths from what they hit. `rngs` holds one
+/// stream per pixel of the row.
+fn row_as_waves(
+    world: &World,
+    camera: &Camera,
+    s: &ReferenceSettings,
+    y: u32,
+    rngs: &mut [Rng],
+    counts: &mut RayCounts,
+) -> Vec<(Vec3, bool)> {
+    let spp = s.spp.max(1);
+    let mut row = vec![(Vec3::ZERO, false); s.width as usize];
+    let group = (WAVE_PATHS / spp as usize).max(1);
+    for first in (0..s.width as usize).step_by(group) {
+        let pixels = first..(first + group).min(row.len());
+        let (starts, emitted) = camera_paths(world, camera, y, pixels, spp, rngs, &mut row, counts);
+        trace_paths(world, &starts, s.bounces, rngs, counts, |i, l| {
+            add_finite(&mut row[starts[i].stream].0, emitted[i] + l);
+        });
+    }
+    for (sum, _) in &mut row {
+        *sum /= spp as f32;
+    }
+    row
+}
+
+/// The camera rays of `pixels` of row `y` (`spp` jittered each), traced as one stream: a ray
+/// that escapes adds what it sees to its pixel of `row` at once; one that hits marks the pixel
+/// covered and becomes a path start (its stream is the pixel), returned with the emission the
+/// camera sees there.
+#[allow(clippy::too_many_arguments)]
+fn camera_paths(
+    world: &World,
+    camera: &Camera,
+    y: u32,
+    pixels: std::ops::Range<usize>,
+    spp: u32,
+    rngs: &mut [Rng],
+    row: &mut [(Vec3, bool)],
+    counts: &mut RayCounts,
+) -> (Vec<Start>, Vec<Vec3>) {
+    let origin = world.to_local(camera.eye_vec());
+    let mut starts = Vec::with_capacity(pixels.len() * spp as usize);
+    let mut emitted = Vec::with_capacity(starts.capacity());
+    for x in pixels {
+        for _ in 0..spp {
+            let [jx, jy] = uniform2(&mut rngs[x]);
+            let dir = camera.ray_direction(x as f32 + jx, y as f32 + jy);
+            let Some(hit) = world.trace(origin, dir, RayKind::Camera, counts) else {
+                add_finite(&mut row[x].0, world.lights.escaped_radiance(dir, true));
+                continue;
+            };
+            row[x].1 = true;
+            starts.push(Start {
+                surface: world.surface_at(origin, dir, hit),
+                wo: -dir,
+                paths: 1,
+                stream: x,
+            });
+            emitted.push(world.emission(hit.triangle, dir));
+        }
+    }
+    (starts, emitted)
 }
 
 /// Renders viewpoint `view` and writes `out` (EXR) and the PNG beside it (same name, `.png`).

@@ -1,6 +1,7 @@
-//! Shading requests: one `ShadePoint` at a quality, and whole batches spread over rayon. Each point
-//! draws from its own random stream, seeded by (batch seed, point index) only, so an answer does
-//! not depend on thread scheduling.
+//! Shading requests: one `ShadePoint` at a quality, and whole batches spread over rayon, one point
+//! per task or, with the wavefront estimator, one wave of points per task. Each point draws from
+//! its own random stream, seeded by (batch seed, point index) only, so an answer does not depend
+//! on thread scheduling.
 
 use std::time::Instant;
 
@@ -9,9 +10,10 @@ use protocol::renderer_link::{Quality, Radiance, ShadeBatch, ShadePoint, point_f
 use rayon::prelude::*;
 
 use crate::counters::RayCounts;
-use crate::estimator::path_radiance;
+use crate::estimator::{Estimator, for_each_path};
 use crate::point::locate;
 use crate::sampling::{Rng, stream};
+use crate::wavefront::{Start, WAVE_PATHS, trace_paths};
 use crate::world::{Surface, World};
 
 /// The answer for one point: an estimate with its uncertainty (DESIGN.md §5).
@@ -36,17 +38,45 @@ pub fn shade_point(
     rng: &mut Rng,
     counts: &mut RayCounts,
 ) -> Shaded {
-    let located = match locate(world, p, counts) {
-        Ok(l) => l,
-        Err(_) => {
-            return Shaded {
-                rgb: Vec3::ZERO,
-                luminance_variance: 0.0,
-                paths: 0,
-                flags: point_flags::INVALID_POINT,
-            };
-        }
+    let point = match prepare(world, p, counts) {
+        Ok(point) => point,
+        Err(invalid) => return invalid,
     };
+    let mut sum = PathSum::new(point.flags);
+    for_each_path(
+        world,
+        point.surface,
+        point.wo,
+        paths_of(quality),
+        quality.bounces,
+        rng,
+        counts,
+        |l| sum.add(l),
+    );
+    point.finish(world, sum)
+}
+
+/// Paths per point: at least one.
+fn paths_of(quality: Quality) -> u32 {
+    quality.paths.max(1)
+}
+
+/// A located point, ready for its paths.
+struct Prepared {
+    surface: Surface,
+    wo: Vec3,
+    flags: u8,
+}
+
+/// Locates `p` (moved off a hidden spot when needed) and picks its outgoing direction; an
+/// invalid point is answered at once.
+fn prepare(world: &World, p: &ShadePoint, counts: &mut RayCounts) -> Result<Prepared, Shaded> {
+    let located = locate(world, p, counts).map_err(|_| Shaded {
+        rgb: Vec3::ZERO,
+        luminance_variance: 0.0,
+        paths: 0,
+        flags: point_flags::INVALID_POINT,
+    })?;
     let s = located.surface;
     let mut flags = if located.moved {
         point_flags::MOVED_OFF_HIDDEN
@@ -57,27 +87,52 @@ pub fn shade_point(
     if material.is_view_dependent() {
         flags |= point_flags::VIEW_DEPENDENT;
     }
-    let wo = outgoing_direction(&s, p.eye.map(|e| world.to_local(Vec3::from(e))));
-    let paths = quality.paths.max(1);
-    let mut sum = Vec3::ZERO;
-    let mut luminance = PathLuminance::default();
-    for _ in 0..paths {
-        let l = path_radiance(world, s, wo, quality.bounces, rng, counts);
-        if l.is_finite() && l.min_element() >= 0.0 {
-            sum += l;
-            luminance.add(conventions::luminance(l.to_array()));
-        } else {
-            // Counted as a black path, so the mean stays over `paths`.
-            luminance.add(0.0);
-            flags |= point_flags::NON_FINITE_DISCARDED;
+    Ok(Prepared {
+        surface: s,
+        wo: outgoing_direction(&s, p.eye.map(|e| world.to_local(Vec3::from(e)))),
+        flags,
+    })
+}
+
+impl Prepared {
+    /// The mean of the paths plus the point's own emission.
+    fn finish(&self, world: &World, sum: PathSum) -> Shaded {
+        let paths = sum.luminance.n;
+        let emitted = world.emission(self.surface.triangle, -self.surface.normal);
+        Shaded {
+            rgb: emitted + sum.rgb / paths.max(1) as f32,
+            luminance_variance: sum.luminance.variance(),
+            paths,
+            flags: sum.flags,
         }
     }
-    let emitted = world.emission(s.triangle, -s.normal);
-    Shaded {
-        rgb: emitted + sum / paths as f32,
-        luminance_variance: luminance.variance(),
-        paths,
-        flags,
+}
+
+/// The paths of one point as they arrive.
+struct PathSum {
+    rgb: Vec3,
+    luminance: PathLuminance,
+    flags: u8,
+}
+
+impl PathSum {
+    fn new(flags: u8) -> PathSum {
+        PathSum {
+            rgb: Vec3::ZERO,
+            luminance: PathLuminance::default(),
+            flags,
+        }
+    }
+
+    fn add(&mut self, l: Vec3) {
+        if l.is_finite() && l.min_element() >= 0.0 {
+            self.rgb += l;
+            self.luminance.add(conventions::luminance(l.to_array()));
+        } else {
+            // Counted as a black path, so the mean stays over `paths`.
+            self.luminance.add(0.0);
+            self.flags |= point_flags::NON_FINITE_DISCARDED;
+        }
     }
 }
 
@@ -119,31 +174,101 @@ fn outgoing_direction(s: &Surface, eye: Option<Vec3>) -> Vec3 {
 /// Shades a whole batch on the current rayon pool. Returns the reply and the rays traced.
 pub fn shade_batch(world: &World, batch: &ShadeBatch) -> (Radiance, RayCounts) {
     let start = Instant::now();
-    let results: Vec<(Shaded, RayCounts)> = batch
-        .points
-        .par_iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let mut counts = RayCounts::default();
-            let mut rng = stream(batch.seed, i as u64);
-            (
-                shade_point(world, p, batch.quality, &mut rng, &mut counts),
-                counts,
-            )
-        })
-        .collect();
-    let mut counts = RayCounts::default();
-    for (_, c) in &results {
-        counts += *c;
-    }
+    let (shaded, counts): (Vec<Shaded>, RayCounts) = match world.estimator {
+        Estimator::Path => {
+            let results: Vec<(Shaded, RayCounts)> = batch
+                .points
+                .par_iter()
+                .enumerate()
+                .map(|(i, p)| {
+                    let mut counts = RayCounts::default();
+                    let mut rng = stream(batch.seed, i as u64);
+                    let shaded = shade_point(world, p, batch.quality, &mut rng, &mut counts);
+                    (shaded, counts)
+                })
+                .collect();
+            let counts = sum_counts(results.iter().map(|(_, c)| *c));
+            (results.into_iter().map(|(s, _)| s).collect(), counts)
+        }
+        Estimator::Wavefront => {
+            // Whole waves per task: the chunks, not the threads, fix the order of the work.
+            let chunk = (WAVE_PATHS / paths_of(batch.quality) as usize).max(1);
+            let results: Vec<(Vec<Shaded>, RayCounts)> = batch
+                .points
+                .par_chunks(chunk)
+                .enumerate()
+                .map(|(k, points)| shade_wave(world, batch, k * chunk, points))
+                .collect();
+            let counts = sum_counts(results.iter().map(|(_, c)| *c));
+            (results.into_iter().flat_map(|(s, _)| s).collect(), counts)
+        }
+    };
     let radiance = Radiance {
         batch_id: batch.batch_id,
         quality: batch.quality,
-        rgb: results.iter().map(|(s, _)| s.rgb.to_array()).collect(),
-        luminance_variance: results.iter().map(|(s, _)| s.luminance_variance).collect(),
-        paths: results.iter().map(|(s, _)| s.paths).collect(),
-        flags: results.iter().map(|(s, _)| s.flags).collect(),
+        rgb: shaded.iter().map(|s| s.rgb.to_array()).collect(),
+        luminance_variance: shaded.iter().map(|s| s.luminance_variance).collect(),
+        paths: shaded.iter().map(|s| s.paths).collect(),
+        flags: shaded.iter().map(|s| s.flags).collect(),
         micros: start.elapsed().as_micros() as u64,
     };
     (radiance, counts)
+}
+
+fn sum_counts(counts: impl Iterator<Item = RayCounts>) -> RayCounts {
+    let mut sum = RayCounts::default();
+    for c in counts {
+        sum += c;
+    }
+    sum
+}
+
+/// Points `first..` of a batch shaded as one wave of paths (`wavefront`), each point drawing from
+/// the same stream as in [`shade_point`].
+fn shade_wave(
+    world: &World,
+    batch: &ShadeBatch,
+    first: usize,
+    points: &[ShadePoint],
+) -> (Vec<Shaded>, RayCounts) {
+    let mut counts = RayCounts::default();
+    let prepared: Vec<Result<Prepared, Shaded>> = points
+        .iter()
+        .map(|p| prepare(world, p, &mut counts))
+        .collect();
+    let starts: Vec<Start> = prepared
+        .iter()
+        .enumerate()
+        .filter_map(|(i, p)| p.as_ref().ok().map(|p| (i, p)))
+        .map(|(i, p)| Start {
+            surface: p.surface,
+            wo: p.wo,
+            paths: paths_of(batch.quality),
+            stream: i,
+        })
+        .collect();
+    let mut rngs: Vec<Rng> = (0..points.len())
+        .map(|i| stream(batch.seed, (first + i) as u64))
+        .collect();
+    let mut sums: Vec<PathSum> = prepared
+        .iter()
+        .map(|p| PathSum::new(p.as_ref().map_or(0, |p| p.flags)))
+        .collect();
+    trace_paths(
+        world,
+        &starts,
+        batch.quality.bounces,
+        &mut rngs,
+        &mut counts,
+        |i, l| sums[starts[i].stream].add(l),
+    );
+    let shaded = prepared
+        .into_iter()
+        .zip(sums)
+        .map(|(p, sum)| match p {
+            Ok(p) => p.finish(world, sum),
+            Err(invalid) => invalid,
+        })
+        .collect();
+    (shaded, counts)
 }

@@ -16,6 +16,7 @@ use scene::{Effects, Scene};
 
 use crate::bvh::{BuildPreset, Hit, SceneBvh};
 use crate::counters::{RayCounts, RayKind};
+use crate::estimator::Estimator;
 use crate::lights::Lights;
 use crate::material::Bsdf;
 use crate::offset::Offsetter;
@@ -38,6 +39,8 @@ pub struct World {
     pub offset: Offsetter,
     /// Length of the scene's bounding-box diagonal.
     pub extent: f32,
+    /// How shade batches and reference images schedule their paths (both use this one).
+    pub estimator: Estimator,
     bsdfs: Vec<Bsdf>,
     /// Unit counter-clockwise normal per triangle (zero for a degenerate one).
     face_normals: Vec<Vec3>,
@@ -70,6 +73,7 @@ impl World {
         World {
             offset: Offsetter::new(extent),
             extent,
+            estimator: Estimator::default(),
             bvh,
             lights,
             bsdfs,
@@ -155,6 +159,32 @@ impl World {
     ) -> bool {
         counts.count(kind);
         self.bvh.occluded(origin, dir, tmax)
+    }
+
+    /// As [`occluded`](Self::occluded), trying `last` first: the primitive that blocked an
+    /// earlier ray of the stream, updated to this ray's blocker. The shadow rays of one shading
+    /// point toward the sun share their origin and nearly their direction (DESIGN.md §7), so one
+    /// triangle test settles most of the blocked ones; the answer is the traversal's.
+    pub(crate) fn occluded_after(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmax: f32,
+        kind: RayKind,
+        last: &mut Option<u32>,
+        counts: &mut RayCounts,
+    ) -> bool {
+        counts.count(kind);
+        if let Some(prim) = *last
+            && self.bvh.blocks(prim, origin, dir, tmax)
+        {
+            return true;
+        }
+        let blocker = self.bvh.occluder(origin, dir, tmax);
+        if blocker.is_some() {
+            *last = blocker;
+        }
+        blocker.is_some()
     }
 
     /// The surface a ray from `origin` along unit `dir` hit, on the side it arrived from. The

@@ -51,22 +51,23 @@ fn check_closed_room_is_dark(offset: Vec3) {
     ));
     let m = b.material(grey(0.7));
     cube(&mut b, offset, offset + Vec3::new(3.0, 2.5, 4.0), true, m);
-    let w = world(b);
-    // Shading points are in the world's local frame.
-    let centre = w.to_local(offset + Vec3::new(1.5, 1.25, 2.0));
-    let mut counts = RayCounts::default();
-    let mut inside = 0;
-    for p in vertex_points(&w) {
-        let s = renderer::point::surface_of(&w, &p).unwrap();
-        if s.normal.dot(centre - s.position) <= 0.0 {
-            continue; // the outer side
+    with_each_estimator(world(b), |w| {
+        // Shading points are in the world's local frame.
+        let centre = w.to_local(offset + Vec3::new(1.5, 1.25, 2.0));
+        let mut counts = RayCounts::default();
+        let mut inside = 0;
+        for p in vertex_points(w) {
+            let s = renderer::point::surface_of(w, &p).unwrap();
+            if s.normal.dot(centre - s.position) <= 0.0 {
+                continue; // the outer side
+            }
+            inside += 1;
+            let shaded = shade_point(w, &p, DIRECT, &mut stream(7, inside), &mut counts);
+            assert_eq!(shaded.rgb, Vec3::ZERO, "light leaks in at {p:?}");
         }
-        inside += 1;
-        let shaded = shade_point(&w, &p, DIRECT, &mut stream(7, inside), &mut counts);
-        assert_eq!(shaded.rgb, Vec3::ZERO, "light leaks in at {p:?}");
-    }
-    assert_eq!(inside, 12 * 6);
-    assert!(counts.shadow_sun > 0 && counts.shadow_sky > 0);
+        assert_eq!(inside, 12 * 6);
+        assert!(counts.shadow_sun > 0 && counts.shadow_sky > 0);
+    });
 }
 
 #[test]
@@ -100,35 +101,36 @@ fn floor_with_box_on_a_vertex() -> World {
 
 #[test]
 fn hidden_vertex_is_moved_and_flagged_and_lit() {
-    let w = floor_with_box_on_a_vertex();
-    let corner = Vec3::new(-10.0, 0.0, -10.0);
-    let mut found = 0;
-    for p in vertex_points(&w) {
-        let s = renderer::point::surface_of(&w, &p).unwrap();
-        let at_corner = s.position.distance(corner) < 0.05;
-        if !at_corner || s.normal.y <= 0.0 {
-            continue;
+    with_each_estimator(floor_with_box_on_a_vertex(), |w| {
+        let corner = Vec3::new(-10.0, 0.0, -10.0);
+        let mut found = 0;
+        for p in vertex_points(w) {
+            let s = renderer::point::surface_of(w, &p).unwrap();
+            let at_corner = s.position.distance(corner) < 0.05;
+            if !at_corner || s.normal.y <= 0.0 {
+                continue;
+            }
+            found += 1;
+            let shaded = shade_point(
+                w,
+                &p,
+                DIRECT,
+                &mut stream(1, found),
+                &mut RayCounts::default(),
+            );
+            assert_eq!(
+                shaded.flags & point_flags::MOVED_OFF_HIDDEN,
+                point_flags::MOVED_OFF_HIDDEN,
+                "{p:?}"
+            );
+            assert!(
+                shaded.rgb.x > 0.5,
+                "moved into the sunlit part: {}",
+                shaded.rgb
+            );
         }
-        found += 1;
-        let shaded = shade_point(
-            &w,
-            &p,
-            DIRECT,
-            &mut stream(1, found),
-            &mut RayCounts::default(),
-        );
-        assert_eq!(
-            shaded.flags & point_flags::MOVED_OFF_HIDDEN,
-            point_flags::MOVED_OFF_HIDDEN,
-            "{p:?}"
-        );
-        assert!(
-            shaded.rgb.x > 0.5,
-            "moved into the sunlit part: {}",
-            shaded.rgb
-        );
-    }
-    assert!(found > 0, "the corner vertex is on the floor");
+        assert!(found > 0, "the corner vertex is on the floor");
+    });
 }
 
 #[test]

@@ -9,6 +9,7 @@ use protocol::frame::DEFAULT_MAX_FRAME;
 use protocol::renderer_link::{FromRenderer, ShadePoint, ToRenderer};
 use protocol::{Fingerprint, Hello, MessageReader, MessageWriter, ProtocolError, Role, Side};
 use renderer::World;
+use renderer::estimator::Estimator;
 use renderer::point::{front_point_hit_by, surface_of};
 use scene::settings::QualitySetting;
 use scene::{Material, SceneBuilder, SceneSettings, Sky, Sun};
@@ -95,6 +96,16 @@ pub fn grey(albedo: f32) -> Material {
 
 pub fn world(b: SceneBuilder) -> World {
     World::new(b.build().expect("test scene builds"))
+}
+
+/// Runs `check` on `w` under each estimator: both schedules must pass the same checks (DESIGN.md
+/// §7). Says which on stderr, which the harness shows when a check fails.
+pub fn with_each_estimator(mut w: World, mut check: impl FnMut(&World)) {
+    for estimator in Estimator::ALL {
+        w.estimator = estimator;
+        eprintln!("estimator: {}", estimator.name());
+        check(&w);
+    }
 }
 
 /// The side of `p` whose normal points toward `facing`.

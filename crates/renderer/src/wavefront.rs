@@ -1,0 +1,264 @@
+//! The estimator of `estimator` scheduled as ray streams (DESIGN.md §7): a wave of paths (those
+//! of a few shading points, or of a few pixels) advances one vertex at a time, and each step
+//! traces its rays as two streams: first every path's shadow rays, then every path's
+//! continuation ray. The paths' state lives in flat arrays indexed by path.
+//!
+//! The streams are there to make rays of one kind, and the rays of one shading point (which share
+//! an origin), follow one another through the BVH; shadow rays also try the triangle that blocked
+//! the previous one first (`World::occluded_after`). With obvhs's one-ray-at-a-time traversal
+//! that alone buys little: docs/bench/renderer.md measures both schedules side by side, and
+//! `Estimator::default` is the one that measured faster. Every step is `estimator`'s own, so the
+//! answers are the same in distribution.
+//!
+//! Each path draws from its start's random stream, in an order fixed by the starts alone: an
+//! answer depends only on the starts and the seeds, never on thread scheduling.
+
+use glam::Vec3;
+
+use crate::counters::{RayCounts, RayKind};
+use crate::estimator::{Depth, MAX_DEPTH, ShadowRay, arrive, continuation, shadow_rays};
+use crate::sampling::Rng;
+use crate::world::{Surface, World};
+
+/// Paths advanced together: the 64 paths of 64 points at the interactive quality. A wave's state
+/// is about 100 bytes a path, so a wave stays in the L2 cache.
+pub(crate) const WAVE_PATHS: usize = 4096;
+
+/// `paths` paths leaving `surface` toward `wo`, drawing from random stream `stream`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Start {
+    pub(crate) surface: Surface,
+    pub(crate) wo: Vec3,
+    pub(crate) paths: u32,
+    pub(crate) stream: usize,
+}
+
+/// Traces every path of `starts` in waves of at most [`WAVE_PATHS`] and hands each path's
+/// radiance (without the start's own emission) to `done`, with the index of its start, in the
+/// order of the starts.
+pub(crate) fn trace_paths(
+    world: &World,
+    starts: &[Start],
+    max_bounces: Option<u32>,
+    rngs: &mut [Rng],
+    counts: &mut RayCounts,
+    mut done: impl FnMut(usize, Vec3),
+) {
+    let mut wave = Wave::default();
+    let mut streams = Streams::default();
+    for (i, start) in starts.iter().enumerate() {
+        for _ in 0..start.paths {
+            wave.push(i, start);
+            if wave.len() == WAVE_PATHS {
+                wave.run(world, max_bounces, rngs, &mut streams, counts);
+                wave.drain(&mut done);
+            }
+        }
+    }
+    if wave.len() > 0 {
+        wave.run(world, max_bounces, rngs, &mut streams, counts);
+        wave.drain(&mut done);
+    }
+}
+
+/// The state of a wave's paths, structure of arrays, indexed by path.
+#[derive(Default)]
+struct Wave {
+    start: Vec<u32>,
+    stream: Vec<u32>,
+    radiance: Vec<Vec3>,
+    throughput: Vec<Vec3>,
+    surface: Vec<Surface>,
+    wo: Vec<Vec3>,
+    depth: Vec<Depth>,
+}
+
+/// The rays of one step, and which paths are still going: buffers kept from wave to wave.
+#[derive(Default)]
+struct Streams {
+    active: Vec<u32>,
+    shadow: ShadowStream,
+    bounce: BounceStream,
+}
+
+#[derive(Default)]
+struct ShadowStream {
+    path: Vec<u32>,
+    origin: Vec<Vec3>,
+    /// Contributions already weighted by the path's throughput.
+    ray: Vec<ShadowRay>,
+}
+
+#[derive(Default)]
+struct BounceStream {
+    path: Vec<u32>,
+    origin: Vec<Vec3>,
+    dir: Vec<Vec3>,
+    kind: Vec<RayKind>,
+}
+
+impl Wave {
+    fn len(&self) -> usize {
+        self.start.len()
+    }
+
+    fn push(&mut self, start_index: usize, start: &Start) {
+        self.start.push(start_index as u32);
+        self.stream.push(start.stream as u32);
+        self.radiance.push(Vec3::ZERO);
+        self.throughput.push(Vec3::ONE);
+        self.surface.push(start.surface);
+        self.wo.push(start.wo);
+        self.depth.push(Depth::START);
+    }
+
+    /// Advances every path to its end, one vertex per step (the same cap as `path_radiance`).
+    fn run(
+        &mut self,
+        world: &World,
+        max_bounces: Option<u32>,
+        rngs: &mut [Rng],
+        s: &mut Streams,
+        counts: &mut RayCounts,
+    ) {
+        s.active.clear();
+        s.active.extend(0..self.len() as u32);
+        for _ in 0..MAX_DEPTH {
+            if s.active.is_empty() {
+                break;
+            }
+            s.shadow.clear();
+            s.bounce.clear();
+            for &p in &s.active {
+                self.shade_vertex(world, p, max_bounces, rngs, &mut s.shadow, &mut s.bounce);
+            }
+            self.trace_shadows(world, &s.shadow, counts);
+            s.active.clear();
+            self.trace_bounces(world, &s.bounce, &mut s.active, counts);
+        }
+    }
+
+    /// One vertex of path `p`: its continuation sampled, its shadow rays and continuation ray
+    /// queued (`path_radiance`'s loop body up to the traces).
+    fn shade_vertex(
+        &mut self,
+        world: &World,
+        p: u32,
+        max_bounces: Option<u32>,
+        rngs: &mut [Rng],
+        shadow: &mut ShadowStream,
+        bounce: &mut BounceStream,
+    ) {
+        let i = p as usize;
+        let (s, wo, throughput) = (self.surface[i], self.wo[i], self.throughput[i]);
+        let rng = &mut rngs[self.stream[i] as usize];
+        let bsdf = world.bsdf(s.triangle);
+        let origin = world.offset.origin(s.position, s.normal);
+        let next = continuation(
+            world,
+            bsdf,
+            &s,
+            wo,
+            max_bounces,
+            self.depth[i],
+            throughput,
+            rng,
+        );
+        shadow_rays(world, &s, origin, wo, bsdf, next.is_none(), rng, |ray| {
+            shadow.path.push(p);
+            shadow.origin.push(origin);
+            shadow.ray.push(ShadowRay {
+                contribution: throughput * ray.contribution,
+                ..ray
+            });
+        });
+        if let Some((sample, next_throughput)) = next {
+            self.throughput[i] = next_throughput;
+            bounce.path.push(p);
+            bounce.origin.push(origin);
+            bounce.dir.push(sample.dir);
+            bounce.kind.push(sample.kind);
+        }
+    }
+
+    fn trace_shadows(&mut self, world: &World, shadow: &ShadowStream, counts: &mut RayCounts) {
+        // The blocker of the last blocked ray toward each kind of light: the next rays of the
+        // same point toward it (same origin, nearly the same direction for the sun) are most
+        // often blocked by it too.
+        let mut last = [None; 3];
+        for ((&p, &origin), ray) in shadow.path.iter().zip(&shadow.origin).zip(&shadow.ray) {
+            let last = &mut last[light_slot(ray.kind)];
+            if !world.occluded_after(origin, ray.dir, ray.tmax, ray.kind, last, counts) {
+                self.radiance[p as usize] += ray.contribution;
+            }
+        }
+    }
+
+    /// Traces the continuation rays; the paths that found a next vertex go to `active`.
+    fn trace_bounces(
+        &mut self,
+        world: &World,
+        bounce: &BounceStream,
+        active: &mut Vec<u32>,
+        counts: &mut RayCounts,
+    ) {
+        for k in 0..bounce.path.len() {
+            let (p, origin, dir, kind) = (
+                bounce.path[k],
+                bounce.origin[k],
+                bounce.dir[k],
+                bounce.kind[k],
+            );
+            let i = p as usize;
+            let hit = world.trace(origin, dir, kind, counts);
+            let arrived = arrive(world, origin, dir, kind, hit, self.depth[i]);
+            self.radiance[i] += self.throughput[i] * arrived.seen;
+            if let Some((surface, depth)) = arrived.next {
+                self.surface[i] = surface;
+                self.depth[i] = depth;
+                self.wo[i] = -dir;
+                active.push(p);
+            }
+        }
+    }
+
+    /// Hands every path's radiance to `done` in path order and empties the wave.
+    fn drain(&mut self, done: &mut impl FnMut(usize, Vec3)) {
+        for (&start, &radiance) in self.start.iter().zip(&self.radiance) {
+            done(start as usize, radiance);
+        }
+        self.start.clear();
+        self.stream.clear();
+        self.radiance.clear();
+        self.throughput.clear();
+        self.surface.clear();
+        self.wo.clear();
+        self.depth.clear();
+    }
+}
+
+/// Which of `trace_shadows`' remembered blockers a shadow ray uses.
+fn light_slot(kind: RayKind) -> usize {
+    match kind {
+        RayKind::ShadowSun => 0,
+        RayKind::ShadowSky => 1,
+        _ => 2,
+    }
+}
+
+impl ShadowStream {
+    fn clear(&mut self) {
+        self.path.clear();
+        self.origin.clear();
+        self.ray.clear();
+    }
+}
+
+impl BounceStream {
+    fn clear(&mut self) {
+        self.path.clear();
+        self.origin.clear();
+        self.dir.clear();
+        self.kind.clear();
+    }
+}
