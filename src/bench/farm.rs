@@ -108,62 +108,91 @@ impl Farm<'_> {
     }
 }
 
-/// Seconds from the camera to the view's completion (every sample at the scene's quality: the
-/// SMA runs with the quality ladder capped there).
+/// Seconds from the camera to the view's completion (every visible sample at the ladder's cap,
+/// nothing outstanding, every visible triangle shown).
 async fn completion(probe: &mut Probe, view: &str) -> anyhow::Result<f64> {
     let start = Instant::now();
     let camera = probe.view(view, HUNG_VIEW.0, HUNG_VIEW.1).await?;
-    probe.complete(camera.seq, WAIT).await?;
+    let done = probe.complete(camera.seq, WAIT).await?;
+    anyhow::ensure!(
+        done.shown > 0 && done.shown == done.visible_leaves,
+        "complete without every visible triangle: {done:?}"
+    );
     Ok(start.elapsed().as_secs_f64())
 }
 
 async fn hung_renderer(farm: &Farm<'_>, runs: usize, md: &mut String) -> anyhow::Result<()> {
-    let (mut alone, mut hung, mut detection) = (Vec::new(), Vec::new(), Vec::new());
-    let preset = scene::load(farm.scene)?.settings.quality.paths.to_string();
-    let at_preset = ["--max-paths", preset.as_str()];
-    for _ in 0..runs {
-        let b = farm.renderer("b")?;
-        let sma = farm.sma(&[&b], &at_preset)?;
-        let mut probe = farm.viewer(&sma, 1).await?;
-        alone.push(completion(&mut probe, farm.view).await?);
-        drop((probe, sma, b));
-
-        let a = farm.renderer("a")?;
-        let b = farm.renderer("b")?;
-        let sma = farm.sma(&[&a, &b], &at_preset)?;
-        let mut probe = farm.viewer(&sma, 2).await?;
-        let start = Instant::now();
-        let camera = probe.view(farm.view, HUNG_VIEW.0, HUNG_VIEW.1).await?;
-        // Both hold batches once the first answers are in.
-        probe
-            .until(WAIT, |e| e.camera_seq == camera.seq && e.samples > 0)
-            .await?;
-        a.process.pause();
-        let stopped = Instant::now();
-        let lost_line = vec!["renderer lost".to_string(), a.addr.to_string()];
-        let log = farm.logs.join("sma.log");
-        let watcher = std::thread::spawn(move || wait_for_line(&log, &lost_line));
-        probe.complete(camera.seq, WAIT).await?;
-        hung.push(start.elapsed().as_secs_f64());
-        let lost = watcher.join().expect("the log watcher")?;
-        detection.push((lost - stopped).as_secs_f64());
-        a.process.resume();
-    }
-    let (alone, hung, detection) = (median(alone), median(hung), median(detection));
+    let preset = scene::load(farm.scene)?.settings.quality.paths;
     writeln!(
         md,
-        "### A renderer that hangs while it holds batches\n\n{}×{}, the quality ladder capped at \
-         the scene's preset: complete means every visible sample at the scene's quality.\n\n\
-         | configuration | view complete (s) |\n|---|---:|\n\
-         | one renderer alone | {alone:.1} |\n\
-         | two, one stopped with SIGSTOP after the first answers | {hung:.1} |\n\n\
-         Ratio {:.2} (target ≤ 2). The SMA called the stopped renderer lost {detection:.1} s \
-         after SIGSTOP (the silence limit is 3 s), and re-issued its batches to the other.\n",
-        HUNG_VIEW.0,
-        HUNG_VIEW.1,
-        hung / alone
+        "### A renderer that hangs while it holds batches\n\n{}×{}; the quality ladder is capped \
+         at the scene's preset, then at the next rung: complete means every visible sample at that \
+         many paths. Detection: from SIGSTOP to the SMA's `renderer lost` line.\n\n\
+         | paths per sample | one renderer alone (s) | two, one stopped after the first answers (s) \
+         | ratio (target ≤ 2) | detection (s) |\n|---:|---:|---:|---:|---:|",
+        HUNG_VIEW.0, HUNG_VIEW.1,
+    )?;
+    for cap in [preset, 4 * preset] {
+        let (mut alone, mut hung, mut detection) = (Vec::new(), Vec::new(), Vec::new());
+        for _ in 0..runs {
+            alone.push(alone_completion(farm, cap).await?);
+            let (total, detected) = hung_completion(farm, cap).await?;
+            hung.push(total);
+            detection.push(detected);
+        }
+        let (alone, hung, detection) = (median(alone), median(hung), median(detection));
+        writeln!(
+            md,
+            "| {cap} | {alone:.1} | {hung:.1} | {:.2} | {detection:.1} |",
+            hung / alone
+        )?;
+    }
+    writeln!(
+        md,
+        "\nThe stopped renderer's batches go to the other once it is lost; the silence limit \
+         (3 s) sets the detection.\n"
     )?;
     Ok(())
+}
+
+/// The ladder capped at `cap` paths per sample.
+fn capped(cap: u32) -> [String; 2] {
+    ["--max-paths".into(), cap.to_string()]
+}
+
+/// Seconds one renderer alone takes to complete the view.
+async fn alone_completion(farm: &Farm<'_>, cap: u32) -> anyhow::Result<f64> {
+    let b = farm.renderer("b")?;
+    let flags = capped(cap);
+    let sma = farm.sma(&[&b], &[&flags[0], &flags[1]])?;
+    let mut probe = farm.viewer(&sma, 1).await?;
+    completion(&mut probe, farm.view).await
+}
+
+/// Seconds two renderers take to complete the view when one is stopped after the first answers,
+/// and seconds from the stop until the SMA called it lost.
+async fn hung_completion(farm: &Farm<'_>, cap: u32) -> anyhow::Result<(f64, f64)> {
+    let a = farm.renderer("a")?;
+    let b = farm.renderer("b")?;
+    let flags = capped(cap);
+    let sma = farm.sma(&[&a, &b], &[&flags[0], &flags[1]])?;
+    let mut probe = farm.viewer(&sma, 2).await?;
+    let start = Instant::now();
+    let camera = probe.view(farm.view, HUNG_VIEW.0, HUNG_VIEW.1).await?;
+    // Both hold batches once the first answers are in.
+    probe
+        .until(WAIT, |e| e.camera_seq == camera.seq && e.samples > 0)
+        .await?;
+    a.process.pause();
+    let stopped = Instant::now();
+    let lost_line = vec!["renderer lost".to_string(), a.addr.to_string()];
+    let log = farm.logs.join("sma.log");
+    let watcher = std::thread::spawn(move || wait_for_line(&log, &lost_line));
+    probe.complete(camera.seq, WAIT).await?;
+    let total = start.elapsed().as_secs_f64();
+    let lost = watcher.join().expect("the log watcher")?;
+    a.process.resume();
+    Ok((total, (lost - stopped).as_secs_f64()))
 }
 
 async fn uneven_renderers(
@@ -182,28 +211,55 @@ async fn uneven_renderers(
     }
     let window = Duration::from_secs(if quick { 5 } else { 10 });
     let hog = Hog::start(1)?;
-    let (mut fast, mut slow, mut both) = (Vec::new(), Vec::new(), Vec::new());
+    let configurations: [(&str, &[Host]); 3] = [
+        ("fast alone", &[Host::Fast]),
+        ("slow alone", &[Host::Slow]),
+        ("both", &[Host::Fast, Host::Slow]),
+    ];
+    let mut measured = Vec::new();
     for _ in 0..runs {
-        fast.push(throughput(farm, &[Host::Fast], window).await?);
-        slow.push(throughput(farm, &[Host::Slow], window).await?);
-        both.push(throughput(farm, &[Host::Fast, Host::Slow], window).await?);
+        for (i, (_, hosts)) in configurations.iter().enumerate() {
+            measured.push((i, throughput(farm, hosts, window).await?));
+        }
     }
     drop(hog);
-    let (fast, slow, both) = (median(fast), median(slow), median(both));
     writeln!(
         md,
         "### A fast and a slow renderer\n\n\
-         {}×{}. Paths traced per second, read from the SMA's statistics over {} s once every visible \
-         triangle is shown (the quality ladder, uncapped and with no stated end, then keeps both \
-         busy). Fast: one worker thread with CPU 0 \
-         to itself; slow: one worker thread on CPU 1, which a busy loop shares.\n\n\
-         | renderers | paths/s |\n|---|---:|\n\
-         | fast alone | {fast:.0} |\n| slow alone | {slow:.0} |\n| both | {both:.0} |\n\n\
-         Both together reach {:.0} % of the sum of their rates alone (target ≥ 90 %).\n",
+         {}×{}. Paths traced per second, read from the SMA's statistics over {} s once every \
+         visible triangle is shown (the quality ladder, uncapped and with no stated end, then \
+         keeps both busy), and the CPU seconds per second the renderers and the SMA used meanwhile. \
+         Fast: one worker thread with CPU 0 to itself; slow: one worker thread on CPU 1, which a \
+         busy loop shares.\n\n\
+         | renderers | paths/s | renderers' CPU | SMA's CPU |\n|---|---:|---:|---:|",
         THROUGHPUT_VIEW.0,
         THROUGHPUT_VIEW.1,
         window.as_secs(),
-        100.0 * both / (fast + slow)
+    )?;
+    let mut rates = [0.0; 3];
+    for (i, (name, _)) in configurations.iter().enumerate() {
+        let of = |f: fn(&Throughput) -> f64| {
+            median(
+                measured
+                    .iter()
+                    .filter(|(j, _)| *j == i)
+                    .map(|(_, t)| f(t))
+                    .collect(),
+            )
+        };
+        rates[i] = of(|t| t.paths_per_sec);
+        writeln!(
+            md,
+            "| {name} | {:.0} | {:.2} | {:.2} |",
+            rates[i],
+            of(|t| t.renderers_cpu),
+            of(|t| t.sma_cpu)
+        )?;
+    }
+    writeln!(
+        md,
+        "\nBoth together reach {:.0} % of the sum of their rates alone (target ≥ 90 %).\n",
+        100.0 * rates[2] / (rates[0] + rates[1])
     )?;
     Ok(())
 }
@@ -223,8 +279,21 @@ impl Host {
     }
 }
 
-/// Median paths/s over `window` with a renderer on each of `hosts`, once the view is complete.
-async fn throughput(farm: &Farm<'_>, hosts: &[Host], window: Duration) -> anyhow::Result<f64> {
+/// What one configuration of renderers did over the window.
+struct Throughput {
+    /// Median of the SMA's paths/s.
+    paths_per_sec: f64,
+    /// CPU seconds per second of the renderers together, and of the SMA.
+    renderers_cpu: f64,
+    sma_cpu: f64,
+}
+
+/// What a renderer on each of `hosts` did over `window`, once every visible triangle is shown.
+async fn throughput(
+    farm: &Farm<'_>,
+    hosts: &[Host],
+    window: Duration,
+) -> anyhow::Result<Throughput> {
     let renderers = hosts
         .iter()
         .enumerate()
@@ -246,16 +315,28 @@ async fn throughput(farm: &Farm<'_>, hosts: &[Host], window: Duration) -> anyhow
             e.camera_seq == camera.seq && e.shown > 0 && e.shown == e.visible_leaves
         })
         .await?;
+    let cpu = || -> f64 {
+        renderers
+            .iter()
+            .filter_map(|r| r.process.cpu_seconds())
+            .sum()
+    };
+    let (renderers_before, sma_before) = (cpu(), sma.process.cpu_seconds().unwrap_or(0.0));
     let seen = probe.stats_seen.len();
     let start = Instant::now();
     probe
         .until_stats(WAIT, |_| start.elapsed() >= window)
         .await?;
+    let seconds = start.elapsed().as_secs_f64();
     let rates = probe.stats_seen[seen..]
         .iter()
         .map(|s| f64::from(s.paths_per_sec))
         .collect();
-    Ok(median(rates))
+    Ok(Throughput {
+        paths_per_sec: median(rates),
+        renderers_cpu: (cpu() - renderers_before) / seconds,
+        sma_cpu: (sma.process.cpu_seconds().unwrap_or(0.0) - sma_before) / seconds,
+    })
 }
 
 /// A busy loop on one CPU, until dropped: half of that CPU for whatever else runs there.

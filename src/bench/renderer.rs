@@ -85,10 +85,11 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
         }
     )?;
     // Other processes on the machine change every figure: say how busy it was.
-    if let Ok(load) = std::fs::read_to_string("/proc/loadavg") {
-        let one_minute = load.split_whitespace().next().unwrap_or("?");
-        writeln!(md, "Load average when the run started: {one_minute}.\n")?;
-    }
+    writeln!(
+        md,
+        "Load average when the run started: {}.\n",
+        super::machine::load_average()
+    )?;
     let sponza = match scene::load(SPONZA) {
         Ok(s) => Some(World::new(s)),
         Err(e) => {
