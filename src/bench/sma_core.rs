@@ -86,6 +86,7 @@ fn write_criterion_speed(md: &mut String, runs: usize) -> anyhow::Result<()> {
     let full_scan = CriterionSettings {
         s_ref_start: 1.0,
         s_min: 1.0,
+        display_error: 1.0,
         large_triangle_fraction: 1.0,
         ..Default::default()
     };
@@ -319,7 +320,8 @@ pub fn criteria_experiment(quick: bool) -> anyhow::Result<String> {
             &[0.05, 0.1, 0.2],
         ),
         (
-            CriterionKind::NldOs,
+            // S_min is eq. 4.6's floor; the noise-aware NLD_OS stops at `display_error`.
+            CriterionKind::NldOsThesis,
             "s_min",
             |x| CriterionSettings {
                 s_min: x,

@@ -115,7 +115,8 @@ impl Default for ScheduleConfig {
             criterion_settings: CriterionSettings::default(),
             refine: true,
             max_selections: 256,
-            min_split_pixels: 6,
+            // As `CriterionSettings::min_leaf_pixels`, with the figures that chose it.
+            min_split_pixels: 2,
             revisit_samples: 20_000,
             batch_points: 128,
             batches_per_renderer: 4,

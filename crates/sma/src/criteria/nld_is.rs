@@ -1,7 +1,9 @@
 //! NLD_IS (thesis §1.4, §4.3.3; DESIGN.md §6): image space. The luminance image is cut into
 //! quadrants recursively, breadth first (coarse regions before fine ones); for each quadrant cut
 //! into four, the child with the largest S over its four corners (eq. 4.5) has the leaf under its
-//! centre selected if that leaf covers at least `min_leaf_pixels`; every child is still descended,
+//! centre selected if that leaf covers at least `min_leaf_pixels` and S is above its floor (0 for
+//! eq. 4.5, one display step for the noise-aware metric, as NLD_OS and NLD_PX: DESIGN.md §5–§6;
+//! a smaller difference cannot change the picture); every child is still descended,
 //! so no region is skipped. A pass ends at 1-pixel quadrants. A call that reaches R selections
 //! resumes there next time, on whatever image it is then given; a pass that selected something
 //! is followed by another on the image of that time (refinement has changed it), one that
@@ -82,6 +84,9 @@ impl Quad {
 
 pub struct NldIs {
     metric: Metric,
+    /// S a quadrant must exceed to select its leaf: above 0 for eq. 4.5 as the thesis has it,
+    /// one display step for the noise-aware metric (`CriterionSettings::significance_floor`).
+    floor: f32,
     fraction: f32,
     min_leaf_pixels: u32,
     queue: VecDeque<Quad>,
@@ -98,6 +103,7 @@ impl NldIs {
     pub fn new(settings: &CriterionSettings, metric: Metric) -> Self {
         NldIs {
             metric,
+            floor: settings.significance_floor(metric, 0.0),
             fraction: settings.nld_is_fraction,
             min_leaf_pixels: settings.min_leaf_pixels,
             queue: VecDeque::new(),
@@ -174,7 +180,7 @@ impl Criterion for NldIs {
                     _ => Some((c, s)),
                 });
             if let Some((child, s)) = best
-                && s > 0.0
+                && s > self.floor
             {
                 let leaf = child.centre_id(image);
                 let big_enough = pixels

@@ -1,6 +1,10 @@
 //! NLD_OS (thesis §4.3.4–§4.3.5): object space. A visible leaf is selected when S over its three
 //! vertex samples (eq. 4.6) exceeds S_ref; S_ref starts at `s_ref_start` and drops by
-//! `s_ref_step` each time a whole pass over the visible set selects nothing, down to `s_min`.
+//! `s_ref_step` each time a whole pass over the visible set selects nothing, down to S_min:
+//! `s_min` for eq. 4.6 as the thesis has it, one display step (`display_error`) for the
+//! noise-aware metric, which then refines until no leaf's vertices differ visibly beyond their
+//! noise (`CriterionSettings::significance_floor`, DESIGN.md §5–§6); a leaf whose samples have
+//! not settled on the quality ladder is held to `s_min` meanwhile (`criteria::leaf_floor`).
 //! Large-triangle rule (§4.3.5, fig. 4.10): a leaf covering more than `large_triangle_fraction`
 //! of the image is selected whatever its S, since a shadow may cross it without touching its
 //! vertices. A leaf is offered once until `reset` (one the caller declined to split, being too
@@ -10,7 +14,8 @@
 use std::collections::HashSet;
 
 use super::{
-    Criterion, CriterionInput, CriterionKind, CriterionSettings, Metric, is_large, leaf_nld,
+    Criterion, CriterionInput, CriterionKind, CriterionSettings, Metric, is_large,
+    leaf_nld_and_floor,
 };
 use crate::mesh::NodeId;
 use crate::mesh::fast_hash::FastHash;
@@ -52,13 +57,20 @@ impl NldOs {
         self.s_ref
     }
 
+    /// S_min (§4.3.4) for this criterion's metric.
+    fn s_min(&self) -> f32 {
+        self.settings
+            .significance_floor(self.metric, self.settings.s_min)
+    }
+
     fn end_pass(&mut self) -> PassEnd {
+        let s_min = self.s_min();
         let end = if self.found_in_pass {
             PassEnd::Again
         } else if self.waiting_in_pass {
             PassEnd::Wait
-        } else if self.s_ref > self.settings.s_min {
-            self.s_ref = (self.s_ref - self.settings.s_ref_step).max(self.settings.s_min);
+        } else if self.s_ref > s_min {
+            self.s_ref = (self.s_ref - self.settings.s_ref_step).max(s_min);
             PassEnd::Again
         } else {
             // Not final: samples and leaves that arrive later (children of a refinement, a
@@ -111,8 +123,12 @@ impl Criterion for NldOs {
                 self.settings.large_triangle_fraction,
             ) {
                 true
-            } else if let Some(s) = leaf_nld(input, v.leaf, v.side, self.metric) {
-                s > self.s_ref
+            } else if let Some((s, floor)) =
+                leaf_nld_and_floor(input, &self.settings, v.leaf, v.side, self.metric)
+            {
+                // The floor is below S_ref for eq. 4.6; for the noise-aware metric it holds a
+                // leaf of unsettled samples to S_min (`leaf_floor`).
+                s > self.s_ref && s > floor
             } else {
                 self.waiting_in_pass = true;
                 false
@@ -203,6 +219,22 @@ mod tests {
             Metric::Thesis,
         );
         assert!(none.select(&blob.input(), 10).is_empty());
+    }
+
+    /// The noise-aware S_ref steps down to one display step, not to S_min (DESIGN.md §5–§6):
+    /// a faint ripple whose vertices differ by a few display steps, all under S_min, is refined.
+    #[test]
+    fn the_noise_aware_s_ref_ends_at_one_display_step() {
+        let settings = CriterionSettings {
+            large_triangle_fraction: 1.0,
+            ..Default::default()
+        };
+        let faint = Synthetic::new(24, 192, Shading::Faint);
+        let leaves = faint.visible.leaves.len();
+        let mut os = NldOs::new(&settings, Metric::NoiseAware);
+        let picked: usize = (0..40).map(|_| os.select(&faint.input(), 1000).len()).sum();
+        assert!(picked * 4 > leaves, "{picked} of {leaves} leaves refined");
+        assert_eq!(os.s_ref(), settings.display_error);
     }
 
     /// Noise is not shading: a flat patch whose samples scatter by their own standard error is

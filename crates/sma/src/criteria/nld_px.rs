@@ -12,9 +12,13 @@
 //! priorities `(ε + (1 - ε) S) × pixels` (eq. 3.4's mix) each call. ε is the chance given to a
 //! feature between the vertices (fig. 4.10): it ranks large flat leaves among themselves and
 //! against shading edges, instead of the large-triangle rule's "always first". Which leaves are
-//! candidates is NLD_OS's rule: S above `s_min`, or large (§4.3.5); a flat small leaf is never
-//! taken, so `s_min` and `large_triangle_fraction` still end the refinement. No S_ref schedule:
-//! the ranking is the schedule.
+//! candidates is NLD_OS's rule: S above its floor, or large (§4.3.5); a flat small leaf is never
+//! taken, so the floor and `large_triangle_fraction` still end the refinement. No S_ref schedule:
+//! the ranking is the schedule. S is the noise-aware metric, so once a leaf's samples have
+//! settled its floor is one display step (`display_error`, `criteria::leaf_floor`): it stays a
+//! candidate while its vertices differ by more than their noise explains plus one step, which
+//! the picture can still show (DESIGN.md §5–§6); `s_min`, five steps, the floor before, left
+//! such leaves Gouraud-interpolated in a view that had reached its stated end.
 //!
 //! Measured (synthetic runs of `bench::criteria_experiment`, defaults, mean absolute error over
 //! the shadow line, the disc and the ripple): 0.0062 after 300 samples against NLD_OS's 0.0150,
@@ -26,7 +30,8 @@
 use std::collections::HashSet;
 
 use super::{
-    Criterion, CriterionInput, CriterionKind, CriterionSettings, Metric, is_large, leaf_nld,
+    Criterion, CriterionInput, CriterionKind, CriterionSettings, Metric, is_large,
+    leaf_nld_and_floor,
 };
 use crate::mesh::NodeId;
 use crate::mesh::fast_hash::FastHash;
@@ -67,10 +72,11 @@ impl Criterion for NldPx {
                     && !self.offered.contains(&v.leaf)
             })
             .filter_map(|v| {
-                let nld = leaf_nld(input, v.leaf, v.side, Metric::NoiseAware)?;
+                let (nld, floor) =
+                    leaf_nld_and_floor(input, s, v.leaf, v.side, Metric::NoiseAware)?;
                 let weight = s.nld_px_epsilon + (1.0 - s.nld_px_epsilon) * nld;
                 let large = is_large(v.pixels, input.visible, s.large_triangle_fraction);
-                (nld > s.s_min || large).then_some((weight * v.pixels as f32, v.leaf))
+                (nld > floor || large).then_some((weight * v.pixels as f32, v.leaf))
             })
             .collect();
         if ranked.len() > max && max > 0 {
@@ -91,6 +97,7 @@ impl Criterion for NldPx {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::criteria::leaf_nld;
     use crate::criteria::synthetic::{Shading, Synthetic};
 
     #[test]
@@ -134,6 +141,55 @@ mod tests {
                 .iter()
                 .all(|&l| edge.straddles_shadow(l)),
             "the leaves across the shadow line come first"
+        );
+    }
+
+    /// The noise-aware floor is one display step (DESIGN.md §5–§6): a faint ripple whose
+    /// vertices differ by more than a step but less than S_min, the Gouraud error a view stopped
+    /// at S_min kept, is refined where it is steepest; a flat patch whose samples differ by their
+    /// noise alone mostly is not.
+    #[test]
+    fn a_ripple_above_one_display_step_is_refined_and_noise_mostly_is_not() {
+        let settings = CriterionSettings {
+            large_triangle_fraction: 1.0,
+            ..Default::default()
+        };
+        let faint = Synthetic::new(24, 192, Shading::Faint);
+        let input = faint.input();
+        let s_of = |leaf| {
+            let v = faint
+                .visible
+                .leaves
+                .iter()
+                .find(|v| v.leaf == leaf)
+                .unwrap();
+            leaf_nld(&input, leaf, v.side, Metric::NoiseAware).unwrap()
+        };
+        let steepest = faint
+            .visible
+            .leaves
+            .iter()
+            .map(|v| s_of(v.leaf))
+            .fold(0.0, f32::max);
+        assert!(
+            steepest > 2.0 * settings.display_error && steepest < settings.s_min,
+            "the ripple's largest S {steepest} lies between one display step and S_min"
+        );
+        let picked = NldPx::new(&settings).select(&input, usize::MAX);
+        let leaves = faint.visible.leaves.len();
+        assert!(
+            picked.len() * 4 > leaves,
+            "{} of {leaves} leaves refined",
+            picked.len()
+        );
+        assert!(picked.iter().all(|&l| s_of(l) > settings.display_error));
+
+        let noisy = Synthetic::noisy(24, 192, Shading::Flat, 0.5, 11);
+        let picked = NldPx::new(&settings).select(&noisy.input(), usize::MAX);
+        assert!(
+            picked.len() * 10 < leaves,
+            "noise alone: {} of {leaves} leaves refined",
+            picked.len()
         );
     }
 

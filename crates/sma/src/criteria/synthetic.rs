@@ -21,6 +21,10 @@ pub enum Shading {
     Smooth,
     /// A small shadow disc inside a grid square, touching no vertex (thesis fig. 4.10).
     Blob,
+    /// A faint smooth ripple: neighbouring vertices differ by a few 8-bit display steps, more
+    /// than one and less than eq. 4.3's S_min, the interpolation error left in a view that
+    /// reads as converged.
+    Faint,
 }
 
 impl Shading {
@@ -43,6 +47,7 @@ impl Shading {
                 let centre = Vec2::splat(n as f32 / 2.0 - 0.5);
                 if p.distance(centre) < 0.3 { 0.05 } else { 0.8 }
             }
+            Shading::Faint => 0.5 + 0.02 * (p.x * 0.7).sin(),
         }
     }
 }

@@ -43,7 +43,7 @@ use tokio::sync::{mpsc, watch};
 
 use crate::cache::{CachedSample, ShadingCache};
 use crate::config::ScheduleConfig;
-use crate::criteria::{CriterionKind, make_criterion};
+use crate::criteria::{CriterionKind, CriterionSettings, make_criterion};
 use crate::mesh::SubdivisionMesh;
 use crate::pool::{PoolEvent, PoolHandle};
 use crate::viewer_link::{ViewerEvent, ViewerId};
@@ -254,9 +254,17 @@ impl Schedule {
         }
     }
 
-    /// A criterion of `kind` for viewer `id`, with its own random stream.
+    /// A criterion of `kind` for viewer `id`, with its own random stream. Its noise-aware
+    /// significance floor is the schedule's `display_error`, and its samples settle at the
+    /// ladder's cap: the stated end (DESIGN.md §5) asks samples and leaves for the same
+    /// precision, one display step.
     fn criterion(&self, kind: CriterionKind, id: ViewerId) -> Box<dyn crate::criteria::Criterion> {
-        make_criterion(kind, &self.config.criterion_settings, self.config.seed ^ id)
+        let settings = CriterionSettings {
+            display_error: self.config.display_error,
+            max_paths: self.config.max_paths,
+            ..self.config.criterion_settings
+        };
+        make_criterion(kind, &settings, self.config.seed ^ id)
     }
 
     fn on_pool_event(&mut self, event: PoolEvent) {
