@@ -16,6 +16,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use protocol::liveness::Liveness;
 use testkit::child::{Server, pin_thread, start_renderer, start_sma, strings};
 use testkit::probe::Probe;
 
@@ -57,8 +58,10 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
     let runtime = tokio::runtime::Runtime::new()?;
     let mut md = format!(
         "## Renderer farm\n\nScene {scene}, view {view}, unrefined mesh; \
-         real processes on loopback; the SMA at its default liveness rule (heartbeat 500 ms, \
-         3 s of silence); medians of {runs} runs. Load average when the run started: {}.\n\n",
+         real processes on loopback; the SMA at its default liveness rule (heartbeat {:?}, \
+         {:?} of silence); medians of {runs} runs. Load average when the run started: {}.\n\n",
+        Liveness::default().heartbeat,
+        Liveness::default().silence,
         crate::bench::machine::load_average()
     );
     runtime.block_on(hung_renderer(&farm, runs, &mut md))?;
@@ -150,7 +153,8 @@ async fn hung_renderer(farm: &Farm<'_>, runs: usize, md: &mut String) -> anyhow:
     writeln!(
         md,
         "\nThe stopped renderer's batches go to the other once it is lost; the silence limit \
-         (3 s) sets the detection.\n"
+         ({:?}) sets the detection.\n",
+        Liveness::default().silence
     )?;
     Ok(())
 }

@@ -16,14 +16,17 @@ pub struct Liveness {
 }
 
 impl Default for Liveness {
-    /// Heartbeats every 500 ms and 3 s of silence: a renderer's pong comes from its network
-    /// task, not its busy workers, in milliseconds even with every core tracing, so six missed
-    /// heartbeats mean a hung peer, not a busy one. 30 s for a frame: the 64 MiB maximum over a
+    /// Heartbeats every 500 ms and 1.5 s of silence: a renderer's pong comes from its network
+    /// task, not its busy workers, in milliseconds even with every core tracing (the farm tests
+    /// run at 1 s on a loaded 2-core machine), so three missed heartbeats mean a hung peer, not
+    /// a busy one. The silence is the whole detection delay of a hung renderer, and a view at
+    /// the scene's preset takes about as long on one renderer (BENCHMARKS.md, "Renderer farm"):
+    /// at 3 s a hung renderer more than doubled it. 30 s for a frame: the 64 MiB maximum over a
     /// 100 Mbit/s LAN takes about 5 s.
     fn default() -> Self {
         Liveness {
             heartbeat: Duration::from_millis(500),
-            silence: Duration::from_secs(3),
+            silence: Duration::from_millis(1500),
             frame_timeout: Duration::from_secs(30),
         }
     }
