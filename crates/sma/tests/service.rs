@@ -492,27 +492,26 @@ async fn a_viewer_that_answers_no_heartbeat_is_lost_and_one_that_answers_stays()
     let mut config = config(vec![renderer], false);
     config.liveness.heartbeat = Duration::from_millis(100);
     config.viewer_silence = Duration::from_millis(500);
-    // Statistics keep the live viewer reading (and so answering) while it rests.
-    config.schedule.stats_every = Duration::from_millis(100);
     let (sma, mut live) = start_with_probe(&config, &scene).await;
     let mut hung = Probe::connect(&sma.addr.to_string()).await.unwrap();
-    hung.answer_pings = false;
-    // Both read everything; only `live` answers pings.
+    hung.stop_answering_pings();
+    // Both read everything; only `live` answers pings, and it rests meanwhile.
     let started = std::time::Instant::now();
-    let hung_reads = tokio::time::timeout(WAIT, async {
+    let closed = tokio::time::timeout(WAIT, async {
         loop {
             if let Err(e) = hung.next_epoch().await {
-                return (e, started.elapsed());
+                return e;
             }
         }
-    });
-    let live_rests = live.until_stats(WAIT, |_| started.elapsed() >= 6 * config.viewer_silence);
-    let (closed, rested) = tokio::join!(hung_reads, live_rests);
-    let (closed, after) = closed.expect("the SMA kept a viewer that answers no heartbeat");
+    })
+    .await
+    .expect("the SMA kept a viewer that answers no heartbeat");
+    let after = started.elapsed();
     eprintln!("lost after {after:?}: {closed:#}");
-    assert!(after >= config.viewer_silence);
+    // Its last ping may have gone out just before it stopped answering.
+    assert!(after >= config.viewer_silence / 2, "lost after {after:?}");
     // Far past the silence limit, the viewer that answers is still served.
-    rested.unwrap();
+    tokio::time::sleep(6 * config.viewer_silence).await;
     view_completely(&mut live, "front").await;
     sma.stop().await.unwrap();
 }

@@ -2,8 +2,14 @@
 //! and fails on a duplicate insert, a remove or update of an unknown id, an `Error`, or an `Epoch`
 //! whose `shown` disagrees with the table (DESIGN.md §8). Used by the service tests (in-process
 //! and with real processes) and by the service benchmarks.
+//!
+//! Like a viewer's link, a task of its own reads the connection and answers the SMA's heartbeats
+//! at once, so a test may spend long on its own checks between reads without being taken for a
+//! hung viewer; [`Probe::stop_answering_pings`] plays one.
 
 use std::collections::HashMap;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use anyhow::{Context, bail};
@@ -13,12 +19,17 @@ use protocol::frame::DEFAULT_MAX_FRAME;
 use protocol::viewer_link::{
     Camera, Epoch, SceneInfo, ShownTriangle, SmaToViewer, Stats, TriangleId, ViewerToSma,
 };
-use protocol::{Hello, Role, split_tcp};
+use protocol::{Hello, ProtocolError, Role, split_tcp};
 use tokio::net::TcpStream;
+use tokio::sync::{Mutex, mpsc};
+use tokio::task::JoinHandle;
 
 pub struct Probe {
-    reader: TcpReader<SmaToViewer>,
-    writer: TcpWriter<ViewerToSma>,
+    /// What the reading task took off the connection, heartbeats left out; an error ends it.
+    incoming: mpsc::UnboundedReceiver<Result<SmaToViewer, ProtocolError>>,
+    reading: JoinHandle<()>,
+    writer: Arc<Mutex<TcpWriter<ViewerToSma>>>,
+    answer_pings: Arc<AtomicBool>,
     pub scene: SceneInfo,
     pub table: HashMap<TriangleId, ShownTriangle>,
     pub l_white: Option<f32>,
@@ -30,8 +41,38 @@ pub struct Probe {
     /// Every `Stats`, in order.
     pub stats_seen: Vec<Stats>,
     next_seq: u64,
-    /// Heartbeats are answered (as a viewer's link does); false plays a viewer that hangs.
-    pub answer_pings: bool,
+}
+
+impl Drop for Probe {
+    fn drop(&mut self) {
+        self.reading.abort();
+    }
+}
+
+/// Reads `reader` until it fails: heartbeats are answered through `writer` while `answer` holds,
+/// everything else goes to `incoming`.
+async fn read_all(
+    mut reader: TcpReader<SmaToViewer>,
+    writer: Arc<Mutex<TcpWriter<ViewerToSma>>>,
+    answer: Arc<AtomicBool>,
+    incoming: mpsc::UnboundedSender<Result<SmaToViewer, ProtocolError>>,
+) {
+    loop {
+        let message = match reader.recv().await {
+            Ok(SmaToViewer::Ping { nonce }) if answer.load(Ordering::Relaxed) => {
+                match writer.lock().await.send(&ViewerToSma::Pong { nonce }).await {
+                    Ok(()) => continue,
+                    Err(e) => Err(e),
+                }
+            }
+            Ok(SmaToViewer::Ping { .. }) => continue,
+            other => other,
+        };
+        let failed = message.is_err();
+        if incoming.send(message).is_err() || failed {
+            return;
+        }
+    }
 }
 
 impl Probe {
@@ -52,9 +93,20 @@ impl Probe {
             SmaToViewer::SceneInfo(info) => info,
             other => bail!("expected SceneInfo first, got {other:?}"),
         };
-        Ok(Probe {
+        let writer = Arc::new(Mutex::new(writer));
+        let answer_pings = Arc::new(AtomicBool::new(true));
+        let (incoming_tx, incoming) = mpsc::unbounded_channel();
+        let reading = tokio::spawn(read_all(
             reader,
+            Arc::clone(&writer),
+            Arc::clone(&answer_pings),
+            incoming_tx,
+        ));
+        Ok(Probe {
+            incoming,
+            reading,
             writer,
+            answer_pings,
             scene,
             table: HashMap::new(),
             l_white: None,
@@ -63,26 +115,24 @@ impl Probe {
             stats: None,
             stats_seen: Vec::new(),
             next_seq: 0,
-            answer_pings: true,
         })
     }
 
     pub async fn send(&mut self, message: ViewerToSma) -> anyhow::Result<()> {
-        Ok(self.writer.send(&message).await?)
+        Ok(self.writer.lock().await.send(&message).await?)
     }
 
-    /// The next message that is not a heartbeat; heartbeats are answered at once, as a viewer's
-    /// link does (the SMA loses a viewer that answers none for its silence limit), unless
-    /// `answer_pings` is off.
+    /// From now on heartbeats go unanswered, as from a viewer that hangs; everything is still
+    /// read.
+    pub fn stop_answering_pings(&self) {
+        self.answer_pings.store(false, Ordering::Relaxed);
+    }
+
+    /// The next message that is not a heartbeat.
     pub async fn read(&mut self) -> anyhow::Result<SmaToViewer> {
-        loop {
-            match self.reader.recv().await? {
-                SmaToViewer::Ping { nonce } if self.answer_pings => {
-                    self.send(ViewerToSma::Pong { nonce }).await?
-                }
-                SmaToViewer::Ping { .. } => {}
-                message => return Ok(message),
-            }
+        match self.incoming.recv().await {
+            Some(message) => Ok(message?),
+            None => Err(ProtocolError::Closed.into()),
         }
     }
 
