@@ -37,7 +37,7 @@ pub enum LinkEvent {
     Disconnected(String),
 }
 
-const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
+pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
 /// An SMA pings its viewers every heartbeat (half a second by default); one that has sent
 /// nothing at all for this long is lost, and the link reconnects (DESIGN.md §8). The SMA's own
 /// limit for a viewer is the same by default.
@@ -109,12 +109,13 @@ async fn run(
 ) {
     let mut retry = FIRST_RETRY;
     loop {
-        match tokio::time::timeout(CONNECT_TIMEOUT, connect(&addr)).await {
+        let Some(attempt) = connect_or_finish(&addr, &mut inbox).await else {
+            return;
+        };
+        match attempt {
             Ok(Ok((reader, writer, info))) => {
                 retry = FIRST_RETRY;
                 tracing::info!(%addr, scene = %info.name, "connected to the SMA");
-                // Messages queued before this session were meant for no session.
-                while inbox.try_recv().is_ok() {}
                 notify(LinkEvent::Connected(info));
                 match session(reader, writer, &notify, &mut inbox).await {
                     SessionEnd::Finished => return,
@@ -134,6 +135,29 @@ async fn run(
     }
 }
 
+type Connected = (TcpReader<SmaToViewer>, TcpWriter<ViewerToSma>, SceneInfo);
+
+/// One connection attempt, within `CONNECT_TIMEOUT`; `None` when the front end finished
+/// meanwhile (an SMA that is shutting down may take the TCP connection and never answer, and
+/// quitting must not wait for it). Messages queued meanwhile were meant for no session: the
+/// front end restates its state on `Connected`.
+async fn connect_or_finish(
+    addr: &str,
+    inbox: &mut mpsc::UnboundedReceiver<ViewerToSma>,
+) -> Option<Result<Result<Connected, ProtocolError>, tokio::time::error::Elapsed>> {
+    let attempt = tokio::time::timeout(CONNECT_TIMEOUT, connect(addr));
+    tokio::pin!(attempt);
+    loop {
+        tokio::select! {
+            outcome = &mut attempt => return Some(outcome),
+            msg = inbox.recv() => match msg {
+                None | Some(ViewerToSma::Bye) => return None,
+                Some(_) => {}
+            },
+        }
+    }
+}
+
 /// Sleeps `delay`; true when the front end finished meanwhile.
 async fn wait_or_finish(delay: Duration, inbox: &mut mpsc::UnboundedReceiver<ViewerToSma>) -> bool {
     let sleep = tokio::time::sleep(delay);
@@ -149,9 +173,7 @@ async fn wait_or_finish(delay: Duration, inbox: &mut mpsc::UnboundedReceiver<Vie
     }
 }
 
-async fn connect(
-    addr: &str,
-) -> Result<(TcpReader<SmaToViewer>, TcpWriter<ViewerToSma>, SceneInfo), ProtocolError> {
+async fn connect(addr: &str) -> Result<Connected, ProtocolError> {
     let stream = tokio::net::TcpStream::connect(addr).await?;
     let (mut reader, mut writer) = split_tcp(stream, DEFAULT_MAX_FRAME);
     connect_handshake(

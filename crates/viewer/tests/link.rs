@@ -252,6 +252,29 @@ fn the_link_answers_heartbeats_and_leaves_an_sma_that_falls_silent() {
 }
 
 #[test]
+fn closing_while_connecting_to_an_sma_that_never_answers_does_not_wait_for_it() {
+    // A port that takes the TCP connection and says nothing: an SMA shutting down, or hung.
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap().to_string();
+    let (accepted_tx, accepted) = mpsc::channel();
+    std::thread::spawn(move || {
+        let held = listener.accept();
+        let _ = accepted_tx.send(());
+        std::thread::sleep(2 * viewer::link::CONNECT_TIMEOUT);
+        drop(held);
+    });
+    let viewer = Viewer::connect(&addr);
+    accepted.recv_timeout(WAIT).expect("the link connects");
+    let closing = std::time::Instant::now();
+    viewer.link.close();
+    assert!(
+        closing.elapsed() < viewer::link::CONNECT_TIMEOUT,
+        "close waited {:?} for a handshake that never came",
+        closing.elapsed()
+    );
+}
+
+#[test]
 fn view_state_asks_to_restate_on_every_new_session() {
     let mut state = ViewState::default();
     assert_eq!(
