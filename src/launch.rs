@@ -213,7 +213,12 @@ async fn stop_all(children: &mut [Child], ask_first: bool) {
             continue;
         }
         if ask_first {
-            tracing::warn!("a child did not stop within 3 s: killing it");
+            let program = child
+                .id()
+                .and_then(|pid| std::fs::read_to_string(format!("/proc/{pid}/cmdline")).ok())
+                .map(|cmdline| cmdline.replace('\0', " "))
+                .unwrap_or_default();
+            tracing::warn!(%program, "a child did not stop within 3 s: killing it");
         }
         let _ = child.kill().await;
     }

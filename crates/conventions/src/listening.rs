@@ -34,7 +34,9 @@ pub fn read_addr(
         let mut found = Some(found);
         for line in BufReader::new(stdout).lines() {
             let Ok(line) = line else { break };
-            let _ = writeln!(rest, "{line}");
+            // One write per line: `rest` may be a log file the child's stderr also appends to,
+            // and a line written in two parts can be split by a log line between them.
+            let _ = rest.write_all(format!("{line}\n").as_bytes());
             if let Some(addr) = parse(&line)
                 && let Some(tx) = found.take()
             {
