@@ -80,6 +80,7 @@ pub fn run(args: LaunchConfig) -> anyhow::Result<()> {
 }
 
 async fn run_async(args: LaunchConfig) -> anyhow::Result<()> {
+    let mut termination = Termination::listen()?;
     let cores = std::thread::available_parallelism()
         .map(|n| n.get())
         .unwrap_or(2);
@@ -155,7 +156,7 @@ async fn run_async(args: LaunchConfig) -> anyhow::Result<()> {
 
     let (outcome, interrupted) = tokio::select! {
         status = viewer.wait() => (status.map(|s| s.success()), false),
-        signal = termination_signal() => {
+        signal = termination.next() => {
             tracing::info!("{signal}: stopping the viewer, the SMA and the renderers…");
             (Ok(true), true)
         }
@@ -178,13 +179,30 @@ async fn run_async(args: LaunchConfig) -> anyhow::Result<()> {
     }
 }
 
-/// Resolves at the first SIGINT or SIGTERM, naming it.
-async fn termination_signal() -> &'static str {
-    use tokio::signal::unix::{SignalKind, signal};
-    let mut term = signal(SignalKind::terminate()).ok();
-    tokio::select! {
-        _ = tokio::signal::ctrl_c() => "interrupted",
-        Some(_) = async { term.as_mut()?.recv().await } => "terminated",
+/// SIGINT and SIGTERM, listened for before any child starts. A handled signal goes back to its
+/// default action in a child, an ignored one stays ignored: a launcher started with SIGINT
+/// ignored (a background job of a non-interactive shell) would otherwise start a viewer that
+/// the SIGINT it passes on cannot stop.
+struct Termination {
+    interrupt: tokio::signal::unix::Signal,
+    terminate: tokio::signal::unix::Signal,
+}
+
+impl Termination {
+    fn listen() -> anyhow::Result<Termination> {
+        use tokio::signal::unix::{SignalKind, signal};
+        Ok(Termination {
+            interrupt: signal(SignalKind::interrupt()).context("listening for SIGINT")?,
+            terminate: signal(SignalKind::terminate()).context("listening for SIGTERM")?,
+        })
+    }
+
+    /// Resolves at the next SIGINT or SIGTERM, naming it.
+    async fn next(&mut self) -> &'static str {
+        tokio::select! {
+            _ = self.interrupt.recv() => "interrupted",
+            _ = self.terminate.recv() => "terminated",
+        }
     }
 }
 

@@ -1,7 +1,7 @@
 //! What waits for one viewer (DESIGN.md §8): not a queue of messages but the change from what the
 //! viewer was last sent to what it should hold now. A viewer that reads slowly gets the latest
 //! state of each triangle, not every step it went through: an insert then an update is one insert,
-//! an insert then a remove is nothing, epochs and statistics keep only the newest. So the bytes
+//! an insert then a remove is nothing, epochs keep only the newest, statistics the last few. So the bytes
 //! waiting for a viewer are bounded by the triangles it could hold, whatever the SMA computes
 //! meanwhile; the schedule never waits for a viewer, and other viewers and the renderers go on.
 //!
@@ -10,6 +10,7 @@
 //! the `Epoch` that closes them, then `Stats`. Changes after the last epoch wait for the next one,
 //! so each epoch a viewer gets still closes a consistent state (its `shown` is the table's size).
 
+use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Instant;
@@ -146,8 +147,13 @@ struct Pending {
     closed: Changes,
     epoch: Option<Epoch>,
     open: Changes,
-    stats: Option<Stats>,
+    /// The newest statistics, oldest first: a viewer that keeps up sees every interval, one
+    /// that lags the last `STATS_KEPT`.
+    stats: VecDeque<Stats>,
 }
+
+/// Statistics kept for a viewer that lags.
+const STATS_KEPT: usize = 64;
 
 impl Pending {
     fn add(&mut self, message: SmaToViewer) {
@@ -172,14 +178,19 @@ impl Pending {
                 self.closed.absorb(std::mem::take(&mut self.open));
                 self.epoch = Some(merged(self.epoch, epoch));
             }
-            SmaToViewer::Stats(stats) => self.stats = Some(stats),
+            SmaToViewer::Stats(stats) => {
+                if self.stats.len() == STATS_KEPT {
+                    self.stats.pop_front();
+                }
+                self.stats.push_back(stats);
+            }
             note => self.notes.push(note),
         }
     }
 
     /// Bytes waiting, at most.
     fn bytes(&self) -> usize {
-        self.notes.len() * NOTE_BYTES + self.closed.bytes + self.open.bytes
+        (self.notes.len() + self.stats.len()) * NOTE_BYTES + self.closed.bytes + self.open.bytes
     }
 
     /// What may go out now, in sending order; the changes no epoch has closed yet stay.
@@ -189,7 +200,7 @@ impl Pending {
             std::mem::take(&mut self.closed).write_into(&mut messages);
             messages.push(SmaToViewer::Epoch(epoch));
         }
-        messages.extend(self.stats.take().map(SmaToViewer::Stats));
+        messages.extend(self.stats.drain(..).map(SmaToViewer::Stats));
         messages
     }
 }

@@ -146,14 +146,14 @@ fn a_viewer_that_does_not_read_holds_at_most_the_latest_state_of_each_triangle()
     }
     assert_eq!(
         pending.bytes(),
-        after_insert,
-        "updates of inserted triangles fold into them"
+        after_insert + STATS_KEPT * NOTE_BYTES,
+        "updates of inserted triangles fold into them; the last statistics are kept"
     );
     let messages = pending.take_closed();
     assert_eq!(
         messages.len(),
-        3,
-        "one insert, one epoch, one stats: {messages:?}"
+        2 + STATS_KEPT,
+        "one insert, one epoch, the last statistics: {messages:?}"
     );
     let SmaToViewer::Insert { triangles } = &messages[0] else {
         panic!("insert first, got {:?}", messages[0]);
