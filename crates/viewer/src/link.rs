@@ -109,7 +109,8 @@ async fn run(
 ) {
     let mut retry = FIRST_RETRY;
     loop {
-        let Some(attempt) = connect_or_finish(&addr, &mut inbox).await else {
+        let attempt = tokio::time::timeout(CONNECT_TIMEOUT, connect(&addr));
+        let Some(attempt) = unless_finished(attempt, &mut inbox).await else {
             return;
         };
         match attempt {
@@ -128,7 +129,10 @@ async fn run(
             Ok(Err(e)) => tracing::debug!(%addr, "connecting to the SMA: {e}"),
             Err(_) => tracing::debug!(%addr, "connecting to the SMA timed out"),
         }
-        if wait_or_finish(retry, &mut inbox).await {
+        if unless_finished(tokio::time::sleep(retry), &mut inbox)
+            .await
+            .is_none()
+        {
             return;
         }
         retry = (retry * 2).min(MAX_RETRY);
@@ -137,36 +141,20 @@ async fn run(
 
 type Connected = (TcpReader<SmaToViewer>, TcpWriter<ViewerToSma>, SceneInfo);
 
-/// One connection attempt, within `CONNECT_TIMEOUT`; `None` when the front end finished
-/// meanwhile (an SMA that is shutting down may take the TCP connection and never answer, and
-/// quitting must not wait for it). Messages queued meanwhile were meant for no session: the
-/// front end restates its state on `Connected`.
-async fn connect_or_finish(
-    addr: &str,
+/// `work`'s outcome, or `None` when the front end finished first (its `Bye`, or its handle
+/// dropped). Between sessions nothing waits on an SMA once the front end quits: an SMA that is
+/// shutting down may take the TCP connection and never answer. Other messages queued meanwhile
+/// were meant for no session: the front end restates its state on `Connected`.
+async fn unless_finished<T>(
+    work: impl Future<Output = T>,
     inbox: &mut mpsc::UnboundedReceiver<ViewerToSma>,
-) -> Option<Result<Result<Connected, ProtocolError>, tokio::time::error::Elapsed>> {
-    let attempt = tokio::time::timeout(CONNECT_TIMEOUT, connect(addr));
-    tokio::pin!(attempt);
+) -> Option<T> {
+    tokio::pin!(work);
     loop {
         tokio::select! {
-            outcome = &mut attempt => return Some(outcome),
+            outcome = &mut work => return Some(outcome),
             msg = inbox.recv() => match msg {
                 None | Some(ViewerToSma::Bye) => return None,
-                Some(_) => {}
-            },
-        }
-    }
-}
-
-/// Sleeps `delay`; true when the front end finished meanwhile.
-async fn wait_or_finish(delay: Duration, inbox: &mut mpsc::UnboundedReceiver<ViewerToSma>) -> bool {
-    let sleep = tokio::time::sleep(delay);
-    tokio::pin!(sleep);
-    loop {
-        tokio::select! {
-            _ = &mut sleep => return false,
-            msg = inbox.recv() => match msg {
-                None | Some(ViewerToSma::Bye) => return true,
                 Some(_) => {}
             },
         }
