@@ -121,6 +121,11 @@ pub struct Cli {
     /// Batches in flight per renderer.
     #[arg(long, default_value_t = defaults().schedule.batches_per_renderer)]
     pub batches_per_renderer: usize,
+    /// Work kept waiting in the pool beyond the renderers' batches, in milliseconds at their
+    /// measured rate: it keeps them busy while the SMA runs a pass or a refinement round (0: only
+    /// the batches per renderer).
+    #[arg(long, default_value_t = defaults().schedule.renderer_backlog.as_millis() as u64)]
+    pub renderer_backlog_ms: u64,
     /// Refinement waits until fewer samples than this are queued or in flight.
     #[arg(long, default_value_t = defaults().schedule.queue_low)]
     pub queue_low: usize,
@@ -253,6 +258,7 @@ impl Cli {
             revisit_samples: self.revisit_samples,
             batch_points: self.batch_points.max(1),
             batches_per_renderer: self.batches_per_renderer.max(1),
+            renderer_backlog: Duration::from_millis(self.renderer_backlog_ms),
             queue_low: self.queue_low,
             rest: Duration::from_millis(self.rest_ms),
             view_angle_deg: self.view_angle_deg,

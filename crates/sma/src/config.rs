@@ -86,6 +86,10 @@ pub struct ScheduleConfig {
     pub batch_points: usize,
     /// Batches in flight per connected renderer.
     pub batches_per_renderer: usize,
+    /// Work the pool keeps waiting beyond the renderers' batches, in time at their measured
+    /// rate: it covers the schedule's longest turns (a pass, a refinement round), so the
+    /// renderers never wait for them.
+    pub renderer_backlog: Duration,
     /// Refinement waits until fewer samples than this are queued or in flight.
     pub queue_low: usize,
     /// A camera rests once unchanged this long.
@@ -120,6 +124,7 @@ impl Default for ScheduleConfig {
             revisit_samples: 20_000,
             batch_points: 128,
             batches_per_renderer: 4,
+            renderer_backlog: Duration::from_millis(500),
             queue_low: 256,
             rest: Duration::from_millis(100),
             view_angle_deg: 2.0,

@@ -528,7 +528,7 @@ async fn a_resting_viewer_gets_more_paths_until_converged_then_nothing() {
     let (renderer, log) = fake_renderer(scene.clone(), Fault::Noisy).await;
     let mut config = config(vec![renderer], true);
     config.schedule.max_paths = 4 * Quality::INTERACTIVE.paths;
-    config.schedule.stats_every = Duration::from_millis(100);
+    config.schedule.stats_every = Duration::from_millis(10);
     let (sma, mut probe) = start_with_probe(&config, &scene).await;
     let camera = probe.view("front", W, H).await.unwrap();
     probe.complete(camera.seq, WAIT).await.unwrap();

@@ -4,15 +4,17 @@
 //!
 //! A renderer is lost when its link goes down, when it stops answering heartbeats, or when a
 //! batch it holds passes its deadline (its expected time at that renderer's rate, times a
-//! factor). A lost renderer's batches go back to the front of the queue and are re-issued
+//! factor). A lost renderer's batches go back to the front of the backlog and are re-issued
 //! elsewhere; its link closes and reconnects with backoff (a joined one rejoins by itself). A
 //! batch is answered at most once: a reply counts only from the connection that holds the batch
 //! now, so a late answer is ignored and no reply enters the cache twice. With no renderer
-//! answering, batches wait in the queue and the SMA says so; they go out when one answers.
+//! answering, batches wait in the backlog and the SMA says so; they go out when one answers.
 //!
-//! One task per renderer connection and one dispatcher task that owns the queue and the
-//! in-flight table, in the style of tokio's mini-redis. Every channel between them is bounded.
+//! One task per renderer connection and one dispatcher task that owns the in-flight table and
+//! sends from the backlog (`backlog`: what the schedule handed over and may still withdraw), in
+//! the style of tokio's mini-redis. Every channel between them is bounded, and so is the backlog.
 
+mod backlog;
 mod busy;
 mod link;
 mod rate;
@@ -26,18 +28,19 @@ use protocol::admission::{ConnectionLimit, PortLimits};
 use protocol::liveness::Liveness;
 use protocol::renderer_link::{FromRenderer, Radiance, ShadeBatch};
 use tokio::net::TcpListener;
-use tokio::sync::{mpsc, watch};
+use tokio::sync::{Notify, mpsc, watch};
 use tokio::time::Instant;
 
+use backlog::{Backlog, Queued};
 use busy::BusyMeter;
 use link::{Dialed, LinkEvent};
 use rate::Rate;
 
 /// A batch rejected or answered badly this many times is given back to the schedule as failed.
 const MAX_ATTEMPTS: u32 = 3;
-/// Batches the schedule may have handed over and the dispatcher not yet taken: the schedule
-/// keeps a few per renderer in flight, so this is never reached by a sane farm.
-const SUBMIT_QUEUE: usize = 4096;
+/// Batches the schedule may have handed over and no renderer taken yet: the schedule keeps a
+/// backlog of a fraction of a second, so this is never reached by a sane farm.
+const BACKLOG_BATCHES: usize = 4096;
 /// News from the link tasks waiting for the dispatcher.
 const LINK_QUEUE: usize = 256;
 
@@ -77,25 +80,52 @@ pub enum PoolEvent {
     Renderers { connected: usize },
 }
 
+pub use backlog::Lane;
+
 /// The schedule's side of the pool.
 #[derive(Clone)]
 pub struct PoolHandle {
-    submit: mpsc::Sender<ShadeBatch>,
+    backlog: Arc<Mutex<Backlog>>,
+    /// Wakes the dispatcher when a batch is handed over.
+    submitted: Arc<Notify>,
     busy: Arc<Mutex<BusyMeter>>,
 }
 
 impl PoolHandle {
-    /// Queues a batch; it is dispatched as soon as a renderer has room. A full queue gives the
-    /// batch back, for the schedule to ask again later.
-    pub fn submit(&self, batch: ShadeBatch) -> Result<(), ShadeBatch> {
-        self.submit.try_send(batch).map_err(|e| e.into_inner())
+    /// Queues a batch in its lane of the backlog; it is dispatched as soon as a renderer has
+    /// room. A full backlog gives the batch back, for the schedule to ask again later.
+    pub fn submit(&self, batch: ShadeBatch, lane: Lane) -> Result<(), ShadeBatch> {
+        {
+            let mut backlog = lock(&self.backlog);
+            if backlog.len() >= BACKLOG_BATCHES {
+                return Err(batch);
+            }
+            backlog.push_back(batch, lane);
+        }
+        self.submitted.notify_one();
+        Ok(())
+    }
+
+    /// Takes back every batch not yet sent to a renderer (the schedule's plan changed).
+    pub fn withdraw(&self) -> Vec<ShadeBatch> {
+        lock(&self.backlog).withdraw()
+    }
+
+    /// Seconds of the renderers' measured capacity that the backlog holds (None until a
+    /// renderer's rate is measured).
+    pub fn backlog_seconds(&self) -> Option<f64> {
+        lock(&self.backlog).seconds()
     }
 
     /// The renderers' busy share since the previous call (0..1; see `busy`).
     pub fn take_busy(&self) -> f32 {
-        let mut meter = self.busy.lock().unwrap_or_else(|e| e.into_inner());
-        meter.take(std::time::Instant::now())
+        lock(&self.busy).take(std::time::Instant::now())
     }
+}
+
+/// The pool's shared state is left consistent by every holder, so a poisoned lock is still good.
+fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 /// Starts the dispatcher, one link task per dialed renderer, and the renderer port's acceptor
@@ -106,7 +136,8 @@ pub fn spawn(
     joining: Option<TcpListener>,
     shutdown: watch::Receiver<bool>,
 ) -> PoolHandle {
-    let (submit, submitted) = mpsc::channel(SUBMIT_QUEUE);
+    let backlog = Arc::new(Mutex::new(Backlog::default()));
+    let submitted = Arc::new(Notify::new());
     let (link_tx, link_rx) = mpsc::channel(LINK_QUEUE);
     for (index, addr) in config.renderers.iter().enumerate() {
         let link = Dialed {
@@ -125,7 +156,7 @@ pub fn spawn(
             config.renderers.len(),
             config.clone(),
             link_tx,
-            shutdown,
+            shutdown.clone(),
         ));
     }
     let busy = Arc::new(Mutex::new(BusyMeter::new(std::time::Instant::now())));
@@ -134,14 +165,18 @@ pub fn spawn(
         config,
         links: BTreeMap::new(),
         rates: HashMap::new(),
-        queue: VecDeque::new(),
+        backlog: Arc::clone(&backlog),
         in_flight: HashMap::new(),
         news: VecDeque::new(),
         answering: 0,
         none_answering: false,
     };
-    tokio::spawn(dispatcher.run(submitted, link_rx, events));
-    PoolHandle { submit, busy }
+    tokio::spawn(dispatcher.run(Arc::clone(&submitted), link_rx, events, shutdown));
+    PoolHandle {
+        backlog,
+        submitted,
+        busy,
+    }
 }
 
 /// A connection that is up.
@@ -171,7 +206,8 @@ struct Dispatcher {
     links: BTreeMap<usize, Slot>,
     /// Measured rates, kept across a dialed renderer's reconnections.
     rates: HashMap<usize, Rate>,
-    queue: VecDeque<(ShadeBatch, u32)>,
+    /// Shared with the schedule's handle, which fills it and may withdraw what is not sent.
+    backlog: Arc<Mutex<Backlog>>,
     in_flight: HashMap<u64, InFlight>,
     /// Events for the schedule, sent in order once a turn of the dispatcher is done.
     news: VecDeque<PoolEvent>,
@@ -184,22 +220,22 @@ struct Dispatcher {
 impl Dispatcher {
     async fn run(
         mut self,
-        mut submitted: mpsc::Receiver<ShadeBatch>,
+        submitted: Arc<Notify>,
         mut links: mpsc::Receiver<LinkEvent>,
         events: mpsc::Sender<PoolEvent>,
+        mut shutdown: watch::Receiver<bool>,
     ) {
         loop {
             let due = self.in_flight.values().map(|f| f.deadline).min();
             tokio::select! {
-                batch = submitted.recv() => match batch {
-                    Some(batch) => self.queue.push_back((batch, 0)),
-                    None => return,
-                },
+                _ = shutdown.changed() => return,
+                _ = submitted.notified() => {}
                 Some(event) = links.recv() => self.on_link_event(event),
                 _ = sleep_until(due), if due.is_some() => self.expire(Instant::now()),
             }
             self.dispatch();
             self.observe_busy();
+            self.publish_capacity();
             self.report_answering();
             while let Some(event) = self.news.pop_front() {
                 if events.send(event).await.is_err() {
@@ -209,10 +245,20 @@ impl Dispatcher {
         }
     }
 
+    /// The answering renderers' summed rate, for the schedule to size the backlog by.
+    fn publish_capacity(&self) {
+        let measured: Vec<f64> = self
+            .links
+            .keys()
+            .filter_map(|i| self.rates.get(i).and_then(Rate::units_per_sec))
+            .collect();
+        let capacity = (!measured.is_empty()).then(|| measured.iter().sum());
+        lock(&self.backlog).set_capacity(capacity);
+    }
+
     fn observe_busy(&self) {
         let holding = self.links.values().filter(|s| s.outstanding > 0).count();
-        let mut meter = self.busy.lock().unwrap_or_else(|e| e.into_inner());
-        meter.observe(std::time::Instant::now(), holding, self.links.len());
+        lock(&self.busy).observe(std::time::Instant::now(), holding, self.links.len());
     }
 
     fn on_link_event(&mut self, event: LinkEvent) {
@@ -271,9 +317,13 @@ impl Dispatcher {
             .map(|(id, _)| *id)
             .collect();
         lost.sort_unstable_by(|a, b| b.cmp(a));
+        let mut backlog = lock(&self.backlog);
         for id in lost {
             if let Some(flight) = self.in_flight.remove(&id) {
-                self.queue.push_front((flight.batch, flight.attempts));
+                backlog.push_front(Queued {
+                    batch: flight.batch,
+                    attempts: flight.attempts,
+                });
             }
         }
     }
@@ -341,15 +391,18 @@ impl Dispatcher {
             tracing::warn!(batch_id = batch.batch_id, %reason, "batch failed {attempts} times");
             self.news.push_back(PoolEvent::Failed { batch, reason });
         } else {
-            self.queue.push_front((batch, attempts));
+            lock(&self.backlog).push_front(Queued { batch, attempts });
         }
     }
 
     /// Hands queued batches to renderers with room, each to the one that would finish it first
     /// at its measured rate (one not yet measured first, so it gets measured).
     fn dispatch(&mut self) {
-        while let Some((batch, attempts)) = self.queue.pop_front() {
-            let units = rate::units(&batch);
+        loop {
+            let Some(queued) = lock(&self.backlog).pop_front() else {
+                return;
+            };
+            let units = rate::units(&queued.batch);
             let finish = |(index, slot): (&usize, &Slot)| {
                 let rate = self.rates.get(index).copied().unwrap_or_default();
                 let seconds = rate.expected(slot.units + units).map(|d| d.as_secs_f64());
@@ -362,7 +415,7 @@ impl Dispatcher {
                 .map(finish)
                 .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
             let Some((_, _, index)) = best else {
-                self.queue.push_front((batch, attempts));
+                lock(&self.backlog).push_front(queued);
                 return;
             };
             let rate = self.rates.get(&index).copied().unwrap_or_default();
@@ -374,10 +427,10 @@ impl Dispatcher {
                 self.config.liveness.silence,
                 self.config.first_deadline,
             );
-            if slot.batches.try_send(batch.clone()).is_err() {
+            if slot.batches.try_send(queued.batch.clone()).is_err() {
                 // The link task ended; its Down is on its way.
                 let generation = slot.generation;
-                self.queue.push_front((batch, attempts));
+                lock(&self.backlog).push_front(queued);
                 self.lose(index, generation, "its link task ended");
                 continue;
             }
@@ -387,8 +440,8 @@ impl Dispatcher {
             let flight = InFlight {
                 index,
                 generation: slot.generation,
-                batch,
-                attempts,
+                batch: queued.batch,
+                attempts: queued.attempts,
                 sent: now,
                 deadline: now + allowed,
             };
@@ -405,7 +458,7 @@ impl Dispatcher {
         }
         if connected == 0 {
             tracing::warn!(
-                waiting = self.queue.len(),
+                waiting = lock(&self.backlog).len(),
                 "no renderer is answering; the view keeps what it shows and its work waits"
             );
             self.none_answering = true;

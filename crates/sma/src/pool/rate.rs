@@ -18,9 +18,16 @@ pub fn units(batch: &ShadeBatch) -> f64 {
 }
 
 /// Seconds per unit on one renderer, from how fast its answers come while it is busy.
+///
+/// The mean is a ratio of running means, seconds over units, not a running mean of each
+/// batch's seconds per unit: a batch also costs a fixed overhead (its round trip, the
+/// renderer's set-up), which makes a cheap batch (direct light, a few points) look many times
+/// slower per unit than a batch of more paths. Weighted by units, cheap batches barely move
+/// the rate, and the renderers' capacity is not underestimated when they are mixed.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Rate {
-    secs_per_unit: Option<f64>,
+    /// Running means of an answer's service time and units, once one is measured.
+    means: Option<(f64, f64)>,
     last_answer: Option<Instant>,
 }
 
@@ -35,16 +42,28 @@ impl Rate {
         if units <= 0.0 {
             return;
         }
-        let sample = now.duration_since(from).as_secs_f64() / units;
-        self.secs_per_unit = Some(match self.secs_per_unit {
-            Some(mean) => mean + SMOOTHING * (sample - mean),
-            None => sample,
+        let seconds = now.duration_since(from).as_secs_f64();
+        self.means = Some(match self.means {
+            Some((mean_s, mean_u)) => (
+                mean_s + SMOOTHING * (seconds - mean_s),
+                mean_u + SMOOTHING * (units - mean_u),
+            ),
+            None => (seconds, units),
         });
+    }
+
+    fn secs_per_unit(&self) -> Option<f64> {
+        self.means.map(|(s, u)| s / u)
+    }
+
+    /// Units of work done per second, if measured.
+    pub fn units_per_sec(&self) -> Option<f64> {
+        self.secs_per_unit().filter(|s| *s > 0.0).map(|s| 1.0 / s)
     }
 
     /// The time `units` of work take here, if measured.
     pub fn expected(&self, units: f64) -> Option<Duration> {
-        self.secs_per_unit
+        self.secs_per_unit()
             .map(|s| Duration::from_secs_f64((s * units).clamp(0.0, 3600.0)))
     }
 }
@@ -84,5 +103,26 @@ mod tests {
         let due = deadline(&rate, 300.0, 4.0, grace, first).as_secs_f64();
         assert!((due - 13.0).abs() < 1e-6, "{due}");
         assert_eq!(deadline(&Rate::default(), 300.0, 4.0, grace, first), first);
+    }
+
+    #[test]
+    fn cheap_batches_with_a_fixed_overhead_barely_lower_the_capacity() {
+        // 1 ms of overhead per batch, 1 µs per unit: a batch of 100,000 units takes 101 ms,
+        // one of 100 units 1.1 ms (1,000 times slower per unit).
+        let service = |units: f64| Duration::from_secs_f64(1e-3 + 1e-6 * units);
+        let t0 = Instant::now();
+        let mut rate = Rate::default();
+        let mut now = t0;
+        for i in 0..40 {
+            let units = if i % 2 == 0 { 100_000.0 } else { 100.0 };
+            let sent = now;
+            now += service(units);
+            rate.answered(units, sent, now);
+        }
+        let capacity = rate.units_per_sec().unwrap();
+        assert!(
+            capacity > 0.9e6 && capacity < 1.0e6,
+            "{capacity} units/s, against 1e6 without overhead"
+        );
     }
 }

@@ -45,7 +45,7 @@ use crate::cache::{CachedSample, ShadingCache};
 use crate::config::ScheduleConfig;
 use crate::criteria::{CriterionKind, CriterionSettings, make_criterion};
 use crate::mesh::SubdivisionMesh;
-use crate::pool::{PoolEvent, PoolHandle};
+use crate::pool::{Lane, PoolEvent, PoolHandle};
 use crate::viewer_link::{ViewerEvent, ViewerId};
 use crate::visibility::{Gpu, LuminancePass, Visibility};
 use coarsening::Coarsening;
@@ -63,6 +63,10 @@ const MAX_REJECTIONS: u8 = 3;
 /// pass): each sync walks every visible leaf, and done after every answered batch it took the
 /// SMA's whole core and left the renderers waiting for work (DESIGN.md §3).
 const SYNC_INTERVAL: Duration = Duration::from_millis(50);
+
+/// Batches per renderer the pool's backlog may hold, whatever their size: a bound on what a
+/// withdrawal hands back.
+const MAX_BACKLOG_BATCHES_PER_RENDERER: usize = 64;
 
 /// A criterion that found nothing is asked again once this many new samples have come, not after
 /// every batch: a round evaluates every visible leaf.
@@ -181,7 +185,7 @@ impl Schedule {
                     None => return Ok(()),
                 },
                 Some(event) = pool.recv() => self.on_pool_event(event),
-                _ = stats.tick() => self.report_stats(),
+                _ = stats.tick() => {}
                 _ = sleep_until(wake_at), if wake_at.is_some() => {}
                 _ = std::future::ready(()), if work_now => {}
             }
@@ -192,6 +196,11 @@ impl Schedule {
                 self.on_pool_event(event);
             }
             self.turn()?;
+            // By the clock, not only on the tick: while work keeps this loop busy, the
+            // runtime's timers are not polled and the tick came seconds late.
+            if self.last_stats.elapsed() >= self.config.stats_every {
+                self.report_stats();
+            }
         }
     }
 
@@ -415,6 +424,11 @@ impl Schedule {
     }
 
     fn replan_requests(&mut self) {
+        // What the backlog holds was batched under the old plan; the new one batches it again
+        // in the new order (a camera move must not wait behind the old view's backlog).
+        for batch in self.pool.withdraw() {
+            self.requests.finished(&batch);
+        }
         let mut needs = Vec::new();
         for viewer in self.viewers.values() {
             let (Some(view), Some(camera)) = (&viewer.view, &viewer.camera) else {
@@ -459,17 +473,34 @@ impl Schedule {
         self.owed.synced();
     }
 
+    /// Keeps each renderer holding `batches_per_renderer` batches, and the pool's backlog
+    /// holding `renderer_backlog` of the renderers' measured capacity beyond them: the backlog
+    /// is sent while this thread is busy with a pass or a refinement round (DESIGN.md §3: rest
+    /// time goes to the renderers).
     fn submit_batches(&mut self) {
-        let room = self.config.batches_per_renderer.max(1) * self.renderers.max(1);
-        while self.requests.batches_in_flight() < room {
+        let renderers = self.renderers.max(1);
+        let held = self.config.batches_per_renderer.max(1) * renderers;
+        let most = held + MAX_BACKLOG_BATCHES_PER_RENDERER * renderers;
+        let backlog = self.config.renderer_backlog.as_secs_f64();
+        loop {
+            let in_flight = self.requests.batches_in_flight();
+            let backlog_full = self.pool.backlog_seconds().is_none_or(|s| s >= backlog);
+            if in_flight >= most || (in_flight >= held && backlog_full) {
+                break;
+            }
             let Some(batch) = self
                 .requests
                 .next_batch(self.config.batch_points, &self.cache)
             else {
                 break;
             };
-            // A full pool queue gives the batch back: its samples are asked for again later.
-            if let Err(batch) = self.pool.submit(batch) {
+            let lane = if self.requests.is_urgent(batch.batch_id) {
+                Lane::Urgent
+            } else {
+                Lane::Background
+            };
+            // A full backlog gives the batch back: its samples are asked for again later.
+            if let Err(batch) = self.pool.submit(batch, lane) {
                 self.requests.finished(&batch);
                 self.owed.queue_changed();
                 break;

@@ -41,6 +41,9 @@ pub struct Need {
     pub new_eye: bool,
 }
 
+/// How far down the queue, in batches of needs, a batch looks for needs of its own quality.
+const BATCH_WINDOW: usize = 8;
+
 #[derive(Clone, Copy, Debug)]
 struct InFlight {
     best: (u32, u32),
@@ -104,6 +107,11 @@ impl Requests {
         self.batches_in_flight
     }
 
+    /// Whether a batch in flight holds needs a picture or a refinement step waits for.
+    pub fn is_urgent(&self, batch_id: u64) -> bool {
+        self.urgent_batches.contains_key(&batch_id)
+    }
+
     /// Whether `key` is being shaded at `quality` or better.
     pub fn in_flight_at(&self, key: SampleKey, quality: Quality) -> bool {
         self.in_flight
@@ -111,42 +119,42 @@ impl Requests {
             .is_some_and(|f| f.best >= quality.rank())
     }
 
-    /// The next batch: up to `max_points` queued needs of the quality at the head of the queue,
-    /// and all more paths or none, skipping those a cached sample or one in flight already
-    /// satisfies.
+    /// The next batch: up to `max_points` queued needs of the quality and kind (more paths or
+    /// not) of the first unsatisfied need, taken from the next `BATCH_WINDOW` batches' worth of
+    /// the queue, skipping those a cached sample or one in flight already satisfies. Needs of
+    /// other qualities keep their places. (Taking only a run of equal qualities from the head
+    /// made batches of one to three points where rungs of the ladder alternate, and the
+    /// renderers spent their time on per-batch overhead.)
     pub fn next_batch(&mut self, max_points: usize, cache: &ShadingCache) -> Option<ShadeBatch> {
+        let head = loop {
+            let need = self.queue.pop_front()?;
+            if !self.satisfied(&need, cache) {
+                break need;
+            }
+        };
+        let (quality, urgent) = (head.quality, head.urgency < Urgency::Paths);
+        let window = self
+            .queue
+            .len()
+            .min(max_points.saturating_mul(BATCH_WINDOW));
+        let mut kept = Vec::new();
         let mut points = Vec::new();
-        let mut quality = None;
-        let mut urgent = None;
-        while points.len() < max_points {
-            let Some(need) = self.queue.front().copied() else {
-                break;
-            };
-            let need_urgent = need.urgency < Urgency::Paths;
-            if quality.is_some_and(|q| q != need.quality)
-                || urgent.is_some_and(|u| u != need_urgent)
-            {
-                break;
+        self.take(&head, &mut points);
+        for need in self.queue.drain(..window).collect::<Vec<_>>() {
+            let same_kind = need.quality == quality && (need.urgency < Urgency::Paths) == urgent;
+            if points.len() >= max_points || !same_kind {
+                kept.push(need);
+            } else if !self.satisfied(&need, cache) {
+                self.take(&need, &mut points);
             }
-            self.queue.pop_front();
-            if self.satisfied(&need, cache) {
-                continue;
-            }
-            quality = Some(need.quality);
-            urgent = Some(need_urgent);
-            let entry = self.in_flight.entry(need.point.key).or_insert(InFlight {
-                best: (0, 0),
-                count: 0,
-            });
-            entry.best = entry.best.max(need.target.rank());
-            entry.count += 1;
-            points.push(need.point);
         }
-        let quality = quality?;
+        for need in kept.into_iter().rev() {
+            self.queue.push_front(need);
+        }
         self.next_batch_id += 1;
         self.batches_in_flight += 1;
         let batch_id = self.next_batch_id;
-        if urgent == Some(true) {
+        if urgent {
             self.urgent_batches.insert(batch_id, points.len());
         }
         let seed = self.seed ^ batch_id.wrapping_mul(0x9E37_79B9_7F4A_7C15);
@@ -156,6 +164,17 @@ impl Requests {
             seed,
             points,
         })
+    }
+
+    /// Puts `need` in flight, in a batch being filled.
+    fn take(&mut self, need: &Need, points: &mut Vec<ShadePoint>) {
+        let entry = self.in_flight.entry(need.point.key).or_insert(InFlight {
+            best: (0, 0),
+            count: 0,
+        });
+        entry.best = entry.best.max(need.target.rank());
+        entry.count += 1;
+        points.push(need.point);
     }
 
     fn satisfied(&self, need: &Need, cache: &ShadingCache) -> bool {
@@ -232,6 +251,32 @@ mod tests {
         r.finished(&b);
         assert_eq!(r.in_flight_keys(), 0);
         assert_eq!(r.batches_in_flight(), 0);
+    }
+
+    #[test]
+    fn alternating_rungs_of_the_ladder_still_fill_whole_batches_in_order() {
+        let cache = ShadingCache::new(1 << 20);
+        let mut r = Requests::new(7);
+        let rung = |i: u32| Quality {
+            paths: if i.is_multiple_of(2) { 192 } else { 768 },
+            bounces: Some(2),
+        };
+        r.replan(
+            (0..40)
+                .map(|i| need(i, rung(i), Urgency::Paths, 100.0 - i as f32))
+                .collect(),
+        );
+        let first = r.next_batch(8, &cache).unwrap();
+        assert_eq!(first.quality.paths, 192);
+        let vertices: Vec<u32> = first.points.iter().map(|p| p.key.vertex).collect();
+        assert_eq!(vertices, vec![0, 2, 4, 6, 8, 10, 12, 14]);
+        let second = r.next_batch(8, &cache).unwrap();
+        assert_eq!(
+            second.quality.paths, 768,
+            "the skipped needs kept their place"
+        );
+        assert_eq!(second.points[0].key.vertex, 1);
+        assert_eq!(second.points.len(), 8);
     }
 
     #[test]
