@@ -75,6 +75,7 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
         }
         BenchCommand::Convergence(args) => convergence::run(args.config()),
         BenchCommand::Accuracy(args) => accuracy::run(args.config()),
+        BenchCommand::Cost(args) => crate::bench::cost::run(args.config()),
         BenchCommand::LoopbackSink { listen } => crate::bench::protocol::loopback_sink(&listen),
     }
 }
@@ -161,6 +162,8 @@ pub enum BenchCommand {
     Convergence(ConvergenceArgs),
     /// Time to reach error levels against a direct per-pixel render (DESIGN.md §10).
     Accuracy(AccuracyArgs),
+    /// Error after 10 s and 60 s per ladder cap × bounce depth × criterion (DESIGN.md §10).
+    Cost(CostArgs),
     /// The receiving end of the loopback protocol benchmark (started by `report` as a child).
     #[command(hide = true)]
     LoopbackSink {
@@ -270,6 +273,66 @@ pub struct AccuracyArgs {
     /// Do not write docs/bench/accuracy.md nor BENCHMARKS.md.
     #[arg(long)]
     pub no_report: bool,
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct CostArgs {
+    /// Views (of bracara and, when ../shared/scenes is there, Sponza).
+    #[arg(long, value_delimiter = ',', default_value = "VT,S1")]
+    pub views: Vec<String>,
+    /// Ladder caps (the SMA's `--max-paths`).
+    #[arg(long, value_delimiter = ',', default_value = "256,1024")]
+    pub caps: Vec<u32>,
+    /// Bounce depths (the SMA's `--bounces`), each with its own ground truth.
+    #[arg(long, value_delimiter = ',', default_value = "1,2")]
+    pub depths: Vec<u32>,
+    /// Criteria: the best noise-aware one and the thesis's object-space one.
+    #[arg(long, value_delimiter = ',', default_value = "nld-px,nld-os-thesis")]
+    pub criteria: Vec<String>,
+    /// Length of each run.
+    #[arg(long, default_value_t = 60.0)]
+    pub seconds: f64,
+    /// Times at which the error is read.
+    #[arg(long, value_delimiter = ',', default_value = "10,60")]
+    pub at: Vec<f64>,
+    #[arg(long, default_value_t = 512)]
+    pub width: u32,
+    #[arg(long, default_value_t = 384)]
+    pub height: u32,
+    /// Paths per pixel of the ground truths.
+    #[arg(long, default_value_t = 1024)]
+    pub gt_spp: u32,
+    /// Ground truth EXRs (big: an ignored folder).
+    #[arg(long, default_value = "out/gt")]
+    pub gt_cache: PathBuf,
+    /// Raw snapshots and process logs of every run (big: an ignored folder).
+    #[arg(long, default_value = "out/cost")]
+    pub runs: PathBuf,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Do not write docs/bench/cost.md nor BENCHMARKS.md.
+    #[arg(long)]
+    pub no_report: bool,
+}
+
+impl CostArgs {
+    fn config(self) -> crate::bench::cost::CostConfig {
+        crate::bench::cost::CostConfig {
+            views: self.views,
+            caps: self.caps,
+            depths: self.depths,
+            criteria: self.criteria,
+            seconds: self.seconds,
+            at: self.at,
+            width: self.width,
+            height: self.height,
+            gt_spp: self.gt_spp,
+            gt_cache: self.gt_cache,
+            runs: self.runs,
+            seed: self.seed,
+            no_report: self.no_report,
+        }
+    }
 }
 
 impl AccuracyArgs {

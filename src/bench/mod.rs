@@ -5,13 +5,14 @@
 //! - [`protocol`], [`scene`], [`renderer`], [`sma_core`], [`sma_service`], [`viewer`], [`farm`]:
 //!   the sections of `bench report` (internals through each crate's `bench` feature; the farm's
 //!   faults and uneven hosts with real processes);
-//! - [`convergence`] and [`accuracy`]: the end-to-end measurements of DESIGN.md §10, with
-//!   [`metrics`], [`plots`] and [`strips`];
+//! - [`convergence`], [`accuracy`] and [`cost`]: the end-to-end measurements of DESIGN.md §10,
+//!   with [`metrics`], [`plots`] and [`strips`];
 //! - [`ray_throughput`]: the ray-throughput table of the [`renderer`] section;
 //! - [`stats`] (medians, least squares) and [`machine`]: shared by all.
 
 pub mod accuracy;
 pub mod convergence;
+pub mod cost;
 pub mod farm;
 pub mod machine;
 pub mod metrics;

@@ -17,7 +17,7 @@ const SECTIONS: &[Section] = &[
 ];
 
 /// Sections written by the long end-to-end benchmarks (`bench convergence`, `bench accuracy`).
-const EXTERNAL_SECTIONS: &[&str] = &["convergence", "accuracy"];
+const EXTERNAL_SECTIONS: &[&str] = &["convergence", "accuracy", "cost"];
 
 const SECTION_DIR: &str = "docs/bench";
 

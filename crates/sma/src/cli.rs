@@ -148,6 +148,10 @@ pub struct Cli {
     /// while the viewer rests, up to this many paths each.
     #[arg(long, default_value_t = defaults().schedule.max_paths)]
     pub max_paths: u32,
+    /// Bounces of every path, in place of the scene's quality preset's (fewer: faster and
+    /// less accurate).
+    #[arg(long)]
+    pub bounces: Option<u32>,
     /// A sample stops getting paths once its standard error is below this many displayed
     /// units (0..1 after tone map and sRGB; default one 8-bit step); the noise-aware criteria
     /// stop subdividing a leaf once its vertices differ by no more, beyond their noise.
@@ -267,6 +271,7 @@ impl Cli {
             coarsen_after_passes: self.coarsen_after_passes,
             seed: self.seed,
             max_paths: self.max_paths,
+            bounces: self.bounces,
             display_error: self.display_error,
         }
     }

@@ -106,6 +106,9 @@ pub struct ScheduleConfig {
     pub seed: u64,
     /// The quality ladder's last rung: paths per sample (DESIGN.md §5).
     pub max_paths: u32,
+    /// Bounces of every path, in place of the scene's quality preset's (None: the preset's):
+    /// what accuracy costs in time is measured by trading it (DESIGN.md §10).
+    pub bounces: Option<u32>,
     /// A visible sample whose standard error, in displayed units (Drago, sRGB, 0..1), is below
     /// this gets no more paths: the view has converged when every one is (or is at the cap)
     /// and the criterion finds nothing to subdivide.
@@ -134,6 +137,7 @@ impl Default for ScheduleConfig {
             seed: 1,
             // 64 × 4 × 4: two rungs past the interactive preset, a quarter of its noise.
             max_paths: 1024,
+            bounces: None,
             // One step of an 8-bit display.
             display_error: 1.0 / 255.0,
         }

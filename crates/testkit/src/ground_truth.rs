@@ -27,8 +27,15 @@ pub struct GroundTruth {
 }
 
 impl GroundTruth {
-    /// The cached EXR, rendering it first when missing. Prints how long a render took.
-    pub fn ensure(&self, cache: &Path) -> anyhow::Result<PathBuf> {
+    /// Whether the EXR is in `cache` already.
+    pub fn is_cached(&self, cache: &Path) -> anyhow::Result<bool> {
+        let (_, path) = self.cached_path(cache)?;
+        Ok(path.is_file())
+    }
+
+    /// The scene, loaded, and where its EXR is cached: the scene's fingerprint is in the name,
+    /// so an edited scene never reads a stale image.
+    fn cached_path(&self, cache: &Path) -> anyhow::Result<(scene::Scene, PathBuf)> {
         let scene =
             scene::load(&self.scene).with_context(|| format!("loading scene {}", self.scene))?;
         let key = &scene::fingerprint_hex(&scene.fingerprint)[..12];
@@ -36,7 +43,12 @@ impl GroundTruth {
             "{}-{}-{key}-{}x{}-{}spp-{}b.exr",
             scene.name, self.view, self.width, self.height, self.spp, self.bounces
         );
-        let path = cache.join(name);
+        Ok((scene, cache.join(name)))
+    }
+
+    /// The cached EXR, rendering it first when missing. Prints how long a render took.
+    pub fn ensure(&self, cache: &Path) -> anyhow::Result<PathBuf> {
+        let (scene, path) = self.cached_path(cache)?;
         if path.is_file() {
             return Ok(path);
         }

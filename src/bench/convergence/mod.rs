@@ -84,10 +84,11 @@ pub struct ConvergenceConfig {
 
 /// A view of a scene to measure.
 #[derive(Clone, Debug)]
-struct ViewSpec {
-    scene: String,
-    label: String,
-    view: String,
+pub(crate) struct ViewSpec {
+    pub scene: String,
+    /// The scene's name.
+    pub label: String,
+    pub view: String,
 }
 
 pub fn run(args: ConvergenceConfig) -> anyhow::Result<()> {
@@ -101,7 +102,7 @@ pub fn run(args: ConvergenceConfig) -> anyhow::Result<()> {
     let specs = if args.report_only {
         vec![]
     } else {
-        views(&args)?
+        views(args.scene.as_deref(), &args.views)?
     };
     for spec in specs {
         eprintln!("convergence: {} {}", spec.label, spec.view);
@@ -132,9 +133,11 @@ pub fn default_criteria() -> Vec<String> {
         .collect()
 }
 
-fn views(args: &ConvergenceConfig) -> anyhow::Result<Vec<ViewSpec>> {
-    let scenes: Vec<(String, Vec<String>)> = match &args.scene {
-        Some(scene) => vec![(scene.clone(), vec![])],
+/// The views to measure: `views` (all of them when empty) of `scene`, or by default of bracara
+/// and, when the shared scenes are there, Sponza.
+pub(crate) fn views(scene: Option<&str>, views: &[String]) -> anyhow::Result<Vec<ViewSpec>> {
+    let scenes: Vec<(String, Vec<String>)> = match scene {
+        Some(scene) => vec![(scene.to_string(), vec![])],
         None => {
             let mut s = vec![("bracara".to_string(), strings(&["MC", "VR", "VT"]))];
             if Path::new(SHARED_SCENES).is_dir() && Path::new(SPONZA).is_file() {
@@ -152,8 +155,8 @@ fn views(args: &ConvergenceConfig) -> anyhow::Result<Vec<ViewSpec>> {
             .iter()
             .map(|v| v.name.clone())
             .collect();
-        let wanted = if !args.views.is_empty() {
-            args.views
+        let wanted = if !views.is_empty() {
+            views
                 .iter()
                 .filter(|v| known.contains(v))
                 .cloned()
@@ -177,8 +180,7 @@ fn views(args: &ConvergenceConfig) -> anyhow::Result<Vec<ViewSpec>> {
     }
     anyhow::ensure!(
         !specs.is_empty(),
-        "no view to measure: {:?} matches none of the scenes' views",
-        args.views
+        "no view to measure: {views:?} matches none of the scenes' views"
     );
     Ok(specs)
 }

@@ -122,7 +122,7 @@ impl Schedule {
         let qualities = Qualities::new(
             Quality {
                 paths: quality.paths,
-                bounces: quality.bounces,
+                bounces: config.bounces.or(quality.bounces),
             },
             config.max_paths,
         );
