@@ -225,6 +225,14 @@ pub struct ConvergenceArgs {
     /// e.g. `--sma-flags=--max-selections,256`.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub sma_flags: Vec<String>,
+    /// Runs of the best noise-aware criterion per view: the end-to-end targets take medians
+    /// over them (DESIGN.md §10: medians of three).
+    #[arg(long, default_value_t = 3)]
+    pub repetitions: usize,
+    /// Keep the runs already in --out's CSVs and measure only those missing (e.g. repetitions
+    /// added to an earlier measurement).
+    #[arg(long)]
+    pub add_repetitions: bool,
     /// Do not write docs/bench/convergence.md nor BENCHMARKS.md.
     #[arg(long, conflicts_with = "report_only")]
     pub no_report: bool,
@@ -250,6 +258,8 @@ impl ConvergenceArgs {
             renderers: self.renderers,
             seed: self.seed,
             sma_flags: self.sma_flags,
+            repetitions: self.repetitions.max(1),
+            add_repetitions: self.add_repetitions,
             no_report: self.no_report,
             report_only: self.report_only,
         }

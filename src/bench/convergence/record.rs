@@ -106,15 +106,39 @@ pub fn run_rows<'a>(rows: &'a [Measurement], run: &str) -> Vec<&'a Measurement> 
     rows.iter().filter(|m| m.run == run).collect()
 }
 
-/// The run labels in first-seen order.
+/// Repetitions of a run are labelled `<run>#<k>`, k = 2, 3, …: tables, plots and strips show
+/// the first run; the end-to-end targets take medians over all of them (DESIGN.md §10).
+const REPEAT_MARK: char = '#';
+
+/// The label of the `k`-th run of `run` (k ≥ 2).
+pub fn repeat_label(run: &str, k: usize) -> String {
+    format!("{run}{REPEAT_MARK}{k}")
+}
+
+/// The run labels in first-seen order, repetitions left out.
 pub fn run_labels(rows: &[Measurement]) -> Vec<String> {
     let mut labels: Vec<String> = Vec::new();
-    for m in rows {
+    for m in rows.iter().filter(|m| !m.run.contains(REPEAT_MARK)) {
         if !labels.contains(&m.run) {
             labels.push(m.run.clone());
         }
     }
     labels
+}
+
+/// Every run of `run` that has rows, the first one first, with its label.
+pub fn repetitions<'a>(rows: &'a [Measurement], run: &str) -> Vec<(String, Vec<&'a Measurement>)> {
+    let mut runs = vec![(run.to_string(), run_rows(rows, run))];
+    for k in 2.. {
+        let label = repeat_label(run, k);
+        let rows = run_rows(rows, &label);
+        if rows.is_empty() {
+            break;
+        }
+        runs.push((label, rows));
+    }
+    runs.retain(|(_, r)| !r.is_empty());
+    runs
 }
 
 /// The snapshot nearest `t` seconds, within a quarter second (the viewer's `--snapshot-every`
