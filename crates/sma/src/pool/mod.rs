@@ -497,3 +497,6 @@ fn checked(batch: &ShadeBatch, radiance: Radiance) -> Result<Radiance, String> {
     }
     Ok(radiance)
 }
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,131 @@
+//! The dispatcher and its backlog against a renderer stand-in on loopback.
+
+use std::collections::HashSet;
+
+use protocol::Side;
+use protocol::renderer_link::{Quality, SampleKey, ShadePoint};
+use testkit::fake_renderer::{self, Fault};
+
+use super::*;
+
+fn point(vertex: u32) -> ShadePoint {
+    ShadePoint {
+        key: SampleKey {
+            vertex,
+            side: Side::Front,
+        },
+        base_triangle: 0,
+        bary: [0.25; 2],
+        side: Side::Front,
+        eye: None,
+    }
+}
+
+fn batch(id: u64) -> ShadeBatch {
+    ShadeBatch {
+        batch_id: id,
+        quality: Quality::DIRECT,
+        seed: id,
+        points: (0..8).map(point).collect(),
+    }
+}
+
+fn flat([x, y, z]: [f32; 3]) -> [f32; 3] {
+    [x.abs() + 0.5, y.abs() + 0.5, z.abs() + 0.5]
+}
+
+/// A pool of one stand-in renderer that holds one batch at a time.
+async fn pool_of_one() -> (PoolHandle, mpsc::Receiver<PoolEvent>, watch::Sender<bool>) {
+    let scene = scene::load("cornell").expect("the built-in Cornell box");
+    let (addr, _log) =
+        fake_renderer::start(scene.clone(), |p, _, _, _| flat(p.into()), Fault::None).await;
+    let config = PoolConfig {
+        renderers: vec![addr],
+        fingerprint: scene.fingerprint,
+        depth: 1,
+        max_frame: 1 << 24,
+        backoff_min: Duration::from_millis(50),
+        backoff_max: Duration::from_millis(500),
+        liveness: Liveness::default(),
+        deadline_factor: 8.0,
+        first_deadline: Duration::from_secs(10),
+        renderer_port: PortLimits::default(),
+    };
+    let (events_tx, events) = mpsc::channel(1024);
+    let (shutdown, shutdown_rx) = watch::channel(false);
+    (
+        spawn(config, events_tx, None, shutdown_rx),
+        events,
+        shutdown,
+    )
+}
+
+/// Waits for the renderer to be up, so that batches go out as they are handed over.
+async fn until_connected(events: &mut mpsc::Receiver<PoolEvent>) {
+    while let Some(event) = events.recv().await {
+        if matches!(event, PoolEvent::Renderers { connected: 1 }) {
+            return;
+        }
+    }
+    panic!("the pool closed before its renderer connected");
+}
+
+#[tokio::test]
+async fn a_batch_is_answered_or_withdrawn_never_both_and_never_lost() {
+    let (pool, mut events, _shutdown) = pool_of_one().await;
+    until_connected(&mut events).await;
+    let ids: Vec<u64> = (1..=40).collect();
+    for &id in &ids {
+        pool.submit(batch(id), Lane::Background).unwrap();
+    }
+    let withdrawn: HashSet<u64> = pool.withdraw().iter().map(|b| b.batch_id).collect();
+    assert!(
+        !withdrawn.is_empty(),
+        "a renderer holding one batch at a time cannot have taken 40 at once"
+    );
+    let mut answered = HashSet::new();
+    let wait = tokio::time::timeout(Duration::from_secs(20), async {
+        while answered.len() + withdrawn.len() < ids.len() {
+            match events.recv().await {
+                Some(PoolEvent::Shaded { batch, .. }) => assert!(answered.insert(batch.batch_id)),
+                Some(PoolEvent::Failed { batch, reason }) => {
+                    panic!("batch {} failed: {reason}", batch.batch_id)
+                }
+                Some(PoolEvent::Renderers { .. }) => {}
+                None => panic!("the pool closed"),
+            }
+        }
+    });
+    wait.await.expect("every batch not withdrawn is answered");
+    assert!(
+        answered.is_disjoint(&withdrawn),
+        "a withdrawn batch was sent"
+    );
+    assert_eq!(answered.len() + withdrawn.len(), ids.len());
+    assert!(pool.withdraw().is_empty());
+}
+
+#[tokio::test]
+async fn urgent_batches_go_out_before_more_paths_handed_over_earlier() {
+    let (pool, mut events, _shutdown) = pool_of_one().await;
+    until_connected(&mut events).await;
+    for id in 1..=20 {
+        pool.submit(batch(id), Lane::Background).unwrap();
+    }
+    pool.submit(batch(100), Lane::Urgent).unwrap();
+    let mut order = Vec::new();
+    while order.len() < 21 {
+        match events.recv().await {
+            Some(PoolEvent::Shaded { batch, .. }) => order.push(batch.batch_id),
+            Some(PoolEvent::Renderers { .. }) => {}
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+    let urgent_at = order.iter().position(|&id| id == 100).unwrap();
+    // At most the batch the renderer already held, and the one the dispatcher may have been
+    // sending meanwhile, go before it.
+    assert!(
+        urgent_at <= 2,
+        "the urgent batch came {urgent_at}th: {order:?}"
+    );
+}
