@@ -196,22 +196,11 @@ pub struct ConvergenceArgs {
         default_value = "1000,2000,4000,8000,16000,32000,64000,128000,256000"
     )]
     pub at_samples: Vec<u64>,
-    /// Image size of the runs, the ground truth and the direct render (half of 1024×768, so a
-    /// 1024-path ground truth of every view fits in under an hour on 2 cores).
-    #[arg(long, default_value_t = 512)]
-    pub width: u32,
-    #[arg(long, default_value_t = 384)]
-    pub height: u32,
-    /// Paths per pixel of the ground truth (DESIGN.md §10: at least 256; 1024 so that its own
-    /// noise does not set the error floor).
-    #[arg(long, default_value_t = 1024)]
-    pub gt_spp: u32,
+    #[command(flatten)]
+    pub images: ImageArgs,
     /// Tables, plots, strips and CSVs (committed: keep it small).
     #[arg(long, default_value = "docs/convergence")]
     pub out: PathBuf,
-    /// Ground truth EXRs (big: an ignored folder).
-    #[arg(long, default_value = "out/gt")]
-    pub gt_cache: PathBuf,
     /// Raw snapshots and process logs of every run (big: an ignored folder).
     #[arg(long, default_value = "out/convergence")]
     pub runs: PathBuf,
@@ -249,11 +238,11 @@ impl ConvergenceArgs {
             criteria: self.criteria,
             seconds: self.seconds,
             at_samples: self.at_samples,
-            width: self.width,
-            height: self.height,
-            gt_spp: self.gt_spp,
+            width: self.images.width,
+            height: self.images.height,
+            gt_spp: self.images.gt_spp,
             out: self.out,
-            gt_cache: self.gt_cache,
+            gt_cache: self.images.gt_cache,
             runs: self.runs,
             renderers: self.renderers,
             seed: self.seed,
@@ -285,6 +274,24 @@ pub struct AccuracyArgs {
     pub no_report: bool,
 }
 
+/// The image size and ground truth shared by the end-to-end benchmarks.
+#[derive(Args, Debug, Clone)]
+pub struct ImageArgs {
+    /// Image size of the runs, the ground truth and the direct render (half of 1024×768, so a
+    /// 1024-path ground truth of every view fits in under an hour on 2 cores).
+    #[arg(long, default_value_t = 512)]
+    pub width: u32,
+    #[arg(long, default_value_t = 384)]
+    pub height: u32,
+    /// Paths per pixel of the ground truth (DESIGN.md §10: at least 256; 1024 so that its own
+    /// noise does not set the error floor).
+    #[arg(long, default_value_t = 1024)]
+    pub gt_spp: u32,
+    /// Ground truth EXRs (big: an ignored folder).
+    #[arg(long, default_value = "out/gt")]
+    pub gt_cache: PathBuf,
+}
+
 #[derive(Args, Debug, Clone)]
 pub struct CostArgs {
     /// Views (of bracara and, when ../shared/scenes is there, Sponza).
@@ -305,16 +312,8 @@ pub struct CostArgs {
     /// Times at which the error is read.
     #[arg(long, value_delimiter = ',', default_value = "10,60")]
     pub at: Vec<f64>,
-    #[arg(long, default_value_t = 512)]
-    pub width: u32,
-    #[arg(long, default_value_t = 384)]
-    pub height: u32,
-    /// Paths per pixel of the ground truths.
-    #[arg(long, default_value_t = 1024)]
-    pub gt_spp: u32,
-    /// Ground truth EXRs (big: an ignored folder).
-    #[arg(long, default_value = "out/gt")]
-    pub gt_cache: PathBuf,
+    #[command(flatten)]
+    pub images: ImageArgs,
     /// Raw snapshots and process logs of every run (big: an ignored folder).
     #[arg(long, default_value = "out/cost")]
     pub runs: PathBuf,
@@ -334,10 +333,10 @@ impl CostArgs {
             criteria: self.criteria,
             seconds: self.seconds,
             at: self.at,
-            width: self.width,
-            height: self.height,
-            gt_spp: self.gt_spp,
-            gt_cache: self.gt_cache,
+            width: self.images.width,
+            height: self.images.height,
+            gt_spp: self.images.gt_spp,
+            gt_cache: self.images.gt_cache,
             runs: self.runs,
             seed: self.seed,
             no_report: self.no_report,

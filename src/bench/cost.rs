@@ -13,15 +13,12 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 
 use crate::bench::convergence::record::Measurement;
-use crate::bench::convergence::{GROUND_TRUTH_SEED, ViewSpec, measure_run, views};
+use crate::bench::convergence::{GROUND_TRUTH_SEED, START_ALLOWANCE, ViewSpec, measure_run, views};
 use crate::bench::metrics::Reference;
 use testkit::ground_truth::GroundTruth;
 use testkit::loopback::{SystemConfig, ViewerConfig};
 
 pub const SECTION: &str = "docs/bench/cost.md";
-
-/// Time a run may take beyond its `--seconds`: processes start, wgpu opens Mesa, scenes load.
-const START_ALLOWANCE: Duration = Duration::from_secs(90);
 
 /// What `bench cost` measures and where it writes.
 #[derive(Debug, Clone)]

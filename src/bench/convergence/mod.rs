@@ -42,7 +42,7 @@ pub const SECTION: &str = "docs/bench/convergence.md";
 const STATS_EVERY_SECOND: [&str; 2] = ["--stats-secs", "1"];
 
 /// Time a run may take beyond its `--seconds`: processes start, wgpu opens Mesa, scenes load.
-const START_ALLOWANCE: Duration = Duration::from_secs(90);
+pub const START_ALLOWANCE: Duration = Duration::from_secs(90);
 
 /// What `bench convergence` measures and where it writes.
 #[derive(Debug, Clone)]
