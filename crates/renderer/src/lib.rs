@@ -5,6 +5,7 @@
 //! - [`estimator`]: path tracing with next-event estimation, one path at a time or as ray
 //!   streams (`wavefront`);
 //! - [`point`]: shading points from (triangle, barycentrics, side), hidden-point relocation;
+//! - `ray_order`: ray streams regrouped by direction octant and origin before tracing;
 //! - [`shade`]: points and batches at a quality, deterministic per (seed, index);
 //! - [`service`]: the TCP server of the renderer link;
 //! - [`reference`] and [`tonemap`]: reference images (EXR + tone-mapped PNG);
@@ -19,6 +20,7 @@ pub(crate) mod lights;
 pub(crate) mod material;
 pub(crate) mod offset;
 pub mod point;
+pub(crate) mod ray_order;
 pub mod reference;
 pub mod sampling;
 pub mod service;
@@ -37,4 +39,5 @@ pub use world::World;
 #[cfg(feature = "bench")]
 pub mod internals {
     pub use crate::bvh::SceneBvh;
+    pub use crate::ray_order::RayOrder;
 }

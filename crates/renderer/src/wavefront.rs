@@ -17,6 +17,7 @@ use glam::Vec3;
 
 use crate::counters::{RayCounts, RayKind};
 use crate::estimator::{Depth, MAX_DEPTH, ShadowRay, arrive, continuation, shadow_rays};
+use crate::ray_order::RayOrder;
 use crate::sampling::Rng;
 use crate::world::{Surface, World};
 
@@ -73,12 +74,19 @@ struct Wave {
     depth: Vec<Depth>,
 }
 
+/// Cells per axis of the origins' grid by which continuation rays are regrouped, as a power of
+/// two: with the direction's octant, 512 buckets for a wave of 4096 rays.
+const ORDER_BITS_PER_AXIS: u32 = 2;
+
 /// The rays of one step, and which paths are still going: buffers kept from wave to wave.
 #[derive(Default)]
 struct Streams {
     active: Vec<u32>,
     shadow: ShadowStream,
     bounce: BounceStream,
+    /// Continuation rays are traced in this order (`ray_order`), made once per world.
+    order: Option<RayOrder>,
+    sequence: Vec<u32>,
 }
 
 #[derive(Default)]
@@ -134,7 +142,16 @@ impl Wave {
             }
             self.trace_shadows(world, &s.shadow, counts);
             s.active.clear();
-            self.trace_bounces(world, &s.bounce, &mut s.active, counts);
+            let order = s
+                .order
+                .get_or_insert_with(|| RayOrder::new(world.bounds(), ORDER_BITS_PER_AXIS));
+            let bounce = &s.bounce;
+            order.order(
+                bounce.path.len(),
+                |k| (bounce.origin[k], bounce.dir[k]),
+                &mut s.sequence,
+            );
+            self.trace_bounces(world, bounce, &s.sequence, &mut s.active, counts);
         }
     }
 
@@ -194,15 +211,17 @@ impl Wave {
         }
     }
 
-    /// Traces the continuation rays; the paths that found a next vertex go to `active`.
+    /// Traces the continuation rays in `sequence`'s order; the paths that found a next vertex
+    /// go to `active`.
     fn trace_bounces(
         &mut self,
         world: &World,
         bounce: &BounceStream,
+        sequence: &[u32],
         active: &mut Vec<u32>,
         counts: &mut RayCounts,
     ) {
-        for k in 0..bounce.path.len() {
+        for k in sequence.iter().map(|&k| k as usize) {
             let (p, origin, dir, kind) = (
                 bounce.path[k],
                 bounce.origin[k],

@@ -46,6 +46,8 @@ pub struct World {
     face_normals: Vec<Vec3>,
     /// The world position of the local frame's origin.
     origin: DVec3,
+    /// The scene's bounds in the local frame.
+    bounds: (Vec3, Vec3),
 }
 
 impl World {
@@ -65,6 +67,7 @@ impl World {
             *p = conventions::camera::relative_to(*p, origin);
         }
         let bvh = SceneBvh::build(&scene.mesh, preset);
+        let bounds = scene.mesh.bounds();
         let lights = Lights::from_scene(&scene);
         let face_normals = (0..scene.mesh.triangles.len())
             .map(|t| scene.mesh.face_normal(t).normalize_or_zero())
@@ -80,7 +83,13 @@ impl World {
             face_normals,
             scene,
             origin,
+            bounds,
         }
+    }
+
+    /// The scene's bounds in the local frame (where rays are traced).
+    pub(crate) fn bounds(&self) -> (Vec3, Vec3) {
+        self.bounds
     }
 
     /// A world position (an eye, a ray origin) in the local frame.
