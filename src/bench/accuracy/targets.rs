@@ -38,7 +38,8 @@ pub(crate) fn section(results: &[ViewResult]) -> String {
         "Judged on `{BEST_NOISE_AWARE}`, the best noise-aware criterion (the speed-up on the best criterion of \
          each view); its figures are medians over its runs (`runs`: `bench convergence --repetitions`), the \
          other criteria's from one run. Busy: the lowest renderer busy share over {BUSY_WINDOW_S:.0}-s windows from the first \
-         picture (the first snapshot showing a triangle) to the stated end (`converged`) or the run's end, as \
+         picture (the first snapshot showing a triangle with the SMA's first statistics, about a second in) \
+         to the stated end (`converged`) or the run's end, as \
          the SMA measured it; and the renderer's CPU time as a share of the machine's cores over the wall \
          time up to the stated end, which says whether the renderer computed while it held work (the SMA and \
          the viewer share the same cores). The target needs both.\n"
@@ -172,9 +173,14 @@ impl Verdicts {
 }
 
 /// The lowest busy share over consecutive windows from the first picture to the stated end;
-/// `None` when no full window fits. A snapshot's share is the SMA's second before it.
+/// `None` when no full window fits. A snapshot's share is the SMA's second before it; the
+/// snapshots taken before the viewer had any statistics carry none (a zero that is no reading),
+/// so the windows start at the first picture that comes with a reading.
 fn min_window_busy(run: &[&Measurement]) -> Option<f64> {
-    let first = run.iter().find(|m| m.shown > 0)?.time_s;
+    let first = run
+        .iter()
+        .find(|m| m.shown > 0 && m.renderer_busy > 0.0)?
+        .time_s;
     let end = run
         .iter()
         .find(|m| m.converged)
@@ -423,6 +429,23 @@ mod tests {
             md.contains("CPU share ≥ 0.8, every view): **missed** (0 of 1)"),
             "{md}"
         );
+    }
+
+    #[test]
+    fn snapshots_before_the_first_statistics_are_no_reading() {
+        // Pictures at 0.2 and 0.5 s, before the SMA's first statistics (busy 0: none yet), then
+        // a busy renderer from the reading at 1 s on.
+        let mut best = run(BEST_NOISE_AWARE, 12, |_| 0.1, |t| f64::from(t >= 1.0));
+        for t in [0.2, 0.5] {
+            best.push(Measurement {
+                shown: 10,
+                renderer_busy: 0.0,
+                ..test_measurement(BEST_NOISE_AWARE, t, 10, 0.5)
+            });
+        }
+        best.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+        let refs: Vec<&Measurement> = best.iter().collect();
+        assert_eq!(min_window_busy(&refs), Some(1.0));
     }
 
     #[test]
