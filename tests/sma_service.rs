@@ -99,10 +99,12 @@ async fn one_of_two_renderers_killed_loses_no_request_and_two_viewers_agree() {
     let Some(gpu) = gpu() else { return };
     let (mut doomed, a) = renderer("bracara");
     let (_b, b) = renderer("bracara");
+    // The ladder ends at the scene's quality: once the first viewer's picture is complete,
+    // no more paths change what it shows while the second viewer's comes in.
     let (_s, saddr) = sma(
         "bracara",
         &[&a, &b],
-        &["--no-refine", "--batch-points", "8"],
+        &["--no-refine", "--batch-points", "8", "--max-paths", "64"],
     );
     let mut one = Probe::connect(&saddr).await.unwrap();
     let camera = one.view("VT", W, H).await.unwrap();
