@@ -8,7 +8,7 @@
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::Context;
 
@@ -100,11 +100,8 @@ fn ground_truth(
         bounces: depth,
         seed: GROUND_TRUTH_SEED,
     };
-    let started = Instant::now();
-    let cached = truth.is_cached(&args.gt_cache)?;
-    let path = truth.ensure(&args.gt_cache)?;
-    let seconds = (!cached).then(|| started.elapsed().as_secs_f64());
-    Ok((Reference::read_exr(&path)?, seconds))
+    let (path, took) = truth.ensure_timed(&args.gt_cache)?;
+    Ok((Reference::read_exr(&path)?, took.map(|d| d.as_secs_f64())))
 }
 
 fn measure(

@@ -5,7 +5,7 @@
 //! no camera ray of the pixel hit geometry): pixels that see no geometry are left out of every error.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use renderer::reference::{ReferenceSettings, camera_for, render};
@@ -27,12 +27,6 @@ pub struct GroundTruth {
 }
 
 impl GroundTruth {
-    /// Whether the EXR is in `cache` already.
-    pub fn is_cached(&self, cache: &Path) -> anyhow::Result<bool> {
-        let (_, path) = self.cached_path(cache)?;
-        Ok(path.is_file())
-    }
-
     /// The scene, loaded, and where its EXR is cached: the scene's fingerprint is in the name,
     /// so an edited scene never reads a stale image.
     fn cached_path(&self, cache: &Path) -> anyhow::Result<(scene::Scene, PathBuf)> {
@@ -48,9 +42,14 @@ impl GroundTruth {
 
     /// The cached EXR, rendering it first when missing. Prints how long a render took.
     pub fn ensure(&self, cache: &Path) -> anyhow::Result<PathBuf> {
+        Ok(self.ensure_timed(cache)?.0)
+    }
+
+    /// As [`ensure`](Self::ensure), with how long the render took (None: it was cached).
+    pub fn ensure_timed(&self, cache: &Path) -> anyhow::Result<(PathBuf, Option<Duration>)> {
         let (scene, path) = self.cached_path(cache)?;
         if path.is_file() {
-            return Ok(path);
+            return Ok((path, None));
         }
         std::fs::create_dir_all(cache)?;
         eprintln!(
@@ -79,10 +78,8 @@ impl GroundTruth {
         })
         .with_context(|| format!("writing {}", partial.display()))?;
         std::fs::rename(&partial, &path)?;
-        eprintln!(
-            "ground truth rendered in {:.0} s",
-            started.elapsed().as_secs_f64()
-        );
-        Ok(path)
+        let took = started.elapsed();
+        eprintln!("ground truth rendered in {:.0} s", took.as_secs_f64());
+        Ok((path, Some(took)))
     }
 }

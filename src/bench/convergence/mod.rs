@@ -232,7 +232,7 @@ fn measure_view(
     } else {
         (Vec::new(), Vec::new())
     };
-    let measured_before = record::run_labels(&rows).len() + shares.len();
+    let measured_before = !shares.is_empty();
     for run in planned_runs(args, exe, spec, criteria) {
         if shares.iter().any(|(label, _)| *label == run.label) {
             continue;
@@ -245,7 +245,7 @@ fn measure_view(
     }
     record::write_csv(&csv, &rows)?;
     cpu::write_csv(&cpu_csv, &shares)?;
-    if measured_before > 0 {
+    if measured_before {
         // The strip needs the first runs' images, which a CSV read back does not name.
         return Ok(record);
     }

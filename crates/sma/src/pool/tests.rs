@@ -134,11 +134,7 @@ async fn urgent_batches_go_out_before_more_paths_handed_over_earlier() {
     pool.submit(batch(100), Lane::Urgent).unwrap();
     let mut order = Vec::new();
     while order.len() < 21 {
-        match events.recv().await {
-            Some(PoolEvent::Shaded { batch, .. }) => order.push(batch.batch_id),
-            Some(PoolEvent::Renderers { .. }) => {}
-            other => panic!("unexpected {other:?}"),
-        }
+        order.push(next_answer(&mut events).await);
     }
     let urgent_at = order.iter().position(|&id| id == 100).unwrap();
     // At most the batch the renderer already held, and the one the dispatcher may have been
