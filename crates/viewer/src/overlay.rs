@@ -117,10 +117,12 @@ impl Overlay {
         }
     }
 
-    /// Feeds a window event to egui; true when egui took it (a click on the panel), so the
-    /// camera must not see it.
-    pub fn on_event(&mut self, event: &winit::event::WindowEvent) -> bool {
-        self.input.on_window_event(&self.window, event).consumed
+    /// Feeds a window event to egui. `consumed`: egui took it (a click on the panel), so the
+    /// camera must not see it. `repaint`: the panel must be drawn again for the event to take
+    /// effect; egui judges a click only in the next pass, so a press that is not redrawn for is
+    /// never a click.
+    pub fn on_event(&mut self, event: &winit::event::WindowEvent) -> egui_winit::EventResponse {
+        self.input.on_window_event(&self.window, event)
     }
 
     /// Draws the panel over `target`, the window's frame; returns the clicks.

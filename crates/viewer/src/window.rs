@@ -457,14 +457,15 @@ impl ApplicationHandler<LinkEvent> for App {
     }
 
     fn window_event(&mut self, event_loop: &ActiveEventLoop, _: WindowId, event: WindowEvent) {
-        let panel_took = self.panel
-            && self
-                .display
-                .as_mut()
-                .is_some_and(|d| d.overlay.on_event(&event));
-        if panel_took {
-            // A click or a hover on the panel: draw it again, do not steer with it.
+        let panel = match &mut self.display {
+            Some(d) if self.panel => d.overlay.on_event(&event),
+            _ => egui_winit::EventResponse::default(),
+        };
+        if panel.repaint && !matches!(event, WindowEvent::RedrawRequested) {
             self.redraw();
+        }
+        if panel.consumed {
+            // A click or a hover on the panel: do not steer with it.
             if !matches!(
                 event,
                 WindowEvent::KeyboardInput { .. } | WindowEvent::RedrawRequested

@@ -229,8 +229,15 @@ fn the_window_shows_the_triangles_and_its_panel_hides_it_on_h_walks_and_jumps_on
         "walking does not turn"
     );
 
-    // The panel back, a click on the second viewpoint's button: the camera jumps there.
+    // The panel back, a click on the second viewpoint's button: the camera jumps there. The
+    // click comes once the panel is on the screen and has settled, with nothing else to draw:
+    // the click alone must make the window draw the panel again to see it.
     x_command(&display, "xdotool", &["key", "h"]);
+    wait_for("the panel back", || {
+        let shot = screenshot(&display)?;
+        (mean_difference(&shot, &want.display, 0..PANEL_PX) > 10.0).then_some(())
+    });
+    std::thread::sleep(Duration::from_secs(2));
     let button = viewer::panel::viewpoint_button(1).center();
     let (x, y) = (button.x.round().to_string(), button.y.round().to_string());
     x_command(&display, "xdotool", &["mousemove", &x, &y]);
