@@ -16,6 +16,7 @@ use glam::Vec3;
 use protocol::Side;
 use protocol::renderer_link::{Quality, SampleKey};
 
+use crate::mesh::fast_hash::FastHash;
 use crate::mesh::{NodeId, SubdivisionMesh};
 use crate::sample::{Depth, Estimate, Merge};
 use crate::visible_set::VisibleSet;
@@ -145,12 +146,12 @@ pub struct ShadingCache {
     owners: Vec<u32>,
     /// The eyes of each view-dependent sample that has one, by slot, latest last: slots stay
     /// put when a removal moves samples, so the table is never re-keyed.
-    eyes: HashMap<u32, Vec<EyeVariant>>,
+    eyes: HashMap<u32, Vec<EyeVariant>, FastHash>,
     /// Variants in `eyes`, for `bytes`.
     eye_variants: usize,
     /// Slots whose renderer answers were rejected too often (`mark_failed`): never asked again,
     /// shown with the mean of their leaves' other vertices.
-    failed: std::collections::HashSet<u32>,
+    failed: std::collections::HashSet<u32, FastHash>,
 }
 
 fn slot_index(key: SampleKey) -> usize {
@@ -175,7 +176,7 @@ impl ShadingCache {
             slots: Vec::new(),
             samples: Vec::new(),
             owners: Vec::new(),
-            eyes: HashMap::new(),
+            eyes: HashMap::default(),
             eye_variants: 0,
             failed: Default::default(),
         }

@@ -23,6 +23,11 @@ impl Hasher for IdHasher {
         self.write_u64(u64::from(x));
     }
 
+    /// Also what an enum's discriminant hashes as (through `write_isize`).
+    fn write_usize(&mut self, x: usize) {
+        self.write_u64(x as u64);
+    }
+
     fn write_u64(&mut self, x: u64) {
         self.0 = (self.0.rotate_left(5) ^ x).wrapping_mul(0x9E37_79B9_7F4A_7C15);
     }

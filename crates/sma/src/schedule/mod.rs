@@ -22,6 +22,7 @@
 //! waits for.
 
 mod coarsening;
+mod costs;
 mod display;
 mod pending;
 mod plan;
@@ -49,6 +50,7 @@ use crate::pool::{Lane, PoolEvent, PoolHandle};
 use crate::viewer_link::{ViewerEvent, ViewerId};
 use crate::visibility::{Gpu, LuminancePass, Visibility};
 use coarsening::Coarsening;
+use costs::{Pace, Work, WorkCosts};
 use pending::PendingRefinement;
 use plan::{Aging, MorePaths, NeedsInput, Qualities};
 use requests::Requests;
@@ -63,6 +65,17 @@ const MAX_REJECTIONS: u8 = 3;
 /// pass): each sync walks every visible leaf, and done after every answered batch it took the
 /// SMA's whole core and left the renderers waiting for work (DESIGN.md §3).
 const SYNC_INTERVAL: Duration = Duration::from_millis(50);
+
+/// At most this share of the schedule thread's time goes to syncs put off for the interval: with
+/// tens of thousands of visible leaves a sync takes milliseconds, and twenty of them a second
+/// were a fifth of the SMA's time on Sponza, taken from the renderers it shares the cores with.
+const SYNC_SHARE: f64 = 0.1;
+
+/// A re-plan that may wait (see `Owed::replan_soon`) comes at most this often, and takes at most
+/// this share of the thread's time: on Sponza a re-plan walks over a hundred thousand visible
+/// samples, and each committed refinement group asked for one.
+const REPLAN_INTERVAL: Duration = Duration::from_millis(50);
+const REPLAN_SHARE: f64 = 0.1;
 
 /// Batches per renderer the pool's backlog may hold, whatever their size: a bound on what a
 /// withdrawal hands back.
@@ -99,7 +112,10 @@ pub struct Schedule {
     paths: u64,
     samples_since_pass: u64,
     samples_since_input: u64,
-    last_sync: Instant,
+    sync_pace: Pace,
+    replan_pace: Pace,
+    /// Where the thread's time went since the last `Stats`.
+    costs: WorkCosts,
     /// `samples` and `paths` at the previous `Stats`.
     counted_at_last_stats: (u64, u64),
     last_stats: Instant,
@@ -155,7 +171,9 @@ impl Schedule {
             paths: 0,
             samples_since_pass: 0,
             samples_since_input: 0,
-            last_sync: Instant::now(),
+            sync_pace: Pace::new(SYNC_INTERVAL, SYNC_SHARE, Instant::now()),
+            replan_pace: Pace::new(REPLAN_INTERVAL, REPLAN_SHARE, Instant::now()),
+            costs: WorkCosts::default(),
             counted_at_last_stats: (0, 0),
             last_stats: Instant::now(),
             frame: 0,
@@ -361,11 +379,16 @@ impl Schedule {
             self.owed.samples_arrived();
         }
         if sync_now {
+            let start = Instant::now();
             self.sync_viewers();
-            self.last_sync = Instant::now();
+            let spent = start.elapsed();
+            self.sync_pace.ran(start, spent);
+            self.costs.add(Work::Sync, spent);
         }
         if let Some(id) = self.refinement_candidate() {
+            let start = Instant::now();
             self.refine_round(id)?;
+            self.costs.add(Work::Round, start.elapsed());
         }
         self.note_convergence();
         Ok(())
@@ -397,6 +420,7 @@ impl Schedule {
         if !self.viewers.values().any(|v| v.wait.needs_pass()) {
             return Ok(());
         }
+        let start = Instant::now();
         self.frame += 1;
         self.coarsen_stale();
         for viewer in self.viewers.values_mut().filter(|v| v.wait.needs_pass()) {
@@ -420,6 +444,7 @@ impl Schedule {
         self.samples_since_pass = 0;
         self.cache.evict(self.frame, &|_| false);
         self.owed.views_changed();
+        self.costs.add(Work::Pass, start.elapsed());
         Ok(())
     }
 
@@ -544,18 +569,23 @@ impl Schedule {
     }
 
     /// Whether a turn has work without any new event, and else when to wake: a camera coming to
-    /// rest, or a sync that was rate-limited.
+    /// rest, or a sync or a re-plan put off by its pace.
     fn waiting_for(&self) -> (bool, Option<Instant>) {
         let (views, gate, now) = (self.turn_views(), self.refine_gate(), Instant::now());
         let candidate = turns::refinement_candidate(&gate, &views, self.refine_turn, now);
-        let sync_at = self.owed.resync().then(|| self.last_sync + SYNC_INTERVAL);
-        let owed = match sync_at {
-            Some(at) if at > now => self.owed.resync_later(),
-            _ => self.owed,
-        };
+        let sync_at = self.owed.resync().then(|| self.sync_pace.next_at());
+        let replan_at = self.owed.replan_soon().then(|| self.replan_pace.next_at());
+        let mut owed = self.owed;
+        if sync_at.is_some_and(|at| at > now) {
+            owed = owed.resync_later();
+        }
+        if replan_at.is_some_and(|at| at > now) {
+            owed = owed.replan_later();
+        }
         let wake = [
             turns::next_rest(&gate, &views, now),
             sync_at.filter(|&at| at > now),
+            replan_at.filter(|&at| at > now),
         ];
         (
             turns::has_work_now(owed, &views, candidate),
@@ -563,10 +593,10 @@ impl Schedule {
         )
     }
 
-    /// Whether the viewers are due a sync now: owed one, and a pass just ran or the last sync is
-    /// [`SYNC_INTERVAL`] old.
+    /// Whether the viewers are due a sync now: owed one, and a pass just ran or the sync's pace
+    /// allows it ([`SYNC_INTERVAL`], [`SYNC_SHARE`]).
     fn sync_due(&self, pass_ran: bool) -> bool {
-        self.owed.resync() && (pass_ran || self.last_sync.elapsed() >= SYNC_INTERVAL)
+        self.owed.resync() && (pass_ran || self.sync_pace.due(Instant::now()))
     }
 
     fn report_stats(&mut self) {
@@ -602,6 +632,7 @@ impl Schedule {
             rejected = self.rejected_points,
             renderers = self.renderers,
             viewers = self.viewers.len(),
+            work = self.costs.take(),
             "stats"
         );
         for viewer in self.viewers.values() {
@@ -622,7 +653,15 @@ impl Feed for Schedule {
     }
 
     fn replan(&mut self) {
+        let start = Instant::now();
         self.replan_requests();
+        let spent = start.elapsed();
+        self.replan_pace.ran(start, spent);
+        self.costs.add(Work::Replan, spent);
+    }
+
+    fn replan_due(&self) -> bool {
+        self.replan_pace.due(Instant::now())
     }
 
     fn submit(&mut self) {

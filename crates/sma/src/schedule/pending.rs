@@ -8,6 +8,7 @@
 
 use std::collections::{HashMap, HashSet};
 
+use crate::mesh::fast_hash::FastHash;
 use crate::mesh::{NodeId, RefinementStep};
 
 #[derive(Debug)]
@@ -19,8 +20,8 @@ pub struct Group {
 /// Pending groups, and for each of their new leaves the group it belongs to.
 #[derive(Debug, Default)]
 pub struct PendingRefinement {
-    groups: HashMap<usize, Group>,
-    group_of: HashMap<NodeId, usize>,
+    groups: HashMap<usize, Group, FastHash>,
+    group_of: HashMap<NodeId, usize, FastHash>,
     next_group: usize,
 }
 

@@ -71,7 +71,7 @@ impl Schedule {
         for viewer in self.viewers.values_mut() {
             viewer.wait.new_input();
         }
-        self.owed.views_changed();
+        self.owed.groups_committed();
     }
 
     /// Empty criterion calls in a row after which a viewer's refinement counts as exhausted (enough

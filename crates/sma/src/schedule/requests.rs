@@ -9,6 +9,7 @@ use glam::Vec3;
 use protocol::renderer_link::{Quality, SampleKey, ShadeBatch, ShadePoint};
 
 use crate::cache::ShadingCache;
+use crate::mesh::fast_hash::FastHash;
 
 /// Why a sample is wanted; lower goes first.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -44,6 +45,27 @@ pub struct Need {
 /// How far down the queue, in batches of needs, a batch looks for needs of its own quality.
 const BATCH_WINDOW: usize = 8;
 
+/// What a queue holds once: a key at a quality (`Quality::rank`).
+type NeedId = (SampleKey, (u32, u32));
+
+/// A need's place in the queue, smaller first: `queue_order`, then its index among the needs
+/// planned (equals keep their order).
+type QueuePlace = (u64, u32);
+
+/// A need's place in the queue as one integer, smaller first: its urgency, then its priority,
+/// larger first (the bits of an `f32` in descending `total_cmp` order).
+fn queue_order(need: &Need) -> u64 {
+    let bits = need.priority.to_bits();
+    // `total_cmp`'s key: flip the magnitude of negatives, then the sign, so that unsigned order
+    // is numeric order; inverted, larger priorities come first.
+    let ascending = if bits >> 31 == 1 {
+        !bits
+    } else {
+        bits | 1 << 31
+    };
+    (need.urgency as u64) << 32 | u64::from(!ascending)
+}
+
 #[derive(Clone, Copy, Debug)]
 struct InFlight {
     best: (u32, u32),
@@ -54,11 +76,11 @@ struct InFlight {
 pub struct Requests {
     /// Sorted by urgency, then priority; only ever popped at the front.
     queue: VecDeque<Need>,
-    in_flight: HashMap<SampleKey, InFlight>,
+    in_flight: HashMap<SampleKey, InFlight, FastHash>,
     batches_in_flight: usize,
     /// Batches in flight for needs above [`Urgency::Paths`], and their points: what refinement
     /// waits for (a batch holds needs of one kind only, see `next_batch`).
-    urgent_batches: HashMap<u64, usize>,
+    urgent_batches: HashMap<u64, usize, FastHash>,
     next_batch_id: u64,
     seed: u64,
 }
@@ -71,16 +93,24 @@ impl Requests {
         }
     }
 
-    /// Replaces the queue with `needs`, best first; one entry per (key, quality).
-    pub fn replan(&mut self, mut needs: Vec<Need>) {
-        needs.sort_by(|a, b| {
-            a.urgency
-                .cmp(&b.urgency)
-                .then(b.priority.total_cmp(&a.priority))
-        });
-        let mut seen = std::collections::HashSet::new();
-        needs.retain(|n| seen.insert((n.point.key, n.target.rank())));
-        self.queue = needs.into();
+    /// Replaces the queue with `needs`, best first (by urgency, then priority; equals keep their
+    /// order); one entry per (key, quality), the first in that order. A re-plan orders every
+    /// visible sample's needs several times a second, and each vertex is met once per leaf
+    /// around it: on Sponza a few hundred thousand needs for a fraction as many keys. So the
+    /// best need per (key, quality) is found first, and only those are sorted, as eight-byte
+    /// keys rather than the needs themselves.
+    pub fn replan(&mut self, needs: Vec<Need>) {
+        let mut best: HashMap<NeedId, QueuePlace, FastHash> =
+            HashMap::with_capacity_and_hasher(needs.len() / 2, FastHash::default());
+        for (i, n) in needs.iter().enumerate() {
+            let order = (queue_order(n), i as u32);
+            best.entry((n.point.key, n.target.rank()))
+                .and_modify(|kept| *kept = (*kept).min(order))
+                .or_insert(order);
+        }
+        let mut order: Vec<QueuePlace> = best.into_values().collect();
+        order.sort_unstable();
+        self.queue = order.into_iter().map(|(_, i)| needs[i as usize]).collect();
     }
 
     /// Samples asked for and not answered, plus those queued.
@@ -251,6 +281,35 @@ mod tests {
         r.finished(&b);
         assert_eq!(r.in_flight_keys(), 0);
         assert_eq!(r.batches_in_flight(), 0);
+    }
+
+    #[test]
+    fn the_queue_orders_by_urgency_then_larger_priority_and_keeps_equals_in_order() {
+        let cache = ShadingCache::new(1 << 20);
+        let mut r = Requests::new(7);
+        let priorities = [
+            0.5,
+            -3.0,
+            f32::INFINITY,
+            0.0,
+            -0.0,
+            7.25,
+            1e-30,
+            -1e-30,
+            7.25,
+        ];
+        let mut needs: Vec<Need> = priorities
+            .iter()
+            .enumerate()
+            .map(|(i, &p)| need(i as u32, Quality::DIRECT, Urgency::Better, p))
+            .collect();
+        needs.push(need(100, Quality::DIRECT, Urgency::Missing, -1e9));
+        r.replan(needs);
+        let batch = r.next_batch(16, &cache).unwrap();
+        let order: Vec<u32> = batch.points.iter().map(|p| p.key.vertex).collect();
+        // Missing before Better whatever the priority; then descending `total_cmp` (0.0 above
+        // -0.0), the two 7.25 in the order given.
+        assert_eq!(order, vec![100, 2, 5, 8, 0, 6, 3, 4, 7, 1]);
     }
 
     #[test]

@@ -86,16 +86,20 @@ pub trait Feed {
     fn queued(&self) -> usize;
     /// Rebuilds the queue from the visible sets and the cache.
     fn replan(&mut self);
+    /// Whether a re-plan that may wait is due (its pace).
+    fn replan_due(&self) -> bool;
     /// Sends batches while the pool has room (dropping needs satisfied meanwhile).
     fn submit(&mut self);
 }
 
-/// Re-plans when owed, or when the queue ran dry while new input came, and keeps the renderers
-/// fed. Submitting drops queued needs that answers have satisfied meanwhile; a queue emptied that
+/// Re-plans when owed at once, when owed soon and its pace allows, or when the queue ran dry
+/// while new input came, and keeps the renderers fed. Submitting drops queued needs that answers have satisfied meanwhile; a queue emptied that
 /// way is re-planned at once, before the viewers are told what is outstanding, so an epoch never
 /// reports needs that no longer exist (nor misses new ones). Returns what is still owed.
 pub fn feed(mut owed: Owed, queue: &mut impl Feed) -> Owed {
-    let planned = owed.replan() || (queue.queued() == 0 && owed.resync());
+    let planned = owed.replan()
+        || (owed.replan_soon() && queue.replan_due())
+        || (queue.queued() == 0 && owed.resync());
     if planned {
         queue.replan();
         owed.replanned();
@@ -236,6 +240,8 @@ mod tests {
         needs: usize,
         /// Needs that answers satisfied meanwhile: dropped at the next submit.
         satisfied: usize,
+        /// A re-plan that may wait is due.
+        due: bool,
         calls: Vec<&'static str>,
     }
 
@@ -247,6 +253,9 @@ mod tests {
             self.queued = self.needs;
             self.calls.push("replan");
         }
+        fn replan_due(&self) -> bool {
+            self.due
+        }
         fn submit(&mut self) {
             self.queued = self.queued.saturating_sub(self.satisfied);
             self.satisfied = 0;
@@ -255,16 +264,37 @@ mod tests {
     }
 
     #[test]
-    fn an_owed_replan_comes_before_submitting() {
+    fn a_replan_that_may_wait_waits_for_its_pace() {
         let mut owed = Owed::default();
         owed.queue_changed();
+        let mut pool = FakePool {
+            queued: 3,
+            needs: 5,
+            ..Default::default()
+        };
+        let owed = feed(owed, &mut pool);
+        assert_eq!(pool.calls, ["submit"]);
+        assert!(owed.replan_soon(), "still owed");
+        pool.due = true;
+        let owed = feed(owed, &mut pool);
+        assert_eq!(pool.calls, ["submit", "replan", "submit"]);
+        assert!(!owed.any());
+    }
+
+    #[test]
+    fn an_owed_replan_comes_before_submitting() {
+        let mut owed = Owed::default();
+        owed.views_changed();
         let mut pool = FakePool {
             needs: 5,
             ..Default::default()
         };
         let owed = feed(owed, &mut pool);
         assert_eq!(pool.calls, ["replan", "submit"]);
-        assert!(!owed.any());
+        assert!(
+            !owed.replan() && owed.resync(),
+            "the viewers' sync is paid apart"
+        );
     }
 
     #[test]

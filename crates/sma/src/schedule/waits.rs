@@ -71,18 +71,22 @@ impl ViewWait {
 }
 
 /// What the next turn owes, beyond the viewers' passes: a re-plan of the request queue (the
-/// visible sets or the renderers' work changed) and bringing the viewers up to date (the cache or
-/// the visible sets changed).
+/// visible sets or the renderers' work changed), at once or when its pace allows, and bringing
+/// the viewers up to date (the cache or the visible sets changed).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Owed {
     replan: bool,
+    /// A re-plan that may wait for its pace: nothing new must be asked for at once, only the
+    /// order of what is queued went stale.
+    replan_soon: bool,
     resync: bool,
 }
 
 impl Owed {
-    /// A viewer left or a batch failed: the queue must be re-planned.
+    /// A viewer left, a batch failed or came back, a criterion ran dry: the queue must be
+    /// re-planned, not at once.
     pub fn queue_changed(&mut self) {
-        self.replan = true;
+        self.replan_soon = true;
     }
 
     /// Samples arrived: viewers may be shown more.
@@ -90,14 +94,25 @@ impl Owed {
         self.resync = true;
     }
 
-    /// Visible sets changed (a pass ran, refinement groups were committed): both.
+    /// A pass ran: the visible sets changed, new leaves may lack samples. Both, at once.
     pub fn views_changed(&mut self) {
         self.replan = true;
         self.resync = true;
     }
 
+    /// Refinement groups were committed: the viewers see new leaves, every one of them shaded,
+    /// so the queue's order may wait for its pace.
+    pub fn groups_committed(&mut self) {
+        self.replan_soon = true;
+        self.resync = true;
+    }
+
     pub fn replan(self) -> bool {
         self.replan
+    }
+
+    pub fn replan_soon(self) -> bool {
+        self.replan_soon
     }
 
     pub fn resync(self) -> bool {
@@ -106,6 +121,7 @@ impl Owed {
 
     pub fn replanned(&mut self) {
         self.replan = false;
+        self.replan_soon = false;
     }
 
     pub fn synced(&mut self) {
@@ -120,8 +136,16 @@ impl Owed {
         }
     }
 
+    /// The same debts with a re-plan that may wait left for a later turn (it is paced).
+    pub fn replan_later(self) -> Owed {
+        Owed {
+            replan_soon: false,
+            ..self
+        }
+    }
+
     pub fn any(self) -> bool {
-        self.replan || self.resync
+        self.replan || self.replan_soon || self.resync
     }
 }
 
@@ -177,6 +201,10 @@ mod tests {
         assert!(!owed.replan() && owed.resync());
         owed.synced();
         owed.queue_changed();
-        assert!(owed.replan() && !owed.resync());
+        assert!(!owed.replan() && owed.replan_soon() && !owed.resync());
+        assert!(!owed.replan_later().any());
+        owed.groups_committed();
+        owed.replanned();
+        assert!(!owed.replan_soon() && owed.resync());
     }
 }
