@@ -97,8 +97,8 @@ impl Requests {
     /// order); one entry per (key, quality), the first in that order. A re-plan orders every
     /// visible sample's needs several times a second, and each vertex is met once per leaf
     /// around it: on Sponza a few hundred thousand needs for a fraction as many keys. So the
-    /// best need per (key, quality) is found first, and only those are sorted, as eight-byte
-    /// keys rather than the needs themselves.
+    /// best need per (key, quality) is found first, and only those are sorted, as (order, index)
+    /// pairs rather than the needs themselves.
     pub fn replan(&mut self, needs: Vec<Need>) {
         let mut best: HashMap<NeedId, QueuePlace, FastHash> =
             HashMap::with_capacity_and_hasher(needs.len() / 2, FastHash::default());
