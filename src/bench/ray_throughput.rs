@@ -11,7 +11,7 @@ use obvhs::ray::{Ray, RayHit};
 use obvhs::triangle::Triangle as BvhTriangle;
 use rayon::prelude::*;
 
-use renderer::internals::{RayOrder, SceneBvh};
+use renderer::internals::{RayOrder, SceneBvh, Traversal};
 use renderer::reference::camera_for;
 use renderer::sampling::{cosine_hemisphere, stream, uniform_cone, uniform2};
 use renderer::vector_level::VectorLevel;
@@ -161,15 +161,29 @@ fn ordered_secs(rays: &Rays, bounds: (Vec3, Vec3), trace: TraceFn) -> f64 {
     sort + trace_secs(rays, Some(&sequence), trace)
 }
 
-/// The variants timed in turn within each run, so a change of machine load (other processes)
-/// hits all alike: median M rays/s of each, and the median of the per-run ratios to the first.
-fn compare<const N: usize>(runs: usize, rays: usize, variants: [Pass; N]) -> ([f64; N], [f64; N]) {
-    let per_run: Vec<[f64; N]> = (0..runs)
-        .map(|_| variants.map(|pass| rays as f64 / pass() / 1e6))
-        .collect();
-    let rates = std::array::from_fn(|k| median(per_run.iter().map(|r| r[k]).collect()));
-    let ratios = std::array::from_fn(|k| median(per_run.iter().map(|r| r[k] / r[0]).collect()));
-    (rates, ratios)
+/// M rays/s of each variant in each run; the variants are timed in turn within a run, so a
+/// change of machine load (other processes) hits all alike.
+struct Comparison<const N: usize> {
+    per_run: Vec<[f64; N]>,
+}
+
+impl<const N: usize> Comparison<N> {
+    fn measure(runs: usize, rays: usize, variants: [Pass; N]) -> Comparison<N> {
+        let per_run = (0..runs)
+            .map(|_| variants.map(|pass| rays as f64 / pass() / 1e6))
+            .collect();
+        Comparison { per_run }
+    }
+
+    /// Median M rays/s of each variant.
+    fn rates(&self) -> [f64; N] {
+        std::array::from_fn(|k| median(self.per_run.iter().map(|r| r[k]).collect()))
+    }
+
+    /// Median over the runs of variant `k`'s rate over variant `base`'s.
+    fn ratio(&self, k: usize, base: usize) -> f64 {
+        median(self.per_run.iter().map(|r| r[k] / r[base]).collect())
+    }
 }
 
 pub(super) fn ray_throughput(
@@ -178,11 +192,16 @@ pub(super) fn ray_throughput(
     cfg: &Config,
 ) -> anyhow::Result<String> {
     let ours_world = World::with_preset(scene.clone(), BuildPreset::Slow);
-    let mut portable = SceneBvh::build(&scene.mesh, BuildPreset::Slow);
-    portable.set_vector_level(VectorLevel::Baseline);
     let best = VectorLevel::detected();
-    let mut fastest = SceneBvh::build(&scene.mesh, BuildPreset::Slow);
-    fastest.set_vector_level(best);
+    let ours = |traversal, level| {
+        let mut bvh = SceneBvh::build(&scene.mesh, BuildPreset::Slow);
+        bvh.set_traversal(traversal);
+        bvh.set_vector_level(level);
+        bvh
+    };
+    let compressed = ours(Traversal::Compressed, best);
+    let portable = ours(Traversal::Wide, VectorLevel::Baseline);
+    let fastest = ours(Traversal::Wide, best);
     let naive = NaiveBvh::build(&scene.mesh);
     let (primary, bounce, shadow) = view_rays(&ours_world, view, cfg)?;
     // The rays are in the world's local frame, and so must the grid be.
@@ -196,6 +215,8 @@ pub(super) fn ray_throughput(
         );
     }
     let sort_ms = sort_start.elapsed().as_secs_f64() * 1e3;
+    let closest_compressed = |o, d, t| compressed.closest_hit(o, d, t).is_some();
+    let any_compressed = |o, d, t| compressed.occluded(o, d, t);
     let closest_portable = |o, d, t| portable.closest_hit(o, d, t).is_some();
     let closest = |o, d, t| fastest.closest_hit(o, d, t).is_some();
     let any_portable = |o, d, t| portable.occluded(o, d, t);
@@ -210,34 +231,41 @@ pub(super) fn ray_throughput(
     let best = best.name();
     writeln!(
         md,
-        "obvhs: one ray at a time, default (medium) preset, triangles through `primitive_indices`, closest hit for every ray, baseline instructions. Ours: slow preset (spatial splits), triangles stored in BVH order, early-exit shadow query, at the baseline vector level and at the best one this CPU runs ({best}), chosen at run time by the same binary; \"ordered\" first regroups the rays by direction octant and the Morton order of their origin's cell on a 16³ grid (`RayOrder`: a counting sort, one thread; {sort_ms:.0} ms for all bounce and shadow rays), its time included, then traces them in that order (primary rays are already in 8×8 pixel tiles). All are timed in turn within each run; ratios are medians of the per-run ratios to obvhs.\n"
+        "obvhs: one ray at a time, default (medium) preset, triangles through `primitive_indices`, closest hit for every ray, baseline instructions. Ours: slow preset (spatial splits), triangles stored in BVH order, early-exit shadow query. \"compressed\": obvhs's traversal of its compressed nodes inside our entry points at {best} (the renderer's traversal before the wide one). \"wide\" (the renderer's): the same tree decoded into full-precision eight-wide nodes, nearest child first, four triangles per leaf test, at the baseline vector level (SSE) and at the best one this CPU runs ({best}, AVX2), chosen at run time by the same binary; \"ordered\" first regroups the rays by direction octant and the Morton order of their origin's cell on a 16³ grid (`RayOrder`: a counting sort, one thread; {sort_ms:.0} ms for all bounce and shadow rays), its time included, then traces them in that order (primary rays are already in 8×8 pixel tiles). All are timed in turn within each run; ratios are medians of the per-run ratios.\n"
     )?;
     writeln!(
         md,
-        "| rays | count | obvhs | ours, baseline | ours, {best} | ours, {best}, ordered | ours baseline / obvhs | ours {best} / obvhs | ordered / obvhs |"
+        "| rays | count | obvhs | compressed, {best} | wide, baseline | wide, {best} | wide, {best}, ordered | compressed / obvhs | wide baseline / obvhs | wide {best} / obvhs | ordered / obvhs | wide {best} / compressed |"
     )?;
-    writeln!(md, "|---|---:|---:|---:|---:|---:|---:|---:|---:|")?;
+    writeln!(
+        md,
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    )?;
     for (name, rays, closest_hit) in [
         ("primary", &primary, true),
         ("bounce", &bounce, true),
         ("shadow (sun)", &shadow, false),
     ] {
-        let (p, f): (TraceFn, TraceFn) = if closest_hit {
-            (&closest_portable, &closest)
+        let (c, p, f): (TraceFn, TraceFn, TraceFn) = if closest_hit {
+            (&closest_compressed, &closest_portable, &closest)
         } else {
-            (&any_portable, &any)
+            (&any_compressed, &any_portable, &any)
         };
-        let variants: [Pass; 4] = [
+        let variants: [Pass; 5] = [
             &|| trace_secs(rays, None, &naive_trace),
+            &|| trace_secs(rays, None, c),
             &|| trace_secs(rays, None, p),
             &|| trace_secs(rays, None, f),
             &|| ordered_secs(rays, bounds, f),
         ];
-        let ([obvhs, portable, fastest, ordered], [_, r_portable, r_fastest, r_ordered]) =
-            compare(cfg.runs, rays.len(), variants);
+        let runs = Comparison::measure(cfg.runs, rays.len(), variants);
+        let [obvhs, compressed, portable, fastest, ordered] = runs.rates();
+        let [r_compressed, r_portable, r_fastest, r_ordered] =
+            [1, 2, 3, 4].map(|k| runs.ratio(k, 0));
+        let wide_over_compressed = runs.ratio(3, 1);
         writeln!(
             md,
-            "| {name} | {} | {obvhs:.2} | {portable:.2} | {fastest:.2} | {ordered:.2} | {r_portable:.2}× | {r_fastest:.2}× | {r_ordered:.2}× |",
+            "| {name} | {} | {obvhs:.2} | {compressed:.2} | {portable:.2} | {fastest:.2} | {ordered:.2} | {r_compressed:.2}× | {r_portable:.2}× | {r_fastest:.2}× | {r_ordered:.2}× | {wide_over_compressed:.2}× |",
             rays.len()
         )?;
     }

@@ -1,12 +1,15 @@
-//! Ray tracing core: an obvhs compressed wide BVH (CWBVH) over the scene's triangles, a closest-hit
-//! query and an early-exit occlusion query (DESIGN.md §7). Intersection is passed to obvhs as a
-//! closure, obvhs style.
+//! Ray tracing core over the scene's triangles: a closest-hit query and an early-exit occlusion
+//! query (DESIGN.md §7). obvhs builds the tree, a compressed wide BVH (CWBVH); the queries run
+//! one of two traversals of it ([`Traversal`]):
+//! - **wide** (the default on x86-64): the tree decoded into full-precision eight-wide nodes
+//!   (`wide_bvh`), traversed nearest child first with eight boxes per vector step and four
+//!   triangles per leaf test (`wide_traversal`);
+//! - **compressed**: obvhs's own `traverse!` loop over the CWBVH nodes, the intersection passed
+//!   in as a closure, obvhs style (the only one elsewhere, and the comparison in benchmarks).
 //!
 //! Each query exists once per [`VectorLevel`]. Target features do not reach into a function that
-//! is not inlined, and obvhs's `ray_traverse` is not (it is large): compiled inside a
-//! `#[target_feature]` function it stayed baseline code. So the queries run obvhs's own exported
-//! `traverse!` loop, whose node and triangle tests are `#[inline(always)]`, in bodies inlined into
-//! one entry point per level.
+//! is not inlined, so both traversals are `#[inline(always)]` bodies compiled inside one entry
+//! point per level.
 
 use std::time::{Duration, Instant};
 
@@ -19,6 +22,28 @@ pub use scene::bvh::BuildPreset;
 use scene::bvh::{build_cwbvh, bvh_triangles};
 
 use crate::vector_level::VectorLevel;
+#[cfg(target_arch = "x86_64")]
+use crate::wide_bvh::WideBvh;
+#[cfg(target_arch = "x86_64")]
+use crate::wide_traversal::{self, Query};
+
+/// Which traversal of the tree the queries run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Traversal {
+    /// Full-precision eight-wide nodes, nearest child first (`wide_traversal`; x86-64 only).
+    Wide,
+    /// obvhs's traversal of its compressed nodes.
+    Compressed,
+}
+
+impl Traversal {
+    pub fn name(self) -> &'static str {
+        match self {
+            Traversal::Wide => "wide",
+            Traversal::Compressed => "compressed",
+        }
+    }
+}
 
 /// The closest hit of a ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -35,6 +60,11 @@ pub struct SceneBvh {
     prims: Vec<RtTriangle>,
     /// Scene triangle of each BVH primitive.
     prim_triangle: Vec<u32>,
+    /// The tree decoded for the wide traversal; None off x86-64 or for a degenerate, too deep
+    /// tree (`wide_bvh::MAX_DEPTH`).
+    #[cfg(target_arch = "x86_64")]
+    wide: Option<WideBvh>,
+    traversal: Traversal,
     build_time: Duration,
     /// Only ever a level the CPU has (`set_vector_level` checks it).
     level: VectorLevel,
@@ -46,17 +76,48 @@ impl SceneBvh {
         let tris = bvh_triangles(mesh);
         let bvh = build_cwbvh(&tris, preset);
         let prim_triangle = bvh.primitive_indices.clone();
-        let prims = prim_triangle
+        let prims: Vec<RtTriangle> = prim_triangle
             .iter()
             .map(|&i| RtTriangle::from(&tris[i as usize]))
             .collect();
+        #[cfg(target_arch = "x86_64")]
+        let wide = WideBvh::from_cwbvh(&bvh, &prims);
+        #[cfg(target_arch = "x86_64")]
+        let traversal = if wide.is_some() {
+            Traversal::Wide
+        } else {
+            Traversal::Compressed
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let traversal = Traversal::Compressed;
         SceneBvh {
             bvh,
             prims,
             prim_triangle,
+            #[cfg(target_arch = "x86_64")]
+            wide,
+            traversal,
             build_time: start.elapsed(),
             level: VectorLevel::selected(),
         }
+    }
+
+    pub fn traversal(&self) -> Traversal {
+        self.traversal
+    }
+
+    /// Runs `traversal` from now on (benchmarks compare them on one tree). Panics where the wide
+    /// traversal is not available.
+    pub fn set_traversal(&mut self, traversal: Traversal) {
+        #[cfg(target_arch = "x86_64")]
+        let wide = self.wide.is_some();
+        #[cfg(not(target_arch = "x86_64"))]
+        let wide = false;
+        assert!(
+            traversal == Traversal::Compressed || wide,
+            "the wide traversal is not available for this tree"
+        );
+        self.traversal = traversal;
     }
 
     pub fn vector_level(&self) -> VectorLevel {
@@ -78,9 +139,25 @@ impl SceneBvh {
     /// Closest hit along `origin + t dir`, t in (0, tmax). `dir` need not be unit length; `t` is in
     /// its units.
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
+        #[cfg(target_arch = "x86_64")]
+        if let (Traversal::Wide, Some(wide)) = (self.traversal, &self.wide) {
+            let q = Query::new(origin, dir);
+            let hit = match self.level {
+                // SAFETY: `level` is V3 only where the CPU has every feature of `x86_64_v3`.
+                VectorLevel::V3 => unsafe { x86_64_v3::wide_closest(wide, &q, tmax) },
+                // SAFETY: SSE is part of x86-64.
+                VectorLevel::Baseline => unsafe {
+                    wide_traversal::closest::<wide_traversal::Sse>(wide, &q, tmax)
+                },
+            };
+            return hit.map(|(prim, t)| Hit {
+                triangle: self.prim_triangle[prim as usize],
+                t,
+            });
+        }
         let ray = Ray::new(origin.into(), dir.into(), 0.0, tmax);
         match self.level {
-            // SAFETY: `level` is V3 only where the CPU has every feature of `x86_64_v3`.
+            // SAFETY: as above.
             #[cfg(target_arch = "x86_64")]
             VectorLevel::V3 => unsafe { x86_64_v3::closest_hit(self, ray) },
             _ => self.closest_hit_inline(ray),
@@ -96,6 +173,18 @@ impl SceneBvh {
     /// A primitive (BVH order) on the segment `origin + t dir`, t in (0, tmax): the first one
     /// found, not the nearest.
     pub(crate) fn occluder(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<u32> {
+        #[cfg(target_arch = "x86_64")]
+        if let (Traversal::Wide, Some(wide)) = (self.traversal, &self.wide) {
+            let q = Query::new(origin, dir);
+            return match self.level {
+                // SAFETY: as in `closest_hit`.
+                VectorLevel::V3 => unsafe { x86_64_v3::wide_any(wide, &q, tmax) },
+                // SAFETY: SSE is part of x86-64.
+                VectorLevel::Baseline => unsafe {
+                    wide_traversal::any::<wide_traversal::Sse>(wide, &q, tmax)
+                },
+            };
+        }
         let ray = Ray::new(origin.into(), dir.into(), 0.0, tmax);
         match self.level {
             // SAFETY: as in `closest_hit`.
@@ -173,7 +262,7 @@ impl SceneBvh {
 /// The queries compiled for `x86-64-v3`. The feature list is `vector_level::v3_detected`'s.
 #[cfg(target_arch = "x86_64")]
 mod x86_64_v3 {
-    use super::{Hit, Ray, SceneBvh};
+    use super::{Hit, Query, Ray, SceneBvh, WideBvh, wide_traversal};
 
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,movbe,f16c")]
     pub(super) unsafe fn closest_hit(bvh: &SceneBvh, ray: Ray) -> Option<Hit> {
@@ -183,6 +272,18 @@ mod x86_64_v3 {
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,movbe,f16c")]
     pub(super) unsafe fn occluder(bvh: &SceneBvh, ray: Ray) -> Option<u32> {
         bvh.occluder_inline(ray)
+    }
+
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,movbe,f16c")]
+    pub(super) unsafe fn wide_closest(bvh: &WideBvh, q: &Query, tmax: f32) -> Option<(u32, f32)> {
+        // SAFETY: this function's features include AVX.
+        unsafe { wide_traversal::closest::<wide_traversal::Avx2>(bvh, q, tmax) }
+    }
+
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,movbe,f16c")]
+    pub(super) unsafe fn wide_any(bvh: &WideBvh, q: &Query, tmax: f32) -> Option<u32> {
+        // SAFETY: as in `wide_closest`.
+        unsafe { wide_traversal::any::<wide_traversal::Avx2>(bvh, q, tmax) }
     }
 }
 
@@ -261,6 +362,83 @@ mod tests {
         assert!(!bvh.blocks(prim, o, Vec3::NEG_Y, 0.5));
         assert!(!bvh.blocks(prim, o, Vec3::Y, 10.0));
         assert_eq!(bvh.occluder(o, Vec3::Y, 10.0), None);
+    }
+
+    /// A crumpled sheet of triangles over several scales, for comparing traversals.
+    fn crumpled_mesh() -> Mesh {
+        let n = 40;
+        let mut mesh = Mesh::default();
+        for i in 0..=n {
+            for j in 0..=n {
+                let (x, z) = (i as f32 * 0.25, j as f32 * 0.25);
+                let y = (x * 1.7).sin() * (z * 1.3).cos() + ((i * 31 + j * 17) % 7) as f32 * 0.02;
+                mesh.positions.push(Vec3::new(x, y, z));
+                mesh.normals.push(Vec3::Y);
+            }
+        }
+        let at = |i: usize, j: usize| (i * (n + 1) + j) as u32;
+        for i in 0..n {
+            for j in 0..n {
+                for vertices in [
+                    [at(i, j), at(i + 1, j), at(i + 1, j + 1)],
+                    [at(i, j), at(i + 1, j + 1), at(i, j + 1)],
+                ] {
+                    mesh.triangles.push(Triangle {
+                        vertices,
+                        material: 0,
+                    });
+                }
+            }
+        }
+        mesh
+    }
+
+    #[test]
+    fn both_traversals_give_the_same_answers_at_every_level() {
+        let mesh = crumpled_mesh();
+        let mut rng = crate::sampling::stream(7, 0);
+        let rays: Vec<(Vec3, Vec3, f32)> = (0..4000)
+            .map(|k| {
+                let u = crate::sampling::uniform2(&mut rng);
+                let v = crate::sampling::uniform2(&mut rng);
+                let origin = Vec3::new(u[0] * 10.0, 2.5 * v[0] - 0.5, u[1] * 10.0);
+                let w = crate::sampling::uniform2(&mut rng);
+                // A cone of half-angle π is the whole sphere.
+                let dir = crate::sampling::uniform_cone(Vec3::Y, 2.0, w);
+                // Some axis-parallel rays and some short segments too.
+                let dir = if k % 10 == 0 { Vec3::NEG_Y } else { dir };
+                let tmax = if k % 3 == 0 { 1.5 } else { f32::INFINITY };
+                (origin, dir, tmax)
+            })
+            .collect();
+        for preset in [BuildPreset::Medium, BuildPreset::Slow] {
+            let mut bvh = SceneBvh::build(&mesh, preset);
+            assert_eq!(bvh.traversal(), Traversal::Wide, "x86-64 runs the wide one");
+            for level in [VectorLevel::Baseline, VectorLevel::V3] {
+                if !level.available() {
+                    continue;
+                }
+                bvh.set_vector_level(level);
+                let mut hits = 0;
+                for &(o, d, tmax) in &rays {
+                    bvh.set_traversal(Traversal::Compressed);
+                    let (expected, blocked) =
+                        (bvh.closest_hit(o, d, tmax), bvh.occluded(o, d, tmax));
+                    bvh.set_traversal(Traversal::Wide);
+                    let got = bvh.closest_hit(o, d, tmax);
+                    assert_eq!(got.map(|h| h.t), expected.map(|h| h.t), "{o} {d} {tmax}");
+                    assert_eq!(bvh.occluded(o, d, tmax), blocked, "{o} {d} {tmax}");
+                    if let Some(prim) = bvh.occluder(o, d, tmax) {
+                        assert!(bvh.blocks(prim, o, d, tmax));
+                    }
+                    hits += usize::from(got.is_some());
+                }
+                assert!(
+                    hits > 1000 && hits < 3900,
+                    "{hits} of 4000 rays hit: a poor test set"
+                );
+            }
+        }
     }
 
     #[test]

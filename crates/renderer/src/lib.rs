@@ -28,6 +28,10 @@ pub(crate) mod shade;
 pub mod tonemap;
 pub mod vector_level;
 pub(crate) mod wavefront;
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod wide_bvh;
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod wide_traversal;
 pub mod world;
 
 pub use counters::{RayCounts, RayKind};
@@ -38,6 +42,6 @@ pub use world::World;
 /// BVH against a naive one, and hidden-point relocation.
 #[cfg(feature = "bench")]
 pub mod internals {
-    pub use crate::bvh::SceneBvh;
+    pub use crate::bvh::{SceneBvh, Traversal};
     pub use crate::ray_order::RayOrder;
 }

@@ -1,0 +1,364 @@
+//! Traversal of the eight-wide BVH (`wide_bvh`, DESIGN.md §7): one ray against eight child boxes
+//! at a time, nearest child first, a stack of (child, entry distance) pairs so that a closest-hit
+//! query skips what lies beyond its best hit, and a four-wide triangle test per leaf.
+//!
+//! The box test comes in two widths behind [`BoxTest`]: [`Sse`] (two four-wide halves, the
+//! x86-64 baseline) and [`Avx2`] (one eight-wide step, for `x86-64-v3`). Both loops are
+//! `#[inline(always)]`, so each of `bvh.rs`'s entry points compiles them with its own target
+//! features.
+
+use std::arch::x86_64::*;
+
+use glam::Vec3;
+
+use crate::wide_bvh::{LEAF, LeafTriangles, STACK, WideBvh, WideNode};
+
+/// A ray prepared for box tests: origin, direction, reciprocal direction, and per axis which of
+/// a node's plane arrays the ray meets first.
+pub(crate) struct Query {
+    origin: [f32; 3],
+    dir: [f32; 3],
+    inv: [f32; 3],
+    near: [usize; 3],
+}
+
+impl Query {
+    pub(crate) fn new(origin: Vec3, dir: Vec3) -> Query {
+        let dir = dir.to_array();
+        // obvhs's `safe_inverse`: an axis-parallel ray gets a large finite reciprocal, so a plane
+        // through the origin gives 0, never 0 · ∞.
+        let inv = dir.map(|d| {
+            if d.abs() <= f32::EPSILON {
+                d.signum() / f32::EPSILON
+            } else {
+                1.0 / d
+            }
+        });
+        let near = [0, 1, 2].map(|axis| 2 * axis + usize::from(inv[axis] < 0.0));
+        Query {
+            origin: origin.to_array(),
+            dir,
+            inv,
+            near,
+        }
+    }
+}
+
+/// Slack on a box's exit distance, so rounding in the slab test never loses a box the ray
+/// grazes (a few ulps, as in robust BVH traversal).
+const EXIT_SLACK: f32 = 1.0 + 4.0 * f32::EPSILON;
+
+/// The children of a node that a ray enters within (0, tmax): a bit per slot, and each slot's
+/// entry distance in `entry`.
+pub(crate) trait BoxTest {
+    /// # Safety
+    /// The CPU must have the implementation's instructions.
+    unsafe fn hits(node: &WideNode, q: &Query, tmax: f32, entry: &mut [f32; 8]) -> u32;
+}
+
+/// Two four-wide SSE halves: every x86-64 has them.
+pub(crate) struct Sse;
+
+/// Entry and exit distances through four children's slabs (from `half`) on one axis.
+#[inline(always)]
+unsafe fn slabs4(node: &WideNode, q: &Query, axis: usize, half: usize) -> (__m128, __m128) {
+    // SAFETY: SSE is part of x86-64; loads stay inside the node's arrays (`half` is 0 or 4).
+    unsafe {
+        let o = _mm_set1_ps(q.origin[axis]);
+        let inv = _mm_set1_ps(q.inv[axis]);
+        let near = _mm_loadu_ps(node.bounds[q.near[axis]].as_ptr().add(half));
+        let far = _mm_loadu_ps(node.bounds[q.near[axis] ^ 1].as_ptr().add(half));
+        (
+            _mm_mul_ps(_mm_sub_ps(near, o), inv),
+            _mm_mul_ps(_mm_sub_ps(far, o), inv),
+        )
+    }
+}
+
+impl BoxTest for Sse {
+    #[inline(always)]
+    unsafe fn hits(node: &WideNode, q: &Query, tmax: f32, entry: &mut [f32; 8]) -> u32 {
+        // SAFETY: SSE is part of x86-64.
+        unsafe {
+            let mut mask = 0;
+            for half in [0, 4] {
+                let (nx, fx) = slabs4(node, q, 0, half);
+                let (ny, fy) = slabs4(node, q, 1, half);
+                let (nz, fz) = slabs4(node, q, 2, half);
+                let enter = _mm_max_ps(_mm_max_ps(nx, ny), _mm_max_ps(nz, _mm_setzero_ps()));
+                let exit = _mm_min_ps(_mm_min_ps(fx, fy), _mm_min_ps(fz, _mm_set1_ps(tmax)));
+                let exit = _mm_mul_ps(exit, _mm_set1_ps(EXIT_SLACK));
+                _mm_storeu_ps(entry.as_mut_ptr().add(half), enter);
+                mask |= (_mm_movemask_ps(_mm_cmple_ps(enter, exit)) as u32) << half;
+            }
+            mask
+        }
+    }
+}
+
+/// One eight-wide AVX step.
+pub(crate) struct Avx2;
+
+/// Entry and exit distances of the ray through eight children's slabs on one axis. A function,
+/// not a closure: a closure would not inherit the caller's target features, and 256-bit values
+/// crossing a call compiled without AVX cost more than the whole test.
+#[inline(always)]
+unsafe fn slabs8(node: &WideNode, q: &Query, axis: usize) -> (__m256, __m256) {
+    // SAFETY: the caller runs with AVX enabled; `WideNode` is 64-byte aligned, so each 32-byte
+    // plane array is aligned.
+    unsafe {
+        let o = _mm256_set1_ps(q.origin[axis]);
+        let inv = _mm256_set1_ps(q.inv[axis]);
+        let near = _mm256_load_ps(node.bounds[q.near[axis]].as_ptr());
+        let far = _mm256_load_ps(node.bounds[q.near[axis] ^ 1].as_ptr());
+        (
+            _mm256_mul_ps(_mm256_sub_ps(near, o), inv),
+            _mm256_mul_ps(_mm256_sub_ps(far, o), inv),
+        )
+    }
+}
+
+impl BoxTest for Avx2 {
+    #[inline(always)]
+    unsafe fn hits(node: &WideNode, q: &Query, tmax: f32, entry: &mut [f32; 8]) -> u32 {
+        // SAFETY: the caller runs with AVX enabled.
+        unsafe {
+            let (nx, fx) = slabs8(node, q, 0);
+            let (ny, fy) = slabs8(node, q, 1);
+            let (nz, fz) = slabs8(node, q, 2);
+            let enter = _mm256_max_ps(
+                _mm256_max_ps(nx, ny),
+                _mm256_max_ps(nz, _mm256_setzero_ps()),
+            );
+            let exit = _mm256_min_ps(
+                _mm256_min_ps(fx, fy),
+                _mm256_min_ps(fz, _mm256_set1_ps(tmax)),
+            );
+            let exit = _mm256_mul_ps(exit, _mm256_set1_ps(EXIT_SLACK));
+            _mm256_storeu_ps(entry.as_mut_ptr(), enter);
+            _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(enter, exit)) as u32
+        }
+    }
+}
+
+/// Four lanes of one of a leaf's vectors.
+#[inline(always)]
+unsafe fn lanes(v: &[[f32; 4]; 3]) -> [__m128; 3] {
+    // SAFETY: SSE is part of x86-64; `LeafTriangles` is 16-byte aligned and so are its lanes.
+    unsafe {
+        [
+            _mm_load_ps(v[0].as_ptr()),
+            _mm_load_ps(v[1].as_ptr()),
+            _mm_load_ps(v[2].as_ptr()),
+        ]
+    }
+}
+
+/// a · b, lane by lane, summed in glam's order ((x + y) + z), so the answers are obvhs's.
+#[inline(always)]
+unsafe fn dot(a: [__m128; 3], b: [__m128; 3]) -> __m128 {
+    // SAFETY: SSE is part of x86-64.
+    unsafe {
+        _mm_add_ps(
+            _mm_add_ps(_mm_mul_ps(a[0], b[0]), _mm_mul_ps(a[1], b[1])),
+            _mm_mul_ps(a[2], b[2]),
+        )
+    }
+}
+
+/// The four lanes' hit distances against a leaf, +∞ where a lane misses or lies outside
+/// [0, tmax): obvhs's `RtTriangle::intersect` (Möller–Trumbore), four at a time, with its
+/// operations in its order.
+#[inline(always)]
+unsafe fn leaf_distances(leaf: &LeafTriangles, q: &Query, tmax: f32) -> __m128 {
+    // SAFETY: SSE is part of x86-64.
+    unsafe {
+        let v0 = lanes(&leaf.v0);
+        let e1 = lanes(&leaf.e1);
+        let e2 = lanes(&leaf.e2);
+        let ng = lanes(&leaf.ng);
+        let d = [
+            _mm_set1_ps(q.dir[0]),
+            _mm_set1_ps(q.dir[1]),
+            _mm_set1_ps(q.dir[2]),
+        ];
+        let c = [
+            _mm_sub_ps(v0[0], _mm_set1_ps(q.origin[0])),
+            _mm_sub_ps(v0[1], _mm_set1_ps(q.origin[1])),
+            _mm_sub_ps(v0[2], _mm_set1_ps(q.origin[2])),
+        ];
+        // r = dir × c
+        let r = [
+            _mm_sub_ps(_mm_mul_ps(d[1], c[2]), _mm_mul_ps(d[2], c[1])),
+            _mm_sub_ps(_mm_mul_ps(d[2], c[0]), _mm_mul_ps(d[0], c[2])),
+            _mm_sub_ps(_mm_mul_ps(d[0], c[1]), _mm_mul_ps(d[1], c[0])),
+        ];
+        let inv_det = _mm_div_ps(_mm_set1_ps(1.0), dot(ng, d));
+        let u = _mm_mul_ps(dot(r, e2), inv_det);
+        let v = _mm_mul_ps(dot(r, e1), inv_det);
+        let w = _mm_sub_ps(_mm_sub_ps(_mm_set1_ps(1.0), u), v);
+        let t = _mm_mul_ps(dot(ng, c), inv_det);
+        // Inside when no barycentric has its sign bit set (so −0 is outside, as in obvhs).
+        let signs = _mm_or_ps(_mm_or_ps(u, v), w);
+        let outside = _mm_castsi128_ps(_mm_srai_epi32::<31>(_mm_castps_si128(signs)));
+        let valid = _mm_andnot_ps(
+            outside,
+            _mm_and_ps(
+                _mm_cmpneq_ps(inv_det, _mm_setzero_ps()),
+                _mm_and_ps(
+                    _mm_cmpge_ps(t, _mm_setzero_ps()),
+                    _mm_cmplt_ps(t, _mm_set1_ps(tmax)),
+                ),
+            ),
+        );
+        select(valid, t, _mm_set1_ps(f32::INFINITY))
+    }
+}
+
+/// `mask ? a : b`, lane by lane, with SSE2 only.
+#[inline(always)]
+unsafe fn select(mask: __m128, a: __m128, b: __m128) -> __m128 {
+    // SAFETY: SSE2 is part of x86-64.
+    unsafe { _mm_or_ps(_mm_and_ps(mask, a), _mm_andnot_ps(mask, b)) }
+}
+
+/// The nearest lane of a leaf hit before `tmax`: (distance, lane).
+#[inline(always)]
+unsafe fn leaf_nearest(leaf: &LeafTriangles, q: &Query, tmax: f32) -> Option<(f32, usize)> {
+    // SAFETY: as in `leaf_distances`.
+    unsafe {
+        let t = leaf_distances(leaf, q, tmax);
+        let m = _mm_min_ps(t, _mm_shuffle_ps::<0b10_11_00_01>(t, t));
+        let m = _mm_min_ps(m, _mm_shuffle_ps::<0b01_00_11_10>(m, m));
+        let nearest = _mm_cvtss_f32(m);
+        (nearest < tmax).then(|| {
+            let lane = _mm_movemask_ps(_mm_cmpeq_ps(t, m)).trailing_zeros();
+            (nearest, lane as usize)
+        })
+    }
+}
+
+/// Some lane of a leaf hit before `tmax`.
+#[inline(always)]
+unsafe fn leaf_any(leaf: &LeafTriangles, q: &Query, tmax: f32) -> Option<usize> {
+    // SAFETY: as in `leaf_distances`.
+    unsafe {
+        let t = leaf_distances(leaf, q, tmax);
+        let hit = _mm_movemask_ps(_mm_cmplt_ps(t, _mm_set1_ps(f32::INFINITY)));
+        (hit != 0).then(|| hit.trailing_zeros() as usize)
+    }
+}
+
+/// The closest hit before `tmax`: (BVH primitive, distance).
+///
+/// # Safety
+/// The CPU must have `B`'s instructions.
+#[inline(always)]
+pub(crate) unsafe fn closest<B: BoxTest>(
+    bvh: &WideBvh,
+    q: &Query,
+    tmax: f32,
+) -> Option<(u32, f32)> {
+    if bvh.nodes.is_empty() {
+        return None;
+    }
+    let mut stack = [(0u32, 0f32); STACK];
+    let mut depth = 0;
+    let mut best = None;
+    let mut best_t = tmax;
+    let mut entry = [0f32; 8];
+    let mut current = 0u32;
+    'visit: loop {
+        if current & LEAF == 0 {
+            let node = &bvh.nodes[current as usize];
+            // SAFETY: the caller guarantees `B`'s instructions.
+            let mut mask = unsafe { B::hits(node, q, best_t, &mut entry) };
+            if mask != 0 {
+                let first = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                if mask == 0 {
+                    current = node.child[first];
+                    continue 'visit;
+                }
+                // Several children: all onto the stack, farthest deepest, and the nearest next.
+                let base = depth;
+                let mut slot = first;
+                loop {
+                    let item = (node.child[slot], entry[slot]);
+                    let mut at = depth;
+                    while at > base && stack[at - 1].1 < item.1 {
+                        stack[at] = stack[at - 1];
+                        at -= 1;
+                    }
+                    stack[at] = item;
+                    depth += 1;
+                    if mask == 0 {
+                        break;
+                    }
+                    slot = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                }
+                depth -= 1;
+                current = stack[depth].0;
+                continue 'visit;
+            }
+        } else {
+            let leaf = &bvh.leaves[(current & !LEAF) as usize];
+            // SAFETY: SSE only.
+            if let Some((t, lane)) = unsafe { leaf_nearest(leaf, q, best_t) } {
+                best_t = t;
+                best = Some((leaf.prim[lane], t));
+            }
+        }
+        // Next on the stack, skipping children entered only beyond the best hit.
+        loop {
+            if depth == 0 {
+                return best;
+            }
+            depth -= 1;
+            let (child, enter) = stack[depth];
+            if enter <= best_t {
+                current = child;
+                continue 'visit;
+            }
+        }
+    }
+}
+
+/// Some primitive (BVH order) hit before `tmax`: the first found, not the nearest.
+///
+/// # Safety
+/// The CPU must have `B`'s instructions.
+#[inline(always)]
+pub(crate) unsafe fn any<B: BoxTest>(bvh: &WideBvh, q: &Query, tmax: f32) -> Option<u32> {
+    if bvh.nodes.is_empty() {
+        return None;
+    }
+    let mut stack = [0u32; STACK];
+    let mut depth = 0;
+    let mut entry = [0f32; 8];
+    let mut current = 0u32;
+    loop {
+        if current & LEAF == 0 {
+            let node = &bvh.nodes[current as usize];
+            // SAFETY: the caller guarantees `B`'s instructions.
+            let mut mask = unsafe { B::hits(node, q, tmax, &mut entry) };
+            while mask != 0 {
+                stack[depth] = node.child[mask.trailing_zeros() as usize];
+                depth += 1;
+                mask &= mask - 1;
+            }
+        } else {
+            let leaf = &bvh.leaves[(current & !LEAF) as usize];
+            // SAFETY: SSE only.
+            if let Some(lane) = unsafe { leaf_any(leaf, q, tmax) } {
+                return Some(leaf.prim[lane]);
+            }
+        }
+        if depth == 0 {
+            return None;
+        }
+        depth -= 1;
+        current = stack[depth];
+    }
+}
