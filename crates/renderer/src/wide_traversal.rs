@@ -8,6 +8,7 @@
 //! features.
 
 use std::arch::x86_64::*;
+use std::mem::MaybeUninit;
 
 use glam::Vec3;
 
@@ -19,6 +20,8 @@ pub(crate) struct Query {
     origin: [f32; 3],
     dir: [f32; 3],
     inv: [f32; 3],
+    /// origin · inv, for the fused slab test.
+    origin_inv: [f32; 3],
     near: [usize; 3],
 }
 
@@ -35,10 +38,12 @@ impl Query {
             }
         });
         let near = [0, 1, 2].map(|axis| 2 * axis + usize::from(inv[axis] < 0.0));
+        let origin = origin.to_array();
         Query {
-            origin: origin.to_array(),
+            origin,
             dir,
             inv,
+            origin_inv: [0, 1, 2].map(|axis| origin[axis] * inv[axis]),
             near,
         }
     }
@@ -107,13 +112,13 @@ unsafe fn slabs8(node: &WideNode, q: &Query, axis: usize) -> (__m256, __m256) {
     // SAFETY: the caller runs with AVX enabled; `WideNode` is 64-byte aligned, so each 32-byte
     // plane array is aligned.
     unsafe {
-        let o = _mm256_set1_ps(q.origin[axis]);
+        let o_inv = _mm256_set1_ps(q.origin_inv[axis]);
         let inv = _mm256_set1_ps(q.inv[axis]);
         let near = _mm256_load_ps(node.bounds[q.near[axis]].as_ptr());
         let far = _mm256_load_ps(node.bounds[q.near[axis] ^ 1].as_ptr());
         (
-            _mm256_mul_ps(_mm256_sub_ps(near, o), inv),
-            _mm256_mul_ps(_mm256_sub_ps(far, o), inv),
+            _mm256_fmsub_ps(near, inv, o_inv),
+            _mm256_fmsub_ps(far, inv, o_inv),
         )
     }
 }
@@ -249,6 +254,59 @@ unsafe fn leaf_any(leaf: &LeafTriangles, q: &Query, tmax: f32) -> Option<usize> 
     }
 }
 
+/// A traversal's stack: [`STACK`] entries left uninitialised, since clearing them would cost
+/// more than many node visits (a ray is traced in about a microsecond).
+struct Stack<T: Copy> {
+    items: [MaybeUninit<T>; STACK],
+    len: usize,
+}
+
+impl<T: Copy> Stack<T> {
+    #[inline(always)]
+    fn new() -> Stack<T> {
+        Stack {
+            items: [const { MaybeUninit::uninit() }; STACK],
+            len: 0,
+        }
+    }
+
+    /// Panics past [`STACK`] entries, which a tree of at most `wide_bvh::MAX_DEPTH` levels
+    /// never reaches.
+    #[inline(always)]
+    fn push(&mut self, item: T) {
+        self.items[self.len] = MaybeUninit::new(item);
+        self.len += 1;
+    }
+
+    #[inline(always)]
+    fn pop(&mut self) -> Option<T> {
+        self.len = self.len.checked_sub(1)?;
+        // SAFETY: every entry below `len` was written by `push` or `insert_sorted`.
+        Some(unsafe { self.items[self.len].assume_init() })
+    }
+
+}
+
+impl Stack<(u32, f32)> {
+    /// Pushes `item` among the entries above `base`, which are kept farthest first, so the
+    /// nearest is on top.
+    #[inline(always)]
+    fn insert_sorted(&mut self, base: usize, item: (u32, f32)) {
+        let mut at = self.len;
+        while at > base {
+            // SAFETY: `base..len` were written.
+            let below = unsafe { self.items[at - 1].assume_init() };
+            if below.1 >= item.1 {
+                break;
+            }
+            self.items[at] = MaybeUninit::new(below);
+            at -= 1;
+        }
+        self.items[at] = MaybeUninit::new(item);
+        self.len += 1;
+    }
+}
+
 /// The closest hit before `tmax`: (BVH primitive, distance).
 ///
 /// # Safety
@@ -262,8 +320,7 @@ pub(crate) unsafe fn closest<B: BoxTest>(
     if bvh.nodes.is_empty() {
         return None;
     }
-    let mut stack = [(0u32, 0f32); STACK];
-    let mut depth = 0;
+    let mut stack = Stack::<(u32, f32)>::new();
     let mut best = None;
     let mut best_t = tmax;
     let mut entry = [0f32; 8];
@@ -280,27 +337,15 @@ pub(crate) unsafe fn closest<B: BoxTest>(
                     current = node.child[first];
                     continue 'visit;
                 }
-                // Several children: all onto the stack, farthest deepest, and the nearest next.
-                let base = depth;
-                let mut slot = first;
-                loop {
-                    let item = (node.child[slot], entry[slot]);
-                    let mut at = depth;
-                    while at > base && stack[at - 1].1 < item.1 {
-                        stack[at] = stack[at - 1];
-                        at -= 1;
-                    }
-                    stack[at] = item;
-                    depth += 1;
-                    if mask == 0 {
-                        break;
-                    }
-                    slot = mask.trailing_zeros() as usize;
+                // Several children: all onto the stack, farthest deepest, so the pop below takes
+                // the nearest.
+                let base = stack.len;
+                stack.insert_sorted(base, (node.child[first], entry[first]));
+                while mask != 0 {
+                    let slot = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
+                    stack.insert_sorted(base, (node.child[slot], entry[slot]));
                 }
-                depth -= 1;
-                current = stack[depth].0;
-                continue 'visit;
             }
         } else {
             let leaf = &bvh.leaves[(current & !LEAF) as usize];
@@ -312,11 +357,9 @@ pub(crate) unsafe fn closest<B: BoxTest>(
         }
         // Next on the stack, skipping children entered only beyond the best hit.
         loop {
-            if depth == 0 {
+            let Some((child, enter)) = stack.pop() else {
                 return best;
-            }
-            depth -= 1;
-            let (child, enter) = stack[depth];
+            };
             if enter <= best_t {
                 current = child;
                 continue 'visit;
@@ -334,8 +377,7 @@ pub(crate) unsafe fn any<B: BoxTest>(bvh: &WideBvh, q: &Query, tmax: f32) -> Opt
     if bvh.nodes.is_empty() {
         return None;
     }
-    let mut stack = [0u32; STACK];
-    let mut depth = 0;
+    let mut stack = Stack::<u32>::new();
     let mut entry = [0f32; 8];
     let mut current = 0u32;
     loop {
@@ -344,8 +386,7 @@ pub(crate) unsafe fn any<B: BoxTest>(bvh: &WideBvh, q: &Query, tmax: f32) -> Opt
             // SAFETY: the caller guarantees `B`'s instructions.
             let mut mask = unsafe { B::hits(node, q, tmax, &mut entry) };
             while mask != 0 {
-                stack[depth] = node.child[mask.trailing_zeros() as usize];
-                depth += 1;
+                stack.push(node.child[mask.trailing_zeros() as usize]);
                 mask &= mask - 1;
             }
         } else {
@@ -355,10 +396,6 @@ pub(crate) unsafe fn any<B: BoxTest>(bvh: &WideBvh, q: &Query, tmax: f32) -> Opt
                 return Some(leaf.prim[lane]);
             }
         }
-        if depth == 0 {
-            return None;
-        }
-        depth -= 1;
-        current = stack[depth];
+        current = stack.pop()?;
     }
 }
