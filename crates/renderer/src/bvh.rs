@@ -81,7 +81,7 @@ impl SceneBvh {
             .map(|&i| RtTriangle::from(&tris[i as usize]))
             .collect();
         #[cfg(target_arch = "x86_64")]
-        let wide = WideBvh::from_cwbvh(&bvh, &prims);
+        let wide = WideBvh::from_cwbvh(&bvh);
         #[cfg(target_arch = "x86_64")]
         let traversal = if wide.is_some() {
             Traversal::Wide
@@ -141,13 +141,14 @@ impl SceneBvh {
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
         #[cfg(target_arch = "x86_64")]
         if let (Traversal::Wide, Some(wide)) = (self.traversal, &self.wide) {
-            let q = Query::new(origin, dir);
+            let q = Query::new(origin, dir, tmax);
+            let prims = &self.prims;
             let hit = match self.level {
                 // SAFETY: `level` is V3 only where the CPU has every feature of `x86_64_v3`.
-                VectorLevel::V3 => unsafe { x86_64_v3::wide_closest(wide, &q, tmax) },
+                VectorLevel::V3 => unsafe { x86_64_v3::wide_closest(wide, prims, &q) },
                 // SAFETY: SSE is part of x86-64.
                 VectorLevel::Baseline => unsafe {
-                    wide_traversal::closest::<wide_traversal::Sse>(wide, &q, tmax)
+                    wide_traversal::closest::<wide_traversal::Sse>(wide, prims, &q)
                 },
             };
             return hit.map(|(prim, t)| Hit {
@@ -175,13 +176,14 @@ impl SceneBvh {
     pub(crate) fn occluder(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<u32> {
         #[cfg(target_arch = "x86_64")]
         if let (Traversal::Wide, Some(wide)) = (self.traversal, &self.wide) {
-            let q = Query::new(origin, dir);
+            let q = Query::new(origin, dir, tmax);
+            let prims = &self.prims;
             return match self.level {
                 // SAFETY: as in `closest_hit`.
-                VectorLevel::V3 => unsafe { x86_64_v3::wide_any(wide, &q, tmax) },
+                VectorLevel::V3 => unsafe { x86_64_v3::wide_any(wide, prims, &q) },
                 // SAFETY: SSE is part of x86-64.
                 VectorLevel::Baseline => unsafe {
-                    wide_traversal::any::<wide_traversal::Sse>(wide, &q, tmax)
+                    wide_traversal::any::<wide_traversal::Sse>(wide, prims, &q)
                 },
             };
         }
@@ -262,7 +264,7 @@ impl SceneBvh {
 /// The queries compiled for `x86-64-v3`. The feature list is `vector_level::v3_detected`'s.
 #[cfg(target_arch = "x86_64")]
 mod x86_64_v3 {
-    use super::{Hit, Query, Ray, SceneBvh, WideBvh, wide_traversal};
+    use super::{Hit, Query, Ray, RtTriangle, SceneBvh, WideBvh, wide_traversal};
 
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,movbe,f16c")]
     pub(super) unsafe fn closest_hit(bvh: &SceneBvh, ray: Ray) -> Option<Hit> {
@@ -275,15 +277,19 @@ mod x86_64_v3 {
     }
 
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,movbe,f16c")]
-    pub(super) unsafe fn wide_closest(bvh: &WideBvh, q: &Query, tmax: f32) -> Option<(u32, f32)> {
+    pub(super) unsafe fn wide_closest(
+        bvh: &WideBvh,
+        prims: &[RtTriangle],
+        q: &Query,
+    ) -> Option<(u32, f32)> {
         // SAFETY: this function's features include AVX.
-        unsafe { wide_traversal::closest::<wide_traversal::Avx2>(bvh, q, tmax) }
+        unsafe { wide_traversal::closest::<wide_traversal::Avx2>(bvh, prims, q) }
     }
 
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,movbe,f16c")]
-    pub(super) unsafe fn wide_any(bvh: &WideBvh, q: &Query, tmax: f32) -> Option<u32> {
+    pub(super) unsafe fn wide_any(bvh: &WideBvh, prims: &[RtTriangle], q: &Query) -> Option<u32> {
         // SAFETY: as in `wide_closest`.
-        unsafe { wide_traversal::any::<wide_traversal::Avx2>(bvh, q, tmax) }
+        unsafe { wide_traversal::any::<wide_traversal::Avx2>(bvh, prims, q) }
     }
 }
 

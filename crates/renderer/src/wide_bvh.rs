@@ -12,10 +12,12 @@
 
 use obvhs::cwbvh::CwBvh;
 use obvhs::cwbvh::node::CwBvhNode;
-use obvhs::rt_triangle::RtTriangle;
 
-/// A child reference with this bit set is a leaf (an index into `leaves`), otherwise a node.
+/// A child reference with this bit set is a leaf: its triangle count (1 to 3) in the two bits
+/// below ([`LEAF_COUNT_SHIFT`]) and its first BVH primitive in the rest. Otherwise a node index.
 pub(crate) const LEAF: u32 = 1 << 31;
+pub(crate) const LEAF_COUNT_SHIFT: u32 = 29;
+pub(crate) const LEAF_FIRST: u32 = (1 << LEAF_COUNT_SHIFT) - 1;
 
 /// Entries of a traversal's stack. A node visit leaves at most seven of its children there, so a
 /// tree up to [`MAX_DEPTH`] levels deep never fills it.
@@ -24,6 +26,14 @@ pub(crate) const STACK: usize = 256;
 /// The deepest tree the fixed stack serves: 7 × 36 = 252 < [`STACK`]. obvhs's own traversal
 /// keeps 32 levels; a deeper tree (degenerate geometry) keeps the CWBVH traversal.
 pub(crate) const MAX_DEPTH: usize = 36;
+
+/// The BVH primitives of a leaf reference.
+#[inline(always)]
+pub(crate) fn leaf_range(child: u32) -> std::ops::Range<usize> {
+    let first = (child & LEAF_FIRST) as usize;
+    let count = ((child & !LEAF) >> LEAF_COUNT_SHIFT) as usize;
+    first..first + count
+}
 
 /// One node: the boxes of its eight children, plane by plane, and what each child is.
 #[derive(Clone, Copy, Debug)]
@@ -36,41 +46,22 @@ pub(crate) struct WideNode {
     pub(crate) child: [u32; 8],
 }
 
-/// The triangles of one leaf, lane by lane, in obvhs's `RtTriangle` form (`e1 = v0 − v1`,
-/// `e2 = v2 − v0`, `ng = e1 × e2`). Lanes past the leaf's triangles repeat its first one, so
-/// they never give another answer and need no mask.
-#[derive(Clone, Copy, Debug)]
-#[repr(C, align(16))]
-pub(crate) struct LeafTriangles {
-    pub(crate) v0: [[f32; 4]; 3],
-    pub(crate) e1: [[f32; 4]; 3],
-    pub(crate) e2: [[f32; 4]; 3],
-    pub(crate) ng: [[f32; 4]; 3],
-    /// BVH primitive index of each lane.
-    pub(crate) prim: [u32; 4],
-}
-
-/// The decoded tree. Node 0 is the root; no nodes means an empty scene.
+/// The decoded tree. Node 0 is the root; no nodes means an empty scene. Leaves name ranges of
+/// the BVH's primitives, which `SceneBvh` keeps in BVH order.
 #[derive(Debug)]
 pub(crate) struct WideBvh {
     pub(crate) nodes: Vec<WideNode>,
-    pub(crate) leaves: Vec<LeafTriangles>,
 }
 
 impl WideBvh {
     /// Decodes `cwbvh`, whose primitives are `prims` (in BVH primitive order). None when the tree
     /// is deeper than [`MAX_DEPTH`].
-    pub(crate) fn from_cwbvh(cwbvh: &CwBvh, prims: &[RtTriangle]) -> Option<WideBvh> {
-        if depth(cwbvh) > MAX_DEPTH {
+    pub(crate) fn from_cwbvh(cwbvh: &CwBvh) -> Option<WideBvh> {
+        if depth(cwbvh) > MAX_DEPTH || cwbvh.primitive_indices.len() > LEAF_FIRST as usize {
             return None;
         }
-        let mut leaves = Vec::new();
-        let nodes = cwbvh
-            .nodes
-            .iter()
-            .map(|node| decode(node, prims, &mut leaves))
-            .collect();
-        Some(WideBvh { nodes, leaves })
+        let nodes = cwbvh.nodes.iter().map(decode).collect();
+        Some(WideBvh { nodes })
     }
 }
 
@@ -94,8 +85,8 @@ fn depth(cwbvh: &CwBvh) -> usize {
     deepest
 }
 
-/// One CWBVH node as a [`WideNode`]; its leaf children are appended to `leaves`.
-fn decode(node: &CwBvhNode, prims: &[RtTriangle], leaves: &mut Vec<LeafTriangles>) -> WideNode {
+/// One CWBVH node as a [`WideNode`].
+fn decode(node: &CwBvhNode) -> WideNode {
     let mut wide = WideNode {
         bounds: [
             [f32::INFINITY; 8],
@@ -133,36 +124,10 @@ fn decode(node: &CwBvhNode, prims: &[RtTriangle], leaves: &mut Vec<LeafTriangles
             // Low five bits: offset of the first primitive; high three: the count, in unary.
             let first = node.primitive_base_idx + u32::from(meta & 0x1f);
             let count = (meta >> 5).count_ones();
-            leaves.push(leaf(
-                (first..first + count).map(|p| (p, &prims[p as usize])),
-            ));
-            LEAF | (leaves.len() as u32 - 1)
+            LEAF | (count << LEAF_COUNT_SHIFT) | first
         };
     }
     wide
-}
-
-/// A leaf of one to four triangles, given with their BVH primitive indices.
-fn leaf<'a>(triangles: impl Iterator<Item = (u32, &'a RtTriangle)>) -> LeafTriangles {
-    let triangles: Vec<_> = triangles.collect();
-    let mut out = LeafTriangles {
-        v0: [[0.0; 4]; 3],
-        e1: [[0.0; 4]; 3],
-        e2: [[0.0; 4]; 3],
-        ng: [[0.0; 4]; 3],
-        prim: [0; 4],
-    };
-    for lane in 0..4 {
-        let (prim, tri) = triangles[lane.min(triangles.len() - 1)];
-        out.prim[lane] = prim;
-        for axis in 0..3 {
-            out.v0[axis][lane] = tri.v0[axis];
-            out.e1[axis][lane] = tri.e1[axis];
-            out.e2[axis][lane] = tri.e2[axis];
-            out.ng[axis][lane] = tri.ng[axis];
-        }
-    }
-    out
 }
 
 #[cfg(test)]
@@ -191,32 +156,22 @@ mod tests {
     fn every_primitive_lands_in_a_leaf_inside_its_box() {
         let tris = grid_triangles(20);
         let cwbvh = build_cwbvh(&tris, BuildPreset::Medium);
-        let prims: Vec<RtTriangle> = cwbvh
-            .primitive_indices
-            .iter()
-            .map(|&i| RtTriangle::from(&tris[i as usize]))
-            .collect();
-        let wide = WideBvh::from_cwbvh(&cwbvh, &prims).expect("a shallow tree");
-        let mut seen = vec![false; prims.len()];
+        let wide = WideBvh::from_cwbvh(&cwbvh).expect("a shallow tree");
+        let mut seen = vec![false; cwbvh.primitive_indices.len()];
         for node in &wide.nodes {
             for slot in 0..8 {
                 let lo = [0, 2, 4].map(|a| node.bounds[a][slot]);
                 let hi = [1, 3, 5].map(|a| node.bounds[a][slot]);
-                if lo[0] > hi[0] {
+                if lo[0] > hi[0] || node.child[slot] & LEAF == 0 {
                     continue;
                 }
-                if node.child[slot] & LEAF == 0 {
-                    continue;
-                }
-                let leaf = &wide.leaves[(node.child[slot] & !LEAF) as usize];
-                for lane in 0..4 {
-                    seen[leaf.prim[lane] as usize] = true;
-                    for axis in 0..3 {
-                        let v0 = leaf.v0[axis][lane];
-                        let v1 = v0 - leaf.e1[axis][lane];
-                        let v2 = v0 + leaf.e2[axis][lane];
-                        for v in [v0, v1, v2] {
-                            assert!(lo[axis] <= v && v <= hi[axis], "a vertex outside its box");
+                for prim in leaf_range(node.child[slot]) {
+                    seen[prim] = true;
+                    let tri = &tris[cwbvh.primitive_indices[prim] as usize];
+                    for v in [tri.v0, tri.v1, tri.v2] {
+                        for axis in 0..3 {
+                            let inside = lo[axis] <= v[axis] && v[axis] <= hi[axis];
+                            assert!(inside, "a vertex outside its box");
                         }
                     }
                 }
@@ -227,7 +182,7 @@ mod tests {
 
     #[test]
     fn no_triangles_give_no_nodes() {
-        let wide = WideBvh::from_cwbvh(&CwBvh::default(), &[]).unwrap();
-        assert!(wide.nodes.is_empty() && wide.leaves.is_empty());
+        let wide = WideBvh::from_cwbvh(&CwBvh::default()).unwrap();
+        assert!(wide.nodes.is_empty());
     }
 }

@@ -1,6 +1,9 @@
 //! Traversal of the eight-wide BVH (`wide_bvh`, DESIGN.md §7): one ray against eight child boxes
 //! at a time, nearest child first, a stack of (child, entry distance) pairs so that a closest-hit
-//! query skips what lies beyond its best hit, and a four-wide triangle test per leaf.
+//! query skips what lies beyond its best hit. A leaf's triangles (one to three) are tested one by
+//! one with obvhs's own test, from the primitive list in BVH order: a four-wide test of them
+//! needed a padded copy of every leaf, three times the memory, and measured slower (the leaves
+//! stop fitting in cache).
 //!
 //! The box test comes in two widths behind [`BoxTest`]: [`Sse`] (two four-wide halves, the
 //! x86-64 baseline) and [`Avx2`] (one eight-wide step, for `x86-64-v3`). Both loops are
@@ -12,13 +15,18 @@ use std::mem::MaybeUninit;
 
 use glam::Vec3;
 
-use crate::wide_bvh::{LEAF, LeafTriangles, STACK, WideBvh, WideNode};
+use obvhs::ray::Ray;
+use obvhs::rt_triangle::RtTriangle;
 
-/// A ray prepared for box tests: origin, direction, reciprocal direction, and per axis which of
-/// a node's plane arrays the ray meets first.
+use crate::wide_bvh::{LEAF, STACK, WideBvh, WideNode, leaf_range};
+
+/// A ray prepared for box tests: obvhs's ray (for the triangle test), and per axis its origin,
+/// reciprocal direction (obvhs's `safe_inverse`: an axis-parallel ray gets a large finite one,
+/// so a plane through the origin gives 0, never 0 · ∞), their product, and which of a node's
+/// plane arrays the ray meets first.
 pub(crate) struct Query {
+    ray: Ray,
     origin: [f32; 3],
-    dir: [f32; 3],
     inv: [f32; 3],
     /// origin · inv, for the fused slab test.
     origin_inv: [f32; 3],
@@ -26,25 +34,17 @@ pub(crate) struct Query {
 }
 
 impl Query {
-    pub(crate) fn new(origin: Vec3, dir: Vec3) -> Query {
-        let dir = dir.to_array();
-        // obvhs's `safe_inverse`: an axis-parallel ray gets a large finite reciprocal, so a plane
-        // through the origin gives 0, never 0 · ∞.
-        let inv = dir.map(|d| {
-            if d.abs() <= f32::EPSILON {
-                d.signum() / f32::EPSILON
-            } else {
-                1.0 / d
-            }
-        });
-        let near = [0, 1, 2].map(|axis| 2 * axis + usize::from(inv[axis] < 0.0));
+    /// The segment `origin + t dir`, t in (0, tmax).
+    pub(crate) fn new(origin: Vec3, dir: Vec3, tmax: f32) -> Query {
+        let ray = Ray::new(origin.into(), dir.into(), 0.0, tmax);
         let origin = origin.to_array();
+        let inv = ray.inv_direction.to_array();
         Query {
+            ray,
             origin,
-            dir,
             inv,
             origin_inv: [0, 1, 2].map(|axis| origin[axis] * inv[axis]),
-            near,
+            near: [0, 1, 2].map(|axis| 2 * axis + usize::from(inv[axis] < 0.0)),
         }
     }
 }
@@ -146,112 +146,28 @@ impl BoxTest for Avx2 {
     }
 }
 
-/// Four lanes of one of a leaf's vectors.
+/// The nearest of a leaf's triangles hit before `tmax`: (primitive, distance). obvhs's own
+/// triangle test, so the answers are its traversal's.
 #[inline(always)]
-unsafe fn lanes(v: &[[f32; 4]; 3]) -> [__m128; 3] {
-    // SAFETY: SSE is part of x86-64; `LeafTriangles` is 16-byte aligned and so are its lanes.
-    unsafe {
-        [
-            _mm_load_ps(v[0].as_ptr()),
-            _mm_load_ps(v[1].as_ptr()),
-            _mm_load_ps(v[2].as_ptr()),
-        ]
+fn leaf_nearest(prims: &[RtTriangle], leaf: u32, ray: &Ray, tmax: f32) -> Option<(u32, f32)> {
+    let mut nearest = None;
+    let mut best = tmax;
+    for prim in leaf_range(leaf) {
+        let t = prims[prim].intersect(ray);
+        if t < best {
+            best = t;
+            nearest = Some((prim as u32, t));
+        }
     }
+    nearest
 }
 
-/// a · b, lane by lane, summed in glam's order ((x + y) + z), so the answers are obvhs's.
+/// Some triangle of a leaf hit before `tmax`.
 #[inline(always)]
-unsafe fn dot(a: [__m128; 3], b: [__m128; 3]) -> __m128 {
-    // SAFETY: SSE is part of x86-64.
-    unsafe {
-        _mm_add_ps(
-            _mm_add_ps(_mm_mul_ps(a[0], b[0]), _mm_mul_ps(a[1], b[1])),
-            _mm_mul_ps(a[2], b[2]),
-        )
-    }
-}
-
-/// The four lanes' hit distances against a leaf, +∞ where a lane misses or lies outside
-/// [0, tmax): obvhs's `RtTriangle::intersect` (Möller–Trumbore), four at a time, with its
-/// operations in its order.
-#[inline(always)]
-unsafe fn leaf_distances(leaf: &LeafTriangles, q: &Query, tmax: f32) -> __m128 {
-    // SAFETY: SSE is part of x86-64.
-    unsafe {
-        let v0 = lanes(&leaf.v0);
-        let e1 = lanes(&leaf.e1);
-        let e2 = lanes(&leaf.e2);
-        let ng = lanes(&leaf.ng);
-        let d = [
-            _mm_set1_ps(q.dir[0]),
-            _mm_set1_ps(q.dir[1]),
-            _mm_set1_ps(q.dir[2]),
-        ];
-        let c = [
-            _mm_sub_ps(v0[0], _mm_set1_ps(q.origin[0])),
-            _mm_sub_ps(v0[1], _mm_set1_ps(q.origin[1])),
-            _mm_sub_ps(v0[2], _mm_set1_ps(q.origin[2])),
-        ];
-        // r = dir × c
-        let r = [
-            _mm_sub_ps(_mm_mul_ps(d[1], c[2]), _mm_mul_ps(d[2], c[1])),
-            _mm_sub_ps(_mm_mul_ps(d[2], c[0]), _mm_mul_ps(d[0], c[2])),
-            _mm_sub_ps(_mm_mul_ps(d[0], c[1]), _mm_mul_ps(d[1], c[0])),
-        ];
-        let inv_det = _mm_div_ps(_mm_set1_ps(1.0), dot(ng, d));
-        let u = _mm_mul_ps(dot(r, e2), inv_det);
-        let v = _mm_mul_ps(dot(r, e1), inv_det);
-        let w = _mm_sub_ps(_mm_sub_ps(_mm_set1_ps(1.0), u), v);
-        let t = _mm_mul_ps(dot(ng, c), inv_det);
-        // Inside when no barycentric has its sign bit set (so −0 is outside, as in obvhs).
-        let signs = _mm_or_ps(_mm_or_ps(u, v), w);
-        let outside = _mm_castsi128_ps(_mm_srai_epi32::<31>(_mm_castps_si128(signs)));
-        let valid = _mm_andnot_ps(
-            outside,
-            _mm_and_ps(
-                _mm_cmpneq_ps(inv_det, _mm_setzero_ps()),
-                _mm_and_ps(
-                    _mm_cmpge_ps(t, _mm_setzero_ps()),
-                    _mm_cmplt_ps(t, _mm_set1_ps(tmax)),
-                ),
-            ),
-        );
-        select(valid, t, _mm_set1_ps(f32::INFINITY))
-    }
-}
-
-/// `mask ? a : b`, lane by lane, with SSE2 only.
-#[inline(always)]
-unsafe fn select(mask: __m128, a: __m128, b: __m128) -> __m128 {
-    // SAFETY: SSE2 is part of x86-64.
-    unsafe { _mm_or_ps(_mm_and_ps(mask, a), _mm_andnot_ps(mask, b)) }
-}
-
-/// The nearest lane of a leaf hit before `tmax`: (distance, lane).
-#[inline(always)]
-unsafe fn leaf_nearest(leaf: &LeafTriangles, q: &Query, tmax: f32) -> Option<(f32, usize)> {
-    // SAFETY: as in `leaf_distances`.
-    unsafe {
-        let t = leaf_distances(leaf, q, tmax);
-        let m = _mm_min_ps(t, _mm_shuffle_ps::<0b10_11_00_01>(t, t));
-        let m = _mm_min_ps(m, _mm_shuffle_ps::<0b01_00_11_10>(m, m));
-        let nearest = _mm_cvtss_f32(m);
-        (nearest < tmax).then(|| {
-            let lane = _mm_movemask_ps(_mm_cmpeq_ps(t, m)).trailing_zeros();
-            (nearest, lane as usize)
-        })
-    }
-}
-
-/// Some lane of a leaf hit before `tmax`.
-#[inline(always)]
-unsafe fn leaf_any(leaf: &LeafTriangles, q: &Query, tmax: f32) -> Option<usize> {
-    // SAFETY: as in `leaf_distances`.
-    unsafe {
-        let t = leaf_distances(leaf, q, tmax);
-        let hit = _mm_movemask_ps(_mm_cmplt_ps(t, _mm_set1_ps(f32::INFINITY)));
-        (hit != 0).then(|| hit.trailing_zeros() as usize)
-    }
+fn leaf_any(prims: &[RtTriangle], leaf: u32, ray: &Ray) -> Option<u32> {
+    leaf_range(leaf)
+        .find(|&prim| prims[prim].intersect(ray) < ray.tmax)
+        .map(|prim| prim as u32)
 }
 
 /// A traversal's stack: [`STACK`] entries left uninitialised, since clearing them would cost
@@ -314,15 +230,15 @@ impl Stack<(u32, f32)> {
 #[inline(always)]
 pub(crate) unsafe fn closest<B: BoxTest>(
     bvh: &WideBvh,
+    prims: &[RtTriangle],
     q: &Query,
-    tmax: f32,
 ) -> Option<(u32, f32)> {
     if bvh.nodes.is_empty() {
         return None;
     }
     let mut stack = Stack::<(u32, f32)>::new();
     let mut best = None;
-    let mut best_t = tmax;
+    let mut best_t = q.ray.tmax;
     let mut entry = [0f32; 8];
     let mut current = 0u32;
     'visit: loop {
@@ -348,11 +264,9 @@ pub(crate) unsafe fn closest<B: BoxTest>(
                 }
             }
         } else {
-            let leaf = &bvh.leaves[(current & !LEAF) as usize];
-            // SAFETY: SSE only.
-            if let Some((t, lane)) = unsafe { leaf_nearest(leaf, q, best_t) } {
+            if let Some((prim, t)) = leaf_nearest(prims, current, &q.ray, best_t) {
                 best_t = t;
-                best = Some((leaf.prim[lane], t));
+                best = Some((prim, t));
             }
         }
         // Next on the stack, skipping children entered only beyond the best hit.
@@ -373,7 +287,11 @@ pub(crate) unsafe fn closest<B: BoxTest>(
 /// # Safety
 /// The CPU must have `B`'s instructions.
 #[inline(always)]
-pub(crate) unsafe fn any<B: BoxTest>(bvh: &WideBvh, q: &Query, tmax: f32) -> Option<u32> {
+pub(crate) unsafe fn any<B: BoxTest>(
+    bvh: &WideBvh,
+    prims: &[RtTriangle],
+    q: &Query,
+) -> Option<u32> {
     if bvh.nodes.is_empty() {
         return None;
     }
@@ -384,16 +302,14 @@ pub(crate) unsafe fn any<B: BoxTest>(bvh: &WideBvh, q: &Query, tmax: f32) -> Opt
         if current & LEAF == 0 {
             let node = &bvh.nodes[current as usize];
             // SAFETY: the caller guarantees `B`'s instructions.
-            let mut mask = unsafe { B::hits(node, q, tmax, &mut entry) };
+            let mut mask = unsafe { B::hits(node, q, q.ray.tmax, &mut entry) };
             while mask != 0 {
                 stack.push(node.child[mask.trailing_zeros() as usize]);
                 mask &= mask - 1;
             }
         } else {
-            let leaf = &bvh.leaves[(current & !LEAF) as usize];
-            // SAFETY: SSE only.
-            if let Some(lane) = unsafe { leaf_any(leaf, q, tmax) } {
-                return Some(leaf.prim[lane]);
+            if let Some(prim) = leaf_any(prims, current, &q.ray) {
+                return Some(prim);
             }
         }
         current = stack.pop()?;
