@@ -12,7 +12,7 @@ use protocol::Side;
 use protocol::renderer_link::{Quality, SampleKey, ShadeBatch, ShadePoint};
 
 use renderer::estimator::Estimator;
-use renderer::internals::SceneBvh;
+use renderer::internals::{SceneBvh, Traversal};
 use renderer::point::front_point_hit_by;
 use renderer::reference::{ReferenceSettings, camera_for, render};
 use renderer::sampling::luminance;
@@ -39,8 +39,9 @@ pub(super) struct Config {
     error_points: usize,
     reference_paths: u32,
     path_levels: &'static [u32],
-    /// Size and paths per pixel of the timed reference renders.
+    /// Size and paths per pixel of the timed reference renders, and how many runs of them.
     image: (u32, u32, u32),
+    image_runs: usize,
 }
 
 const FULL: Config = Config {
@@ -51,7 +52,8 @@ const FULL: Config = Config {
     error_points: 200,
     reference_paths: 16_384,
     path_levels: &[4, 16, 64, 256, 1024],
-    image: (256, 192, 16),
+    image: (1024, 768, 64),
+    image_runs: 3,
 };
 
 const QUICK: Config = Config {
@@ -63,6 +65,7 @@ const QUICK: Config = Config {
     reference_paths: 256,
     path_levels: &[4, 16, 64],
     image: (64, 48, 4),
+    image_runs: 3,
 };
 
 const BOUNCE_LEVELS: [Option<u32>; 4] = [Some(0), Some(1), Some(2), None];
@@ -178,17 +181,57 @@ fn visible_points(world: &World, view: &str, n: usize) -> anyhow::Result<Vec<Sha
 /// Samples per second of the full estimator, one path at a time and as ray streams, with the ray
 /// queries at the baseline and at the best vector level: all four timed in turn within each run;
 /// medians, and the medians of the per-run ratios.
+/// One way the renderer may trace: estimator, traversal, vector level.
+#[derive(Clone, Copy)]
+struct Variant {
+    estimator: Estimator,
+    traversal: Traversal,
+    level: VectorLevel,
+}
+
+impl Variant {
+    /// The renderer before its own wide traversal: one path at a time over obvhs's compressed
+    /// nodes, at the best vector level.
+    fn old() -> Variant {
+        Variant {
+            estimator: Estimator::Path,
+            traversal: Traversal::Compressed,
+            level: VectorLevel::detected(),
+        }
+    }
+
+    fn wide(estimator: Estimator, level: VectorLevel) -> Variant {
+        Variant {
+            estimator,
+            traversal: Traversal::Wide,
+            level,
+        }
+    }
+
+    fn apply(self, world: &mut World) {
+        world.estimator = self.estimator;
+        world.bvh.set_traversal(self.traversal);
+        world.bvh.set_vector_level(self.level);
+    }
+}
+
+/// Puts the renderer's defaults back after a comparison.
+fn restore_defaults(world: &mut World) {
+    Variant::wide(Estimator::default(), VectorLevel::detected()).apply(world);
+}
+
 fn samples_per_second(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Result<String> {
     let best = VectorLevel::detected();
     let name = best.name();
     let mut md = format!(
-        "### Shading samples per second (points of the view's visible surfaces)\n\n\"path\": one path at a time; \"wavefront\": up to 4096 paths (64 points of 64 paths) advance together, their shadow rays then their continuation rays traced as streams, a shadow ray trying the previous one's blocker first (DESIGN.md §7). Same points and seeds, same answers in distribution; each estimator's figures include all of its work.\n\n| scene | view | quality | points | path, baseline | path, {name} | wavefront, baseline | wavefront, {name} | {name} / baseline (path) | wavefront / path ({name}) | rays/sample |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "### Shading samples per second (points of the view's visible surfaces)\n\n\"path\": one path at a time; \"wavefront\": up to 4096 paths (64 points of 64 paths) advance together, their shadow rays then their continuation rays traced as streams, a shadow ray trying the previous one's blocker first (DESIGN.md §7). \"old\": the renderer before its wide traversal (one path at a time over obvhs's compressed nodes, {name}); the others run the wide traversal. Same points and seeds, same answers in distribution; each variant's figures include all of its work, and all are timed in turn within each run; ratios are medians of the per-run ratios.\n\n| scene | view | quality | points | old | path, baseline | path, {name} | wavefront, baseline | wavefront, {name} | path {name} / old | {name} / baseline (path) | wavefront / path ({name}) | rays/sample |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     let variants = [
-        (Estimator::Path, VectorLevel::Baseline),
-        (Estimator::Path, best),
-        (Estimator::Wavefront, VectorLevel::Baseline),
-        (Estimator::Wavefront, best),
+        Variant::old(),
+        Variant::wide(Estimator::Path, VectorLevel::Baseline),
+        Variant::wide(Estimator::Path, best),
+        Variant::wide(Estimator::Wavefront, VectorLevel::Baseline),
+        Variant::wide(Estimator::Wavefront, best),
     ];
     for (world, view) in scenes.iter_mut() {
         let points = visible_points(world, view, cfg.points)?;
@@ -203,32 +246,33 @@ fn samples_per_second(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Res
                 points: points.clone(),
             };
             let mut rays = 0;
-            let per_run: Vec<[f64; 4]> = (0..cfg.runs)
+            let per_run: Vec<[f64; 5]> = (0..cfg.runs)
                 .map(|_| {
-                    variants.map(|(estimator, level)| {
-                        world.estimator = estimator;
-                        world.bvh.set_vector_level(level);
+                    variants.map(|variant| {
+                        variant.apply(world);
                         let start = Instant::now();
                         rays = shade_batch(world, &batch).1.total();
                         points.len() as f64 / start.elapsed().as_secs_f64()
                     })
                 })
                 .collect();
-            world.bvh.set_vector_level(best);
-            world.estimator = Estimator::default();
-            let rates: [f64; 4] =
+            restore_defaults(world);
+            let rates: [f64; 5] =
                 std::array::from_fn(|k| median(per_run.iter().map(|r| r[k]).collect()));
-            let level_ratio = median(per_run.iter().map(|r| r[1] / r[0]).collect());
-            let estimator_ratio = median(per_run.iter().map(|r| r[3] / r[1]).collect());
+            let ratio = |k: usize, base: usize| median(per_run.iter().map(|r| r[k] / r[base]).collect());
             writeln!(
                 md,
-                "| {} | {view} | {label} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {level_ratio:.2}× | {estimator_ratio:.2}× | {:.0} |",
+                "| {} | {view} | {label} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2}× | {:.2}× | {:.2}× | {:.0} |",
                 world.scene.name,
                 points.len(),
                 rates[0],
                 rates[1],
                 rates[2],
                 rates[3],
+                rates[4],
+                ratio(2, 0),
+                ratio(2, 1),
+                ratio(4, 2),
                 rays as f64 / points.len() as f64
             )?;
         }
@@ -237,9 +281,10 @@ fn samples_per_second(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Res
     Ok(md)
 }
 
-/// Wall time of a reference render of each view, one path at a time and as ray streams, timed in
-/// turn within each run at the best vector level. Same pixels, paths per pixel and bounce depth,
-/// so the same noise: the mean luminances show the answers agree.
+/// Wall time of a reference render of each view by the old renderer and by the wide traversal,
+/// one path at a time and as ray streams, timed in turn within each run at the best vector
+/// level. Same pixels, paths per pixel and bounce depth, so the same noise: the mean luminances
+/// show the answers agree.
 fn reference_times(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Result<String> {
     let (width, height, spp) = cfg.image;
     let settings = ReferenceSettings {
@@ -249,17 +294,24 @@ fn reference_times(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Result
         bounces: Quality::INTERACTIVE.bounces,
         seed: 1,
     };
+    let best = VectorLevel::detected();
+    let variants = [
+        Variant::old(),
+        Variant::wide(Estimator::Path, best),
+        Variant::wide(Estimator::Wavefront, best),
+    ];
     let mut md = format!(
-        "### Reference render time ({width}×{height}, {spp} paths per pixel, 2 bounces; s, median of {})\n\n| scene | view | path s | wavefront s | path / wavefront | mean luminance, path | mean luminance, wavefront |\n|---|---|---:|---:|---:|---:|---:|\n",
-        cfg.runs
+        "### Reference render time ({width}×{height}, {spp} paths per pixel, 2 bounces; s, median of {})\n\n\"old\": one path at a time over obvhs's compressed nodes; \"path\" and \"wavefront\": the estimators over the wide traversal; all at {}, timed in turn within each run.\n\n| scene | view | old s | path s | wavefront s | old / path | old / wavefront | mean luminance, old | path | wavefront |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        cfg.image_runs,
+        best.name()
     );
     for (world, view) in scenes.iter_mut() {
         let camera = camera_for(world, view, width, height)?;
-        let mut means = [0.0; 2];
-        let per_run: Vec<[f64; 2]> = (0..cfg.runs)
+        let mut means = [0.0; 3];
+        let per_run: Vec<[f64; 3]> = (0..cfg.image_runs)
             .map(|_| {
                 std::array::from_fn(|k| {
-                    world.estimator = Estimator::ALL[k];
+                    variants[k].apply(world);
                     let start = Instant::now();
                     let (image, _) = render(world, &camera, &settings, None);
                     let secs = start.elapsed().as_secs_f64();
@@ -273,13 +325,18 @@ fn reference_times(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Result
                 })
             })
             .collect();
-        world.estimator = Estimator::default();
-        let [path, wavefront] = [0, 1].map(|k| median(per_run.iter().map(|r| r[k]).collect()));
-        let ratio = median(per_run.iter().map(|r| r[0] / r[1]).collect());
+        restore_defaults(world);
+        let [old, path, wavefront] = [0, 1, 2].map(|k| median(per_run.iter().map(|r| r[k]).collect()));
+        let ratio = |k: usize| median(per_run.iter().map(|r| r[0] / r[k]).collect());
         writeln!(
             md,
-            "| {} | {view} | {path:.2} | {wavefront:.2} | {ratio:.2}× | {:.4} | {:.4} |",
-            world.scene.name, means[0], means[1]
+            "| {} | {view} | {old:.2} | {path:.2} | {wavefront:.2} | {:.2}× | {:.2}× | {:.4} | {:.4} | {:.4} |",
+            world.scene.name,
+            ratio(1),
+            ratio(2),
+            means[0],
+            means[1],
+            means[2]
         )?;
     }
     md.push('\n');

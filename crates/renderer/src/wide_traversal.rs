@@ -30,6 +30,8 @@ pub(crate) struct Query {
     inv: [f32; 3],
     /// origin · inv, for the fused slab test.
     origin_inv: [f32; 3],
+    /// Index into `WideNode::bounds` of the planes met first on each axis (always below 6: the
+    /// box tests read them unchecked).
     near: [usize; 3],
 }
 
@@ -67,12 +69,13 @@ pub(crate) struct Sse;
 /// Entry and exit distances through four children's slabs (from `half`) on one axis.
 #[inline(always)]
 unsafe fn slabs4(node: &WideNode, q: &Query, axis: usize, half: usize) -> (__m128, __m128) {
-    // SAFETY: SSE is part of x86-64; loads stay inside the node's arrays (`half` is 0 or 4).
+    // SAFETY: SSE is part of x86-64; loads stay inside the node's arrays (`half` is 0 or 4,
+    // `near` and `near ^ 1` below 6).
     unsafe {
         let o = _mm_set1_ps(q.origin[axis]);
         let inv = _mm_set1_ps(q.inv[axis]);
-        let near = _mm_loadu_ps(node.bounds[q.near[axis]].as_ptr().add(half));
-        let far = _mm_loadu_ps(node.bounds[q.near[axis] ^ 1].as_ptr().add(half));
+        let near = _mm_loadu_ps(node.bounds.get_unchecked(q.near[axis]).as_ptr().add(half));
+        let far = _mm_loadu_ps(node.bounds.get_unchecked(q.near[axis] ^ 1).as_ptr().add(half));
         (
             _mm_mul_ps(_mm_sub_ps(near, o), inv),
             _mm_mul_ps(_mm_sub_ps(far, o), inv),
@@ -110,12 +113,12 @@ pub(crate) struct Avx2;
 #[inline(always)]
 unsafe fn slabs8(node: &WideNode, q: &Query, axis: usize) -> (__m256, __m256) {
     // SAFETY: the caller runs with AVX enabled; `WideNode` is 64-byte aligned, so each 32-byte
-    // plane array is aligned.
+    // plane array is aligned; `near` and `near ^ 1` are below 6.
     unsafe {
         let o_inv = _mm256_set1_ps(q.origin_inv[axis]);
         let inv = _mm256_set1_ps(q.inv[axis]);
-        let near = _mm256_load_ps(node.bounds[q.near[axis]].as_ptr());
-        let far = _mm256_load_ps(node.bounds[q.near[axis] ^ 1].as_ptr());
+        let near = _mm256_load_ps(node.bounds.get_unchecked(q.near[axis]).as_ptr());
+        let far = _mm256_load_ps(node.bounds.get_unchecked(q.near[axis] ^ 1).as_ptr());
         (
             _mm256_fmsub_ps(near, inv, o_inv),
             _mm256_fmsub_ps(far, inv, o_inv),
