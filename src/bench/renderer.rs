@@ -259,7 +259,8 @@ fn samples_per_second(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Res
             restore_defaults(world);
             let rates: [f64; 5] =
                 std::array::from_fn(|k| median(per_run.iter().map(|r| r[k]).collect()));
-            let ratio = |k: usize, base: usize| median(per_run.iter().map(|r| r[k] / r[base]).collect());
+            let ratio =
+                |k: usize, base: usize| median(per_run.iter().map(|r| r[k] / r[base]).collect());
             writeln!(
                 md,
                 "| {} | {view} | {label} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2}× | {:.2}× | {:.2}× | {:.0} |",
@@ -326,7 +327,8 @@ fn reference_times(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Result
             })
             .collect();
         restore_defaults(world);
-        let [old, path, wavefront] = [0, 1, 2].map(|k| median(per_run.iter().map(|r| r[k]).collect()));
+        let [old, path, wavefront] =
+            [0, 1, 2].map(|k| median(per_run.iter().map(|r| r[k]).collect()));
         let ratio = |k: usize| median(per_run.iter().map(|r| r[0] / r[k]).collect());
         writeln!(
             md,

@@ -37,6 +37,8 @@ pub enum Traversal {
 }
 
 impl Traversal {
+    pub const ALL: [Traversal; 2] = [Traversal::Wide, Traversal::Compressed];
+
     pub fn name(self) -> &'static str {
         match self {
             Traversal::Wide => "wide",
@@ -44,6 +46,9 @@ impl Traversal {
         }
     }
 }
+
+/// The deepest tree the wide traversal runs.
+pub const WIDE_MAX_DEPTH: usize = 36;
 
 /// The closest hit of a ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -106,15 +111,20 @@ impl SceneBvh {
         self.traversal
     }
 
-    /// Runs `traversal` from now on (benchmarks compare them on one tree). Panics where the wide
-    /// traversal is not available.
-    pub fn set_traversal(&mut self, traversal: Traversal) {
+    /// Whether the wide traversal can run this tree (x86-64, and at most [`WIDE_MAX_DEPTH`]
+    /// levels deep).
+    pub fn wide_available(&self) -> bool {
         #[cfg(target_arch = "x86_64")]
-        let wide = self.wide.is_some();
+        return self.wide.is_some();
         #[cfg(not(target_arch = "x86_64"))]
-        let wide = false;
+        return false;
+    }
+
+    /// Runs `traversal` from now on (benchmarks and `--traversal` compare them on one tree).
+    /// Panics where the wide traversal is not available.
+    pub fn set_traversal(&mut self, traversal: Traversal) {
         assert!(
-            traversal == Traversal::Compressed || wide,
+            traversal == Traversal::Compressed || self.wide_available(),
             "the wide traversal is not available for this tree"
         );
         self.traversal = traversal;

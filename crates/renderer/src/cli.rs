@@ -11,6 +11,7 @@ use protocol::admission::PortLimits;
 use protocol::frame::DEFAULT_MAX_FRAME;
 use tokio::net::TcpListener;
 
+use crate::bvh::Traversal;
 use crate::estimator::Estimator;
 use crate::reference::{ReferenceSettings, render_to_files};
 use crate::service::{DEFAULT_MAX_BATCHES, Service, default_liveness};
@@ -66,6 +67,10 @@ pub enum Command {
         /// the answers are the same in distribution (DESIGN.md §7).
         #[arg(long, default_value = Estimator::default().name())]
         estimator: EstimatorChoice,
+        /// BVH traversal: "wide" (the renderer's own, on x86-64) or "compressed" (obvhs's); the
+        /// same tree and triangle test, so the same answers (DESIGN.md §7).
+        #[arg(long, default_value = Traversal::Wide.name())]
+        traversal: TraversalChoice,
     },
     /// Render a named viewpoint per pixel with the same estimator: linear EXR plus a PNG beside it.
     Reference {
@@ -104,6 +109,10 @@ pub enum Command {
         /// the answers are the same in distribution (DESIGN.md §7).
         #[arg(long, default_value = Estimator::default().name())]
         estimator: EstimatorChoice,
+        /// BVH traversal: "wide" (the renderer's own, on x86-64) or "compressed" (obvhs's); the
+        /// same tree and triangle test, so the same answers (DESIGN.md §7).
+        #[arg(long, default_value = Traversal::Wide.name())]
+        traversal: TraversalChoice,
     },
 }
 
@@ -131,12 +140,27 @@ pub struct EstimatorChoice(pub Estimator);
 impl std::str::FromStr for EstimatorChoice {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        Estimator::ALL
-            .into_iter()
-            .find(|e| e.name() == s)
-            .map(EstimatorChoice)
-            .ok_or_else(|| format!("{s:?}: expected \"wavefront\" or \"path\""))
+        by_name(&Estimator::ALL, Estimator::name, s).map(EstimatorChoice)
     }
+}
+
+/// A BVH traversal on the command line, by its name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TraversalChoice(pub Traversal);
+
+impl std::str::FromStr for TraversalChoice {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        by_name(&Traversal::ALL, Traversal::name, s).map(TraversalChoice)
+    }
+}
+
+/// The one of `all` called `s`, or an error that lists the names.
+fn by_name<T: Copy>(all: &[T], name: fn(T) -> &'static str, s: &str) -> Result<T, String> {
+    all.iter().copied().find(|&t| name(t) == s).ok_or_else(|| {
+        let names: Vec<String> = all.iter().map(|&t| format!("{:?}", name(t))).collect();
+        format!("{s:?}: expected one of {}", names.join(", "))
+    })
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
@@ -157,8 +181,9 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             max_batches,
             frame_timeout_ms,
             estimator,
+            traversal,
         } => {
-            let world = Arc::new(load_world(&scene, estimator.0)?);
+            let world = Arc::new(load_world(&scene, estimator.0, traversal.0)?);
             let mut service = Service::new(world, threads, max_frame)?;
             service.port = PortLimits {
                 max_connections,
@@ -181,6 +206,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             l_white,
             threads,
             estimator,
+            traversal,
         } => {
             let settings = ReferenceSettings {
                 width,
@@ -189,17 +215,25 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
                 bounces: bounces.0,
                 seed,
             };
-            let world = load_world(&scene, estimator.0)?;
+            let world = load_world(&scene, estimator.0, traversal.0)?;
             reference(&world, &view, &settings, &out, l_white, threads)
         }
     }
 }
 
-fn load_world(spec: &str, estimator: Estimator) -> anyhow::Result<World> {
+fn load_world(spec: &str, estimator: Estimator, traversal: Traversal) -> anyhow::Result<World> {
     let start = Instant::now();
     let scene = scene::load(spec).with_context(|| format!("loading scene {spec:?}"))?;
     let mut world = World::new(scene);
     world.estimator = estimator;
+    if traversal != world.bvh.traversal() {
+        anyhow::ensure!(
+            world.bvh.wide_available() || traversal == Traversal::Compressed,
+            "the wide traversal is not available here (x86-64 only, and a tree at most {} levels deep)",
+            crate::bvh::WIDE_MAX_DEPTH
+        );
+        world.bvh.set_traversal(traversal);
+    }
     tracing::debug!(
         scene = %world.scene.name,
         triangles = world.triangle_count(),
@@ -208,6 +242,7 @@ fn load_world(spec: &str, estimator: Estimator) -> anyhow::Result<World> {
         effects = ?world.effects(),
         vector_level = world.bvh.vector_level().name(),
         estimator = world.estimator.name(),
+        traversal = world.bvh.traversal().name(),
         "scene ready"
     );
     Ok(world)
@@ -316,6 +351,12 @@ mod tests {
             assert_eq!(e.0.name(), name);
         }
         assert!("streams".parse::<EstimatorChoice>().is_err());
+        for name in ["wide", "compressed"] {
+            let t: TraversalChoice = name.parse().unwrap();
+            assert_eq!(t.0.name(), name);
+        }
+        let refused = "cwbvh".parse::<TraversalChoice>().unwrap_err();
+        assert!(refused.contains("\"wide\", \"compressed\""), "{refused}");
         assert!(
             Cli::try_parse_from([
                 "renderer",

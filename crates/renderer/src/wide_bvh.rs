@@ -25,7 +25,7 @@ pub(crate) const STACK: usize = 256;
 
 /// The deepest tree the fixed stack serves: 7 × 36 = 252 < [`STACK`]. obvhs's own traversal
 /// keeps 32 levels; a deeper tree (degenerate geometry) keeps the CWBVH traversal.
-pub(crate) const MAX_DEPTH: usize = 36;
+pub(crate) const MAX_DEPTH: usize = crate::bvh::WIDE_MAX_DEPTH;
 
 /// The BVH primitives of a leaf reference.
 #[inline(always)]

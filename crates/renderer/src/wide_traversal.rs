@@ -75,7 +75,12 @@ unsafe fn slabs4(node: &WideNode, q: &Query, axis: usize, half: usize) -> (__m12
         let o = _mm_set1_ps(q.origin[axis]);
         let inv = _mm_set1_ps(q.inv[axis]);
         let near = _mm_loadu_ps(node.bounds.get_unchecked(q.near[axis]).as_ptr().add(half));
-        let far = _mm_loadu_ps(node.bounds.get_unchecked(q.near[axis] ^ 1).as_ptr().add(half));
+        let far = _mm_loadu_ps(
+            node.bounds
+                .get_unchecked(q.near[axis] ^ 1)
+                .as_ptr()
+                .add(half),
+        );
         (
             _mm_mul_ps(_mm_sub_ps(near, o), inv),
             _mm_mul_ps(_mm_sub_ps(far, o), inv),
@@ -203,7 +208,6 @@ impl<T: Copy> Stack<T> {
         // SAFETY: every entry below `len` was written by `push` or `insert_sorted`.
         Some(unsafe { self.items[self.len].assume_init() })
     }
-
 }
 
 impl Stack<(u32, f32)> {
