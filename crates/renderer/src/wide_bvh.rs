@@ -2,9 +2,9 @@
 //! wide BVH (CWBVH, `scene::bvh`): eight children per node with their boxes quantised to bytes,
 //! a layout made for GPUs, whose traversal must dequantise every box and visits children in a
 //! fixed octant order. Here the same tree is decoded once into full-precision boxes stored axis
-//! by axis (one AVX2 instruction compares a ray with eight children's planes, SSE with four), and
-//! each leaf's triangles (at most three in a CWBVH leaf) are stored lane by lane, so one
-//! four-wide test intersects them all. The traversal is `wide_traversal`.
+//! by axis (one AVX2 instruction compares a ray with eight children's planes, SSE with four); a
+//! leaf child names its range (one to three) of the BVH-ordered triangles. The traversal is
+//! `wide_traversal`.
 //!
 //! Same tree, same leaves, same triangle test: the answers are those of the CWBVH traversal;
 //! only the order of visits (nearest child first, so a closest hit prunes more) and the cost
