@@ -14,11 +14,12 @@ use protocol::renderer_link::{Quality, SampleKey, ShadeBatch, ShadePoint};
 use renderer::estimator::Estimator;
 use renderer::internals::{SceneBvh, Traversal};
 use renderer::point::front_point_hit_by;
+use renderer::reference::Image;
 use renderer::reference::{ReferenceSettings, camera_for, render};
 use renderer::sampling::luminance;
-use renderer::shade_batch;
 use renderer::vector_level::VectorLevel;
 use renderer::world::World;
+use renderer::{FirstBounce, shade_batch};
 use scene::bvh::BuildPreset;
 
 use super::ray_throughput::ray_throughput;
@@ -42,6 +43,8 @@ pub(super) struct Config {
     /// Size and paths per pixel of the timed reference renders, and how many runs of them.
     image: (u32, u32, u32),
     image_runs: usize,
+    /// Size and paths per pixel of the Cornell box renders whose answers old and new must share.
+    cornell: (u32, u32, u32),
 }
 
 const FULL: Config = Config {
@@ -54,6 +57,7 @@ const FULL: Config = Config {
     path_levels: &[4, 16, 64, 256, 1024],
     image: (1024, 768, 64),
     image_runs: 3,
+    cornell: (256, 256, 1024),
 };
 
 const QUICK: Config = Config {
@@ -66,6 +70,7 @@ const QUICK: Config = Config {
     path_levels: &[4, 16, 64],
     image: (64, 48, 4),
     image_runs: 3,
+    cornell: (32, 32, 16),
 };
 
 const BOUNCE_LEVELS: [Option<u32>; 4] = [Some(0), Some(1), Some(2), None];
@@ -110,6 +115,7 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
     scenes.push((bracara, "VR"));
     md += &samples_per_second(&mut scenes, cfg)?;
     md += &reference_times(&mut scenes, cfg)?;
+    md += &cornell_agreement(cfg)?;
     for (world, view) in &scenes {
         md += &error_and_time(world, view, cfg)?;
     }
@@ -181,22 +187,24 @@ fn visible_points(world: &World, view: &str, n: usize) -> anyhow::Result<Vec<Sha
 /// Samples per second of the full estimator, one path at a time and as ray streams, with the ray
 /// queries at the baseline and at the best vector level: all four timed in turn within each run;
 /// medians, and the medians of the per-run ratios.
-/// One way the renderer may trace: estimator, traversal, vector level.
+/// One way the renderer may trace: estimator, traversal, vector level, first-bounce sampling.
 #[derive(Clone, Copy)]
 struct Variant {
     estimator: Estimator,
     traversal: Traversal,
     level: VectorLevel,
+    first_bounce: FirstBounce,
 }
 
 impl Variant {
-    /// The renderer before its own wide traversal: one path at a time over obvhs's compressed
-    /// nodes, at the best vector level.
+    /// The renderer before its own wide traversal and stratified first bounces: one path at a
+    /// time, each sampled independently, over obvhs's compressed nodes, at the best vector level.
     fn old() -> Variant {
         Variant {
             estimator: Estimator::Path,
             traversal: Traversal::Compressed,
             level: VectorLevel::detected(),
+            first_bounce: FirstBounce::Independent,
         }
     }
 
@@ -205,11 +213,13 @@ impl Variant {
             estimator,
             traversal: Traversal::Wide,
             level,
+            first_bounce: FirstBounce::default(),
         }
     }
 
     fn apply(self, world: &mut World) {
         world.estimator = self.estimator;
+        world.first_bounce = self.first_bounce;
         world.bvh.set_traversal(self.traversal);
         world.bvh.set_vector_level(self.level);
     }
@@ -282,19 +292,13 @@ fn samples_per_second(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Res
     Ok(md)
 }
 
-/// Wall time of a reference render of each view by the old renderer and by the wide traversal,
-/// one path at a time and as ray streams, timed in turn within each run at the best vector
-/// level. Same pixels, paths per pixel and bounce depth, so the same noise: the mean luminances
-/// show the answers agree.
+/// Wall time and noise of a reference render of each view by the old renderer and by today's,
+/// one path at a time and as ray streams, timed in turn within each run at the best vector level.
+/// Run `r` renders with seed `r`, so two runs of a variant are independent images: their
+/// difference gives the variant's noise, and the time at equal noise (time × noise², the inverse
+/// of a Monte Carlo estimator's efficiency) compares variants whose noise differs.
 fn reference_times(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Result<String> {
     let (width, height, spp) = cfg.image;
-    let settings = ReferenceSettings {
-        width,
-        height,
-        spp,
-        bounces: Quality::INTERACTIVE.bounces,
-        seed: 1,
-    };
     let best = VectorLevel::detected();
     let variants = [
         Variant::old(),
@@ -302,40 +306,54 @@ fn reference_times(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Result
         Variant::wide(Estimator::Wavefront, best),
     ];
     let mut md = format!(
-        "### Reference render time ({width}×{height}, {spp} paths per pixel, 2 bounces; s, median of {})\n\n\"old\": one path at a time over obvhs's compressed nodes; \"path\" and \"wavefront\": the estimators over the wide traversal; all at {}, timed in turn within each run.\n\n| scene | view | old s | path s | wavefront s | old / path | old / wavefront | mean luminance, old | path | wavefront |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "### Reference render time and noise ({width}×{height}, {spp} paths per pixel, 2 bounces; s, median of {})\n\n\"old\": one path at a time over obvhs's compressed nodes, every path's first bounce drawn independently; \"path\" and \"wavefront\": the estimators over the wide traversal, the first bounces of a pixel's paths stratified (`strata`); all at {}, timed in turn within each run. Run r uses seed r, so the runs of one variant are independent images. Noise: RMS of the luminance difference of the first two runs' images over √2, relative to the mean luminance. \"at equal noise\": old time × old noise² ÷ (time × noise²), the speed-up to the same noise (a Monte Carlo estimator's error falls as 1/√paths).\n\n| scene | view | old s | path s | wavefront s | old / path | old / wavefront | noise, old | path | wavefront | at equal noise, path | wavefront | mean luminance, old | path | wavefront |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
         cfg.image_runs,
         best.name()
     );
     for (world, view) in scenes.iter_mut() {
         let camera = camera_for(world, view, width, height)?;
-        let mut means = [0.0; 3];
+        let mut images: [Vec<Image>; 3] = Default::default();
         let per_run: Vec<[f64; 3]> = (0..cfg.image_runs)
-            .map(|_| {
+            .map(|run| {
+                let settings = ReferenceSettings {
+                    width,
+                    height,
+                    spp,
+                    bounces: Quality::INTERACTIVE.bounces,
+                    seed: run as u64 + 1,
+                };
                 std::array::from_fn(|k| {
                     variants[k].apply(world);
                     let start = Instant::now();
                     let (image, _) = render(world, &camera, &settings, None);
                     let secs = start.elapsed().as_secs_f64();
-                    means[k] = image
-                        .pixels
-                        .iter()
-                        .map(|&p| luminance(p) as f64)
-                        .sum::<f64>()
-                        / image.pixels.len() as f64;
+                    images[k].push(image);
                     secs
                 })
             })
             .collect();
         restore_defaults(world);
-        let [old, path, wavefront] =
-            [0, 1, 2].map(|k| median(per_run.iter().map(|r| r[k]).collect()));
+        let times = [0, 1, 2].map(|k| median(per_run.iter().map(|r| r[k]).collect()));
         let ratio = |k: usize| median(per_run.iter().map(|r| r[0] / r[k]).collect());
+        let noise = images
+            .each_ref()
+            .map(|runs| relative_noise(&runs[0], &runs[1]));
+        let at_equal_noise = |k: usize| times[0] * noise[0].powi(2) / (times[k] * noise[k].powi(2));
+        let means = images.each_ref().map(|runs| mean_luminance(&runs[0]));
         writeln!(
             md,
-            "| {} | {view} | {old:.2} | {path:.2} | {wavefront:.2} | {:.2}× | {:.2}× | {:.4} | {:.4} | {:.4} |",
+            "| {} | {view} | {:.2} | {:.2} | {:.2} | {:.2}× | {:.2}× | {:.3} | {:.3} | {:.3} | {:.2}× | {:.2}× | {:.4} | {:.4} | {:.4} |",
             world.scene.name,
+            times[0],
+            times[1],
+            times[2],
             ratio(1),
             ratio(2),
+            noise[0],
+            noise[1],
+            noise[2],
+            at_equal_noise(1),
+            at_equal_noise(2),
             means[0],
             means[1],
             means[2]
@@ -343,6 +361,68 @@ fn reference_times(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Result
     }
     md.push('\n');
     Ok(md)
+}
+
+/// The estimator's answer, old against today's: the built-in Cornell box's mean luminance at
+/// unbounded depth, rendered once by each (different sample patterns, so they differ by their
+/// noise only where the answers agree).
+fn cornell_agreement(cfg: &Config) -> anyhow::Result<String> {
+    let (width, height, spp) = cfg.cornell;
+    let mut world = World::new(scene::load("cornell").context("loading cornell")?);
+    let camera = camera_for(&world, "main", width, height)?;
+    let settings = ReferenceSettings {
+        width,
+        height,
+        spp,
+        bounces: None,
+        seed: 1,
+    };
+    let [old, new] = [
+        Variant::old(),
+        Variant::wide(Estimator::default(), VectorLevel::detected()),
+    ]
+    .map(|variant| {
+        variant.apply(&mut world);
+        let start = Instant::now();
+        let mean = mean_luminance(&render(&world, &camera, &settings, None).0);
+        (mean, start.elapsed().as_secs_f64())
+    });
+    let difference = (new.0 / old.0 - 1.0) * 100.0;
+    Ok(format!(
+        "### Same answers: the Cornell box ({width}×{height}, {spp} paths per pixel, unbounded depth; one render each)\n\n| renderer | mean luminance | s |\n|---|---:|---:|\n| old | {:.5} | {:.1} |\n| today's | {:.5} | {:.1} |\n\nDifference {difference:+.2} % (target: within 0.5 %: {}).\n\n",
+        old.0,
+        old.1,
+        new.0,
+        new.1,
+        if difference.abs() <= 0.5 {
+            "met"
+        } else {
+            "missed"
+        }
+    ))
+}
+
+fn mean_luminance(image: &Image) -> f64 {
+    image
+        .pixels
+        .iter()
+        .map(|&p| luminance(p) as f64)
+        .sum::<f64>()
+        / image.pixels.len() as f64
+}
+
+/// The per-pixel noise of two independent renders of one image: the RMS of their luminance
+/// difference over √2 (the difference of two independent estimates has twice the variance of
+/// one), relative to their mean luminance.
+fn relative_noise(a: &Image, b: &Image) -> f64 {
+    let squares: f64 = a
+        .pixels
+        .iter()
+        .zip(&b.pixels)
+        .map(|(&p, &q)| (luminance(p) as f64 - luminance(q) as f64).powi(2))
+        .sum();
+    let rms = (squares / (2.0 * a.pixels.len() as f64)).sqrt();
+    rms / (0.5 * (mean_luminance(a) + mean_luminance(b)))
 }
 
 /// How many mesh-vertex samples (both sides) lie hidden inside geometry, how many of those were

@@ -14,7 +14,7 @@ use glam::Vec3;
 use crate::bvh::Hit;
 use crate::counters::{RayCounts, RayKind};
 use crate::material::{Bsdf, BsdfSample};
-use crate::sampling::{Rng, uniform3};
+use crate::sampling::{Rng, uniform2, uniform3};
 use crate::wavefront::{Start, trace_paths};
 use crate::world::{Surface, World};
 use rand::RngExt;
@@ -62,10 +62,20 @@ pub fn for_each_path(
     counts: &mut RayCounts,
     mut f: impl FnMut(Vec3),
 ) {
+    let strata = world.first_bounce.strata(rng);
     match world.estimator {
         Estimator::Path => {
-            for _ in 0..paths {
-                f(path_radiance(world, surface, wo, max_bounces, rng, counts));
+            for k in 0..paths {
+                let first_bounce = strata.map(|s| s.point(k));
+                f(path_radiance(
+                    world,
+                    surface,
+                    wo,
+                    max_bounces,
+                    first_bounce,
+                    rng,
+                    counts,
+                ));
             }
         }
         Estimator::Wavefront => {
@@ -74,6 +84,8 @@ pub fn for_each_path(
                 wo,
                 paths,
                 stream: 0,
+                strata,
+                first_index: 0,
             };
             let rngs = std::slice::from_mut(rng);
             trace_paths(world, &[start], max_bounces, rngs, counts, |_, l| f(l));
@@ -88,11 +100,15 @@ pub fn for_each_path(
 /// vertex that ray is cosine-distributed, exactly the sky's next-event density, so it spares a
 /// shadow ray at the same variance) and by next-event estimation at the vertex where the path
 /// ends.
+///
+/// `first_bounce` is the 2D sample of the first continuation's direction (its stratum, `strata`),
+/// or `None` to draw it from `rng` like every other number.
 pub(crate) fn path_radiance(
     world: &World,
     surface: Surface,
     wo: Vec3,
     max_bounces: Option<u32>,
+    first_bounce: Option<[f32; 2]>,
     rng: &mut Rng,
     counts: &mut RayCounts,
 ) -> Vec3 {
@@ -101,10 +117,12 @@ pub(crate) fn path_radiance(
     let mut s = surface;
     let mut wo = wo;
     let mut depth = Depth::START;
+    let mut direction_u = first_bounce;
     for _ in 0..MAX_DEPTH {
         let bsdf = world.bsdf(s.triangle);
         let origin = world.offset.origin(s.position, s.normal);
-        let next = continuation(world, bsdf, &s, wo, max_bounces, depth, throughput, rng);
+        let u = direction_u.take().unwrap_or_else(|| uniform2(rng));
+        let next = continuation(world, bsdf, &s, wo, max_bounces, depth, throughput, u, rng);
         let mut direct = Vec3::ZERO;
         shadow_rays(world, &s, origin, wo, bsdf, next.is_none(), rng, |ray| {
             if !world.occluded(origin, ray.dir, ray.tmax, ray.kind, counts) {
@@ -146,7 +164,8 @@ impl Depth {
 
 /// The ray that continues the path from `s`, with the throughput after it, or `None` where the
 /// path ends: no lobe sampled, depth exhausted, an effect the scene does not call for, or
-/// Russian roulette.
+/// Russian roulette. `direction_u` places the direction within the lobe; the lobe choice and
+/// the roulette draw from `rng`.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn continuation(
     world: &World,
@@ -156,9 +175,11 @@ pub(crate) fn continuation(
     max_bounces: Option<u32>,
     depth: Depth,
     throughput: Vec3,
+    direction_u: [f32; 2],
     rng: &mut Rng,
 ) -> Option<(BsdfSample, Vec3)> {
-    let sample = bsdf.sample(s.normal, wo, uniform3(rng))?;
+    let lobe_u = rng.random::<f32>();
+    let sample = bsdf.sample(s.normal, wo, [direction_u[0], direction_u[1], lobe_u])?;
     let budget_left = if sample.kind == RayKind::Mirror {
         depth.mirror_chain < MAX_MIRROR_CHAIN
     } else {

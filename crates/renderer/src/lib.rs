@@ -3,7 +3,7 @@
 //!
 //! - [`world`]: a scene prepared for tracing ([`bvh`], [`lights`], [`material`], [`offset`]);
 //! - [`estimator`]: path tracing with next-event estimation, one path at a time or as ray
-//!   streams (`wavefront`);
+//!   streams (`wavefront`), the first bounces of a point's paths stratified (`strata`);
 //! - [`point`]: shading points from (triangle, barycentrics, side), hidden-point relocation;
 //! - `ray_order`: ray streams regrouped by direction octant and origin before tracing;
 //! - [`shade`]: points and batches at a quality, deterministic per (seed, index);
@@ -25,6 +25,7 @@ pub mod reference;
 pub mod sampling;
 pub mod service;
 pub(crate) mod shade;
+pub(crate) mod strata;
 pub mod tonemap;
 pub mod vector_level;
 pub(crate) mod wavefront;
@@ -36,6 +37,7 @@ pub mod world;
 
 pub use counters::{RayCounts, RayKind};
 pub use shade::{Shaded, shade_batch, shade_point};
+pub use strata::FirstBounce;
 pub use world::World;
 
 /// What the launcher's benchmarks measure inside the renderer (the `bench` feature): the tracer's

@@ -127,7 +127,8 @@ fn pixel(
     let mut sum = Vec3::ZERO;
     let mut covered = false;
     let spp = s.spp.max(1);
-    for _ in 0..spp {
+    let strata = world.first_bounce.strata(rng);
+    for k in 0..spp {
         let [jx, jy] = uniform2(rng);
         let dir = camera.ray_direction(x as f32 + jx, y as f32 + jy);
         let l = match world.trace(origin, dir, RayKind::Camera, counts) {
@@ -136,7 +137,15 @@ fn pixel(
                 covered = true;
                 let surface = world.surface_at(origin, dir, hit);
                 world.emission(hit.triangle, dir)
-                    + path_radiance(world, surface, -dir, s.bounces, rng, counts)
+                    + path_radiance(
+                        world,
+                        surface,
+                        -dir,
+                        s.bounces,
+                        strata.map(|s| s.point(k)),
+                        rng,
+                        counts,
+                    )
             }
         };
         add_finite(&mut sum, l);
@@ -197,7 +206,9 @@ fn camera_paths(
     let mut starts = Vec::with_capacity(pixels.len() * spp as usize);
     let mut emitted = Vec::with_capacity(starts.capacity());
     for x in pixels {
-        for _ in 0..spp {
+        // The pixel's paths stratify their first bounces together, as in [`pixel`].
+        let strata = world.first_bounce.strata(&mut rngs[x]);
+        for k in 0..spp {
             let [jx, jy] = uniform2(&mut rngs[x]);
             let dir = camera.ray_direction(x as f32 + jx, y as f32 + jy);
             let Some(hit) = world.trace(origin, dir, RayKind::Camera, counts) else {
@@ -210,6 +221,8 @@ fn camera_paths(
                 wo: -dir,
                 paths: 1,
                 stream: x,
+                strata,
+                first_index: k,
             });
             emitted.push(world.emission(hit.triangle, dir));
         }

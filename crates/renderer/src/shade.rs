@@ -236,6 +236,9 @@ fn shade_wave(
         .iter()
         .map(|p| prepare(world, p, &mut counts))
         .collect();
+    let mut rngs: Vec<Rng> = (0..points.len())
+        .map(|i| stream(batch.seed, (first + i) as u64))
+        .collect();
     let starts: Vec<Start> = prepared
         .iter()
         .enumerate()
@@ -245,10 +248,10 @@ fn shade_wave(
             wo: p.wo,
             paths: paths_of(batch.quality),
             stream: i,
+            // Drawn first from the point's stream, as `for_each_path` does.
+            strata: world.first_bounce.strata(&mut rngs[i]),
+            first_index: 0,
         })
-        .collect();
-    let mut rngs: Vec<Rng> = (0..points.len())
-        .map(|i| stream(batch.seed, (first + i) as u64))
         .collect();
     let mut sums: Vec<PathSum> = prepared
         .iter()

@@ -18,20 +18,25 @@ use glam::Vec3;
 use crate::counters::{RayCounts, RayKind};
 use crate::estimator::{Depth, MAX_DEPTH, ShadowRay, arrive, continuation, shadow_rays};
 use crate::ray_order::RayOrder;
-use crate::sampling::Rng;
+use crate::sampling::{Rng, uniform2};
+use crate::strata::Strata;
 use crate::world::{Surface, World};
 
 /// Paths advanced together: the 64 paths of 64 points at the interactive quality. A wave's state
 /// is about 100 bytes a path, so a wave stays in the L2 cache.
 pub(crate) const WAVE_PATHS: usize = 4096;
 
-/// `paths` paths leaving `surface` toward `wo`, drawing from random stream `stream`.
+/// `paths` paths leaving `surface` toward `wo`, drawing from random stream `stream`; their first
+/// bounces take points `first_index..` of `strata` where there are strata (as `path_radiance`'s
+/// `first_bounce`).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Start {
     pub(crate) surface: Surface,
     pub(crate) wo: Vec3,
     pub(crate) paths: u32,
     pub(crate) stream: usize,
+    pub(crate) strata: Option<Strata>,
+    pub(crate) first_index: u32,
 }
 
 /// Traces every path of `starts` in waves of at most [`WAVE_PATHS`] and hands each path's
@@ -48,8 +53,8 @@ pub(crate) fn trace_paths(
     let mut wave = Wave::default();
     let mut streams = Streams::default();
     for (i, start) in starts.iter().enumerate() {
-        for _ in 0..start.paths {
-            wave.push(i, start);
+        for k in 0..start.paths {
+            wave.push(i, start, k);
             if wave.len() == WAVE_PATHS {
                 wave.run(world, max_bounces, rngs, &mut streams, counts);
                 wave.drain(&mut done);
@@ -72,6 +77,8 @@ struct Wave {
     surface: Vec<Surface>,
     wo: Vec<Vec3>,
     depth: Vec<Depth>,
+    /// The first continuation's direction sample, until the first vertex takes it.
+    first_bounce: Vec<Option<[f32; 2]>>,
 }
 
 /// Cells per axis of the origins' grid by which continuation rays are regrouped, as a power of
@@ -110,7 +117,8 @@ impl Wave {
         self.start.len()
     }
 
-    fn push(&mut self, start_index: usize, start: &Start) {
+    /// Path `k` of `start`.
+    fn push(&mut self, start_index: usize, start: &Start, k: u32) {
         self.start.push(start_index as u32);
         self.stream.push(start.stream as u32);
         self.radiance.push(Vec3::ZERO);
@@ -118,6 +126,8 @@ impl Wave {
         self.surface.push(start.surface);
         self.wo.push(start.wo);
         self.depth.push(Depth::START);
+        self.first_bounce
+            .push(start.strata.map(|s| s.point(start.first_index + k)));
     }
 
     /// Advances every path to its end, one vertex per step (the same cap as `path_radiance`).
@@ -171,6 +181,7 @@ impl Wave {
         let rng = &mut rngs[self.stream[i] as usize];
         let bsdf = world.bsdf(s.triangle);
         let origin = world.offset.origin(s.position, s.normal);
+        let u = self.first_bounce[i].take().unwrap_or_else(|| uniform2(rng));
         let next = continuation(
             world,
             bsdf,
@@ -179,6 +190,7 @@ impl Wave {
             max_bounces,
             self.depth[i],
             throughput,
+            u,
             rng,
         );
         shadow_rays(world, &s, origin, wo, bsdf, next.is_none(), rng, |ray| {
@@ -253,6 +265,7 @@ impl Wave {
         self.surface.clear();
         self.wo.clear();
         self.depth.clear();
+        self.first_bounce.clear();
     }
 }
 

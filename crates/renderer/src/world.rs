@@ -20,6 +20,7 @@ use crate::estimator::Estimator;
 use crate::lights::Lights;
 use crate::material::Bsdf;
 use crate::offset::Offsetter;
+use crate::strata::FirstBounce;
 
 /// A point on a surface, on the side being shaded.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -41,6 +42,8 @@ pub struct World {
     pub extent: f32,
     /// How shade batches and reference images schedule their paths (both use this one).
     pub estimator: Estimator,
+    /// How the first bounce of a point's or pixel's paths is sampled (stratified by default).
+    pub first_bounce: FirstBounce,
     bsdfs: Vec<Bsdf>,
     /// Unit counter-clockwise normal per triangle (zero for a degenerate one).
     face_normals: Vec<Vec3>,
@@ -77,6 +80,7 @@ impl World {
             offset: Offsetter::new(extent),
             extent,
             estimator: Estimator::default(),
+            first_bounce: FirstBounce::default(),
             bvh,
             lights,
             bsdfs,
