@@ -277,11 +277,11 @@ pub struct AccuracyArgs {
 /// The image size and ground truth shared by the end-to-end benchmarks.
 #[derive(Args, Debug, Clone)]
 pub struct ImageArgs {
-    /// Image size of the runs, the ground truth and the direct render (half of 1024×768, so a
-    /// 1024-path ground truth of every view fits in under an hour on 2 cores).
-    #[arg(long, default_value_t = 512)]
+    /// Image size of the runs, the ground truth and the direct render: DESIGN.md §10's 1024×768
+    /// (a 1024-path ground truth then takes 4 to 12 minutes a view on 2 cores, once).
+    #[arg(long, default_value_t = 1024)]
     pub width: u32,
-    #[arg(long, default_value_t = 384)]
+    #[arg(long, default_value_t = 768)]
     pub height: u32,
     /// Paths per pixel of the ground truth (DESIGN.md §10: at least 256; 1024 so that its own
     /// noise does not set the error floor).
