@@ -189,11 +189,13 @@ pub struct ConvergenceArgs {
     /// Length of each run; snapshots every second.
     #[arg(long, default_value_t = 60.0)]
     pub seconds: f64,
-    /// Fixed sample counts at which snapshots are also taken.
+    /// Fixed sample counts at which snapshots are also taken: half steps of a doubling, so the
+    /// first seconds, when the error falls fastest, are sampled several times a second (a time
+    /// to reach an error is read at the first snapshot at or below it).
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "1000,2000,4000,8000,16000,32000,64000,128000,256000"
+        default_value = "1000,1500,2000,3000,4000,6000,8000,12000,16000,24000,32000,48000,64000,96000,128000,192000,256000"
     )]
     pub at_samples: Vec<u64>,
     #[command(flatten)]

@@ -149,7 +149,7 @@ pub fn run(config: &ViewerConfig) -> anyhow::Result<()> {
     };
     let result = headless.run(&events);
     headless.link.close();
-    result
+    result.and(headless.writer.finish())
 }
 
 /// The camera in force and the scripted walk, if any, that moves it.
@@ -301,7 +301,6 @@ impl Headless<'_> {
             renderer_busy: self.state.stats.renderer_busy,
             converged: self.state.stats.converged,
         };
-        self.writer.write(&record, &image)?;
         tracing::debug!(
             index = record.index,
             t,
@@ -309,6 +308,7 @@ impl Headless<'_> {
             samples = record.samples,
             "snapshot"
         );
+        self.writer.write(record, image)?;
         self.snapshots += 1;
         Ok(())
     }

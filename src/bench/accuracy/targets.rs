@@ -40,8 +40,8 @@ pub(crate) fn section(results: &[ViewResult]) -> String {
          other criteria's from one run. Busy: the lowest renderer busy share over {BUSY_WINDOW_S:.0}-s windows from the first \
          picture (the first snapshot showing a triangle with the SMA's first statistics, about a second in) \
          to the stated end (`converged`) or the run's end, as \
-         the SMA measured it; and the renderer's CPU time as a share of the machine's cores over the wall \
-         time up to the stated end, which says whether the renderer computed while it held work (the SMA and \
+         the SMA measured it; and the renderer's CPU time as a share of the machine's cores over the run's \
+         time (t = 0 to the stated end, or to the last snapshot), which says whether the renderer computed while it held work (the SMA and \
          the viewer share the same cores). The target needs both.\n"
     );
     md.push_str(
@@ -204,17 +204,15 @@ fn min_window_busy(run: &[&Measurement]) -> Option<f64> {
     lowest
 }
 
-/// The renderers' CPU seconds over `run` as a share of the machine's cores and the wall time up
-/// to the stated end: the rest after it is idle by design (nothing is left to shade).
+/// The renderers' CPU seconds over `run` as a share of the machine's cores and the run's time up
+/// to the stated end (its snapshot's time, or the last snapshot's): the rest after it is idle by
+/// design (nothing is left to shade), and so are the viewer's start before t = 0 and the writing
+/// of its queued snapshot files after its last one.
 fn renderer_cpu_share(v: &ViewResult, run: &str, rows: &[&Measurement]) -> Option<f64> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as f64;
     let (_, c) = v.cpu.iter().find(|(r, _)| r == run)?;
-    let after_end = rows
-        .iter()
-        .find(|m| m.converged)
-        .zip(rows.last())
-        .map_or(0.0, |(end, last)| last.time_s - end.time_s);
-    Some(c.renderers_s / ((c.wall_s - after_end).max(1e-9) * cores))
+    let end = rows.iter().find(|m| m.converged).or(rows.last())?.time_s;
+    Some(c.renderers_s / (end.max(1e-9) * cores))
 }
 
 /// The best speed-up to [`TARGET_FLIP`] over the view's criteria (for the judged one, from the

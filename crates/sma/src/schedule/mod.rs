@@ -475,11 +475,13 @@ impl Schedule {
     }
 
     /// Every shown view gets more paths where its noise shows, below every other need: they
-    /// keep the renderers busy between refinement rounds and passes (DESIGN.md §3, §5).
+    /// keep the renderers busy between refinement rounds and passes (DESIGN.md §3, §5). While
+    /// its criterion still refines, its quieter samples too, last of all (`Urgency::Polish`).
     fn more_paths_for(&self, viewer: &Viewer) -> Option<MorePaths> {
         Some(MorePaths {
             l_white: viewer.last_l_white?,
             threshold: self.config.display_error,
+            polish: self.config.refine && !viewer.criterion_dry,
         })
     }
 

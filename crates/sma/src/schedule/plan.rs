@@ -93,8 +93,10 @@ impl Qualities {
 pub struct MorePaths {
     /// L_white of the viewer's tone map.
     pub l_white: f32,
-    /// A sample whose displayed standard error is below this needs no more paths.
+    /// A sample whose displayed standard error is below this needs no more paths...
     pub threshold: f32,
+    /// ...but may still get them, last of all, while refinement runs (`Urgency::Polish`).
+    pub polish: bool,
 }
 
 /// How far a view-dependent sample's eye may move, as the angle seen from the vertex, before
@@ -196,9 +198,9 @@ fn need_key(
     }
 }
 
-/// The next rung for a cached sample whose noise is still visible: priority is the displayed
-/// standard error times the pixels of the leaf, so paths go where they lower the displayed
-/// error most.
+/// The next rung for a cached sample whose noise is still visible (or, to polish, any below the
+/// cap): priority is the displayed standard error times the pixels of the leaf, so paths go where
+/// they lower the displayed error most.
 fn more_paths(
     input: &NeedsInput,
     more: &MorePaths,
@@ -210,9 +212,13 @@ fn more_paths(
         return;
     };
     let error = sample.estimate().display_standard_error(more.l_white);
-    if error <= more.threshold {
+    let urgency = if error > more.threshold {
+        Urgency::Paths
+    } else if more.polish {
+        Urgency::Polish
+    } else {
         return;
-    }
+    };
     let Some((quality, target)) = input.qualities.next_rung(sample.quality) else {
         return;
     };
@@ -227,7 +233,7 @@ fn more_paths(
         },
         quality,
         target,
-        urgency: Urgency::Paths,
+        urgency,
         priority: error * pixels as f32,
         new_eye: false,
     });
@@ -236,6 +242,82 @@ fn more_paths(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cache::CachedSample;
+    use crate::visible_set::{VisibleLeaf, VisibleSet};
+
+    /// The needs of one visible triangle whose three samples are at the scene's quality with
+    /// `luminance_variance` over their paths.
+    fn needs_of_one_leaf(luminance_variance: f32, more: MorePaths) -> Vec<Need> {
+        let mesh = SubdivisionMesh::new(&crate::mesh::grid_mesh(1), Default::default());
+        let mut cache = ShadingCache::new(1 << 20);
+        for vertex in mesh.node(0).vertices {
+            let key = SampleKey {
+                vertex,
+                side: Side::Front,
+            };
+            cache.insert(
+                key,
+                CachedSample {
+                    rgb: [0.2; 3],
+                    luminance_variance,
+                    quality: Quality::INTERACTIVE,
+                    view_dependent: false,
+                    eye: None,
+                    last_seen: 0,
+                },
+            );
+        }
+        let view = LeafView {
+            visible: VisibleSet {
+                leaves: vec![VisibleLeaf {
+                    leaf: 0,
+                    side: Side::Front,
+                    pixels: 100,
+                }],
+                width: 64,
+                height: 64,
+            },
+            centroids: vec![(32.0, 32.0)],
+            ..Default::default()
+        };
+        needs(&NeedsInput {
+            view: &view,
+            eye: Vec3::new(0.5, 0.5, 2.0),
+            pending: &PendingRefinement::default(),
+            mesh: &mesh,
+            cache: &cache,
+            view_dependent: &[false; 2],
+            qualities: Qualities::new(Quality::INTERACTIVE, 1024),
+            aging: Aging { max_angle_rad: 0.1 },
+            more_paths: Some(more),
+        })
+    }
+
+    #[test]
+    fn quiet_samples_are_polished_only_while_refinement_runs() {
+        let more = |polish| MorePaths {
+            l_white: 1.0,
+            threshold: 1.0 / 255.0,
+            polish,
+        };
+        let urgencies = |variance, polish| -> Vec<Urgency> {
+            needs_of_one_leaf(variance, more(polish))
+                .iter()
+                .map(|n| n.urgency)
+                .collect()
+        };
+        // 64 paths: a variance of 4 shows (displayed error far above a step), 1e-6 does not.
+        assert_eq!(urgencies(4.0, false), [Urgency::Paths; 3]);
+        assert_eq!(urgencies(4.0, true), [Urgency::Paths; 3]);
+        assert_eq!(urgencies(1e-6, false), []);
+        assert_eq!(urgencies(1e-6, true), [Urgency::Polish; 3]);
+        let polished = needs_of_one_leaf(1e-6, more(true));
+        assert!(
+            polished
+                .iter()
+                .all(|n| n.target.paths == 256 && n.quality.paths == 192)
+        );
+    }
 
     #[test]
     fn the_ladder_climbs_by_four_at_the_scene_depth_up_to_its_cap() {

@@ -25,6 +25,12 @@ pub enum Urgency {
     /// DESIGN.md §5): the work that fills the renderers whenever nothing above waits, so rest
     /// time is never idle.
     Paths,
+    /// More paths for a sample whose noise is already below the threshold, while refinement
+    /// still runs: a refinement round waits for its samples and a pass, and near the end those
+    /// are all the work there is, a batch or two for two workers. This fills those waits with
+    /// paths that still lower the displayed error; once the criterion finds nothing, the plan
+    /// drops them and the stated end comes (DESIGN.md §3: rest time goes to the renderers).
+    Polish,
 }
 
 /// One wanted sample.
