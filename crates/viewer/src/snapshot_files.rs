@@ -128,7 +128,7 @@ fn lowest_priority() {
     }
 }
 
-/// The files themselves, written in the caller's thread.
+/// The files themselves: the writer thread owns them, and writes one snapshot at a time.
 struct SnapshotFiles {
     dir: PathBuf,
     csv: std::fs::File,
