@@ -19,6 +19,8 @@ pub mod estimator;
 pub(crate) mod lights;
 pub(crate) mod material;
 pub(crate) mod offset;
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod packet_traversal;
 pub mod point;
 pub(crate) mod ray_order;
 pub mod reference;
