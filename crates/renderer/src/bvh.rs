@@ -296,7 +296,8 @@ impl SceneBvh {
     }
 
     /// Up to [`PACKET_RAYS`] rays' closest hits as one packet; false (nothing written) where
-    /// they are not one packet's or the wide traversal does not run.
+    /// they are not one packet's, the wide traversal does not run, or there is only one ray (a
+    /// packet of one costs more than the one-ray query).
     fn closest_hit_as_packet(
         &self,
         origins: &[Vec3],
@@ -306,6 +307,7 @@ impl SceneBvh {
     ) -> bool {
         #[cfg(target_arch = "x86_64")]
         if let (Traversal::Wide, Some(wide)) = (self.traversal, &self.wide)
+            && origins.len() > 1
             && let Some(packet) = Packet::new(origins, dirs, tmaxs)
         {
             let mut found = [None; PACKET];
@@ -345,6 +347,7 @@ impl SceneBvh {
     ) -> bool {
         #[cfg(target_arch = "x86_64")]
         if let (Traversal::Wide, Some(wide)) = (self.traversal, &self.wide)
+            && origins.len() > 1
             && let Some(packet) = Packet::new(origins, dirs, tmaxs)
         {
             let mut found = [None; PACKET];
