@@ -65,6 +65,12 @@ impl Packet {
         if len == 0 || len > PACKET || dirs.len() != len || tmaxs.len() != len {
             return None;
         }
+        // Most mixed packets (bounce rays) show it in their directions' signs: refused before
+        // any ray is prepared. `near` below has the last word.
+        let signs = |dir: &Vec3| dir.cmplt(Vec3::ZERO).bitmask();
+        if dirs.iter().any(|dir| signs(dir) != signs(&dirs[0])) {
+            return None;
+        }
         let first = Query::new(origins[0], dirs[0], tmaxs[0]);
         let mut packet = Packet {
             rays: [first.ray; PACKET],

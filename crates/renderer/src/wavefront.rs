@@ -5,7 +5,9 @@
 //!
 //! The streams are there to make rays of one kind, and the rays of one shading point (which share
 //! an origin), follow one another through the BVH; shadow rays also try the triangle that blocked
-//! the previous one first (`World::occluded_after`). With obvhs's one-ray-at-a-time traversal
+//! the previous one first (`World::occluded_after`), and the sun shadow rays of a point's paths,
+//! which share an origin and nearly one direction, go eight at a time as packets
+//! (`World::packets`). With obvhs's one-ray-at-a-time traversal
 //! that alone buys little: docs/bench/renderer.md measures both schedules side by side, and
 //! `Estimator::default` is the one that measured faster. Every step is `estimator`'s own, so the
 //! answers are the same in distribution.
