@@ -68,6 +68,49 @@ pub struct Hit {
     pub t: f32,
 }
 
+/// The rays of a packet query: `origins[k] + t dirs[k]`, t in (0, tmaxs[k]).
+struct Rays<'a> {
+    origins: &'a [Vec3],
+    dirs: &'a [Vec3],
+    tmaxs: &'a [f32],
+}
+
+impl<'a> Rays<'a> {
+    /// Panics unless the slices, and the `answers` the query writes, are equally long.
+    fn new(origins: &'a [Vec3], dirs: &'a [Vec3], tmaxs: &'a [f32], answers: usize) -> Rays<'a> {
+        assert!(
+            dirs.len() == origins.len() && tmaxs.len() == origins.len(),
+            "one direction and one tmax per origin"
+        );
+        assert_eq!(answers, origins.len(), "one answer per ray");
+        Rays {
+            origins,
+            dirs,
+            tmaxs,
+        }
+    }
+
+    /// `answers[k]` for each ray: runs of [`PACKET_RAYS`] consecutive rays offered to
+    /// `as_packet` (which says whether it traced them), the rays of a run it declines to `single`.
+    fn by_packets<T>(
+        &self,
+        answers: &mut [T],
+        as_packet: impl Fn(&[Vec3], &[Vec3], &[f32], &mut [T]) -> bool,
+        single: impl Fn(Vec3, Vec3, f32) -> T,
+    ) {
+        for (k, answers) in answers.chunks_mut(PACKET_RAYS).enumerate() {
+            let run = k * PACKET_RAYS..k * PACKET_RAYS + answers.len();
+            let o = &self.origins[run.clone()];
+            let (d, t) = (&self.dirs[run.clone()], &self.tmaxs[run]);
+            if !as_packet(o, d, t, answers) {
+                for (k, answer) in answers.iter_mut().enumerate() {
+                    *answer = single(o[k], d[k], t[k]);
+                }
+            }
+        }
+    }
+}
+
 pub struct SceneBvh {
     bvh: CwBvh,
     /// Triangles in BVH primitive order (a triangle split by the builder appears once per
@@ -228,20 +271,12 @@ impl SceneBvh {
         tmaxs: &[f32],
         hits: &mut [Option<Hit>],
     ) {
-        assert!(
-            dirs.len() == origins.len() && tmaxs.len() == origins.len(),
-            "one direction and one tmax per origin"
+        let rays = Rays::new(origins, dirs, tmaxs, hits.len());
+        rays.by_packets(
+            hits,
+            |o, d, t, hits| self.closest_hit_as_packet(o, d, t, hits),
+            |o, d, t| self.closest_hit(o, d, t),
         );
-        assert_eq!(hits.len(), origins.len(), "one hit per ray");
-        for (k, hits) in hits.chunks_mut(PACKET_RAYS).enumerate() {
-            let rays = k * PACKET_RAYS..k * PACKET_RAYS + hits.len();
-            let (o, d, t) = (&origins[rays.clone()], &dirs[rays.clone()], &tmaxs[rays]);
-            if !self.closest_hit_as_packet(o, d, t, hits) {
-                for (k, hit) in hits.iter_mut().enumerate() {
-                    *hit = self.closest_hit(o[k], d[k], t[k]);
-                }
-            }
-        }
     }
 
     /// [`occluded`](Self::occluded) for each ray, into `blocked[k]`, eight rays at a time as in
@@ -254,20 +289,17 @@ impl SceneBvh {
         tmaxs: &[f32],
         blocked: &mut [bool],
     ) {
-        let mut occluders = [None; PACKET_RAYS];
-        for (k, blocked) in blocked.chunks_mut(PACKET_RAYS).enumerate() {
-            let rays = k * PACKET_RAYS..k * PACKET_RAYS + blocked.len();
+        let rays = Rays::new(origins, dirs, tmaxs, blocked.len());
+        let as_packet = |o: &[Vec3], d: &[Vec3], t: &[f32], blocked: &mut [bool]| {
+            let mut occluders = [None; PACKET_RAYS];
             let occluders = &mut occluders[..blocked.len()];
-            self.occluder_packet(
-                &origins[rays.clone()],
-                &dirs[rays.clone()],
-                &tmaxs[rays],
-                occluders,
-            );
+            let traced = self.occluder_as_packet(o, d, t, occluders);
             for (b, o) in blocked.iter_mut().zip(occluders.iter()) {
                 *b = o.is_some();
             }
-        }
+            traced
+        };
+        rays.by_packets(blocked, as_packet, |o, d, t| self.occluded(o, d, t));
     }
 
     /// [`occluder`](Self::occluder) for each ray, into `occluders[k]`, eight rays at a time as
@@ -279,25 +311,35 @@ impl SceneBvh {
         tmaxs: &[f32],
         occluders: &mut [Option<u32>],
     ) {
-        assert!(
-            dirs.len() == origins.len() && tmaxs.len() == origins.len(),
-            "one direction and one tmax per origin"
+        let rays = Rays::new(origins, dirs, tmaxs, occluders.len());
+        rays.by_packets(
+            occluders,
+            |o, d, t, occluders| self.occluder_as_packet(o, d, t, occluders),
+            |o, d, t| self.occluder(o, d, t),
         );
-        assert_eq!(occluders.len(), origins.len(), "one answer per ray");
-        for (k, occluders) in occluders.chunks_mut(PACKET_RAYS).enumerate() {
-            let rays = k * PACKET_RAYS..k * PACKET_RAYS + occluders.len();
-            let (o, d, t) = (&origins[rays.clone()], &dirs[rays.clone()], &tmaxs[rays]);
-            if !self.occluder_as_packet(o, d, t, occluders) {
-                for (k, occluder) in occluders.iter_mut().enumerate() {
-                    *occluder = self.occluder(o[k], d[k], t[k]);
-                }
-            }
-        }
     }
 
-    /// Up to [`PACKET_RAYS`] rays' closest hits as one packet; false (nothing written) where
-    /// they are not one packet's, the wide traversal does not run, or there is only one ray (a
-    /// packet of one costs more than the one-ray query).
+    /// The wide tree and up to [`PACKET_RAYS`] rays as one packet, where the wide traversal runs
+    /// and the rays make one: more than one ray (a packet of one costs more than the one-ray
+    /// query), all of one direction octant.
+    #[cfg(target_arch = "x86_64")]
+    fn as_packet(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        tmaxs: &[f32],
+    ) -> Option<(&WideBvh, Packet)> {
+        let (Traversal::Wide, Some(wide)) = (self.traversal, &self.wide) else {
+            return None;
+        };
+        if origins.len() < 2 {
+            return None;
+        }
+        Some((wide, Packet::new(origins, dirs, tmaxs)?))
+    }
+
+    /// Up to [`PACKET_RAYS`] rays' closest hits as one packet (`as_packet`); false, nothing
+    /// written, where they make none.
     fn closest_hit_as_packet(
         &self,
         origins: &[Vec3],
@@ -306,10 +348,7 @@ impl SceneBvh {
         hits: &mut [Option<Hit>],
     ) -> bool {
         #[cfg(target_arch = "x86_64")]
-        if let (Traversal::Wide, Some(wide)) = (self.traversal, &self.wide)
-            && origins.len() > 1
-            && let Some(packet) = Packet::new(origins, dirs, tmaxs)
-        {
+        if let Some((wide, packet)) = self.as_packet(origins, dirs, tmaxs) {
             let mut found = [None; PACKET];
             let prims = &self.prims;
             match self.level {
@@ -346,10 +385,7 @@ impl SceneBvh {
         occluders: &mut [Option<u32>],
     ) -> bool {
         #[cfg(target_arch = "x86_64")]
-        if let (Traversal::Wide, Some(wide)) = (self.traversal, &self.wide)
-            && origins.len() > 1
-            && let Some(packet) = Packet::new(origins, dirs, tmaxs)
-        {
+        if let Some((wide, packet)) = self.as_packet(origins, dirs, tmaxs) {
             let mut found = [None; PACKET];
             let prims = &self.prims;
             match self.level {
