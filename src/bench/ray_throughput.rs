@@ -147,6 +147,43 @@ fn trace_secs(rays: &Rays, sequence: Option<&[u32]>, trace: TraceFn) -> f64 {
     start.elapsed().as_secs_f64()
 }
 
+/// Traces a slice of rays (origins, directions, tmaxs) with a packet query; returns how many
+/// hit.
+type PacketTraceFn<'a> = &'a (dyn Fn(&[Vec3], &[Vec3], &[f32]) -> usize + Sync);
+
+/// Seconds to trace `rays` once with `trace`, in parallel chunks of consecutive rays (the
+/// packets are consecutive rays: a primary tile's rows, shadow rays in the order they come).
+fn packet_secs(rays: &Rays, trace: PacketTraceFn) -> f64 {
+    let start = Instant::now();
+    let hits: usize = rays
+        .origin
+        .par_chunks(CHUNK)
+        .zip(rays.dir.par_chunks(CHUNK))
+        .zip(rays.tmax.par_chunks(CHUNK))
+        .map(|((o, d), t)| trace(o, d, t))
+        .sum();
+    std::hint::black_box(hits);
+    start.elapsed().as_secs_f64()
+}
+
+/// A packet query that counts the closest hits found.
+fn closest_packets(bvh: &SceneBvh) -> impl Fn(&[Vec3], &[Vec3], &[f32]) -> usize + Sync + '_ {
+    |o, d, t| {
+        let mut hits = vec![None; o.len()];
+        bvh.closest_hit_packet(o, d, t, &mut hits);
+        hits.iter().filter(|h| h.is_some()).count()
+    }
+}
+
+/// A packet query that counts the blocked rays.
+fn occluded_packets(bvh: &SceneBvh) -> impl Fn(&[Vec3], &[Vec3], &[f32]) -> usize + Sync + '_ {
+    |o, d, t| {
+        let mut blocked = vec![false; o.len()];
+        bvh.occluded_packet(o, d, t, &mut blocked);
+        blocked.iter().filter(|&&b| b).count()
+    }
+}
+
 /// Seconds to regroup `rays` (`RayOrder`, one thread) and trace them in that order: the sort is
 /// part of the cost.
 fn ordered_secs(rays: &Rays, bounds: (Vec3, Vec3), trace: TraceFn) -> f64 {
@@ -222,6 +259,10 @@ pub(super) fn ray_throughput(
     let any_portable = |o, d, t| portable.occluded(o, d, t);
     let any = |o, d, t| fastest.occluded(o, d, t);
     let naive_trace = |o, d, t| naive.hits(o, d, t);
+    let (closest_packets_portable, closest_packets_fastest) =
+        (closest_packets(&portable), closest_packets(&fastest));
+    let (any_packets_portable, any_packets_fastest) =
+        (occluded_packets(&portable), occluded_packets(&fastest));
     let mut md = String::new();
     writeln!(
         md,
@@ -231,15 +272,15 @@ pub(super) fn ray_throughput(
     let best = best.name();
     writeln!(
         md,
-        "obvhs: one ray at a time, default (medium) preset, triangles through `primitive_indices`, closest hit for every ray, baseline instructions. Ours: slow preset (spatial splits), triangles stored in BVH order, early-exit shadow query. \"compressed\": obvhs's traversal of its compressed nodes inside our entry points at {best} (the renderer's traversal before the wide one). \"wide\" (the renderer's): the same tree decoded into full-precision eight-wide nodes, nearest child first, leaves tested with obvhs's triangle test, at the baseline vector level (SSE) and at the best one this CPU runs ({best}, AVX2), chosen at run time by the same binary; \"ordered\" first regroups the rays by direction octant and the Morton order of their origin's cell on a 16³ grid (`RayOrder`: a counting sort, one thread; {sort_ms:.0} ms for all bounce and shadow rays), its time included, then traces them in that order (primary rays are already in 8×8 pixel tiles). All are timed in turn within each run; ratios are medians of the per-run ratios.\n"
+        "obvhs: one ray at a time, default (medium) preset, triangles through `primitive_indices`, closest hit for every ray, baseline instructions. Ours: slow preset (spatial splits), triangles stored in BVH order, early-exit shadow query. \"compressed\": obvhs's traversal of its compressed nodes inside our entry points at {best} (the renderer's traversal before the wide one). \"wide\" (the renderer's): the same tree decoded into full-precision eight-wide nodes, nearest child first, leaves tested with obvhs's triangle test, at the baseline vector level (SSE) and at the best one this CPU runs ({best}, AVX2), chosen at run time by the same binary; \"ordered\" first regroups the rays by direction octant and the Morton order of their origin's cell on a 16³ grid (`RayOrder`: a counting sort, one thread; {sort_ms:.0} ms for all bounce and shadow rays), its time included, then traces them in that order (primary rays are already in 8×8 pixel tiles). \"packets\": the wide nodes walked by eight consecutive rays at once (a row of a primary tile, eight shadow rays in the order they come; a packet whose rays are not all of one direction octant, as most bounce rays' are not, is traced one ray at a time), eight rays per vector step, each ray getting its one-ray answer. All are timed in turn within each run; ratios are medians of the per-run ratios.\n"
     )?;
     writeln!(
         md,
-        "| rays | count | obvhs | compressed, {best} | wide, baseline | wide, {best} | wide, {best}, ordered | compressed / obvhs | wide baseline / obvhs | wide {best} / obvhs | ordered / obvhs | wide {best} / compressed |"
+        "| rays | count | obvhs | compressed, {best} | wide, baseline | wide, {best} | wide, {best}, ordered | packets, baseline | packets, {best} | compressed / obvhs | wide baseline / obvhs | wide {best} / obvhs | ordered / obvhs | packets {best} / obvhs | packets / wide, baseline | packets / wide, {best} | wide {best} / compressed |"
     )?;
     writeln!(
         md,
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
     )?;
     for (name, rays, closest_hit) in [
         ("primary", &primary, true),
@@ -251,22 +292,40 @@ pub(super) fn ray_throughput(
         } else {
             (&any_compressed, &any_portable, &any)
         };
-        let variants: [Pass; 5] = [
+        let (pp, pf): (PacketTraceFn, PacketTraceFn) = if closest_hit {
+            (&closest_packets_portable, &closest_packets_fastest)
+        } else {
+            (&any_packets_portable, &any_packets_fastest)
+        };
+        let variants: [Pass; 7] = [
             &|| trace_secs(rays, None, &naive_trace),
             &|| trace_secs(rays, None, c),
             &|| trace_secs(rays, None, p),
             &|| trace_secs(rays, None, f),
             &|| ordered_secs(rays, bounds, f),
+            &|| packet_secs(rays, pp),
+            &|| packet_secs(rays, pf),
         ];
         let runs = Comparison::measure(cfg.runs, rays.len(), variants);
-        let [obvhs, compressed, portable, fastest, ordered] = runs.rates();
-        let [r_compressed, r_portable, r_fastest, r_ordered] =
-            [1, 2, 3, 4].map(|k| runs.ratio(k, 0));
+        let [
+            obvhs,
+            compressed,
+            portable,
+            fastest,
+            ordered,
+            packets_portable,
+            packets_fastest,
+        ] = runs.rates();
+        let [r_compressed, r_portable, r_fastest, r_ordered, r_packets] =
+            [1, 2, 3, 4, 6].map(|k| runs.ratio(k, 0));
+        let packets_over_wide = [runs.ratio(5, 2), runs.ratio(6, 3)];
         let wide_over_compressed = runs.ratio(3, 1);
         writeln!(
             md,
-            "| {name} | {} | {obvhs:.2} | {compressed:.2} | {portable:.2} | {fastest:.2} | {ordered:.2} | {r_compressed:.2}× | {r_portable:.2}× | {r_fastest:.2}× | {r_ordered:.2}× | {wide_over_compressed:.2}× |",
-            rays.len()
+            "| {name} | {} | {obvhs:.2} | {compressed:.2} | {portable:.2} | {fastest:.2} | {ordered:.2} | {packets_portable:.2} | {packets_fastest:.2} | {r_compressed:.2}× | {r_portable:.2}× | {r_fastest:.2}× | {r_ordered:.2}× | {r_packets:.2}× | {:.2}× | {:.2}× | {wide_over_compressed:.2}× |",
+            rays.len(),
+            packets_over_wide[0],
+            packets_over_wide[1],
         )?;
     }
     md.push('\n');

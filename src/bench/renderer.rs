@@ -194,6 +194,8 @@ struct Variant {
     traversal: Traversal,
     level: VectorLevel,
     first_bounce: FirstBounce,
+    /// `World::packets`: the wavefront estimator's coherent rays as packets.
+    packets: bool,
 }
 
 impl Variant {
@@ -205,6 +207,7 @@ impl Variant {
             traversal: Traversal::Compressed,
             level: VectorLevel::detected(),
             first_bounce: FirstBounce::Independent,
+            packets: false,
         }
     }
 
@@ -214,12 +217,22 @@ impl Variant {
             traversal: Traversal::Wide,
             level,
             first_bounce: FirstBounce::default(),
+            packets: true,
+        }
+    }
+
+    /// The same, every ray traced one at a time.
+    fn single_rays(self) -> Variant {
+        Variant {
+            packets: false,
+            ..self
         }
     }
 
     fn apply(self, world: &mut World) {
         world.estimator = self.estimator;
         world.first_bounce = self.first_bounce;
+        world.packets = self.packets;
         world.bvh.set_traversal(self.traversal);
         world.bvh.set_vector_level(self.level);
     }
@@ -234,7 +247,7 @@ fn samples_per_second(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Res
     let best = VectorLevel::detected();
     let name = best.name();
     let mut md = format!(
-        "### Shading samples per second (points of the view's visible surfaces)\n\n\"path\": one path at a time; \"wavefront\": up to 4096 paths (64 points of 64 paths) advance together, their shadow rays then their continuation rays traced as streams, a shadow ray trying the previous one's blocker first (DESIGN.md §7). \"old\": the renderer before its wide traversal and stratified first bounces (one path at a time over obvhs's compressed nodes, {name}, every path's first bounce drawn independently); the others run the wide traversal with stratified first bounces. Same points and seeds, same answers in distribution; each variant's figures include all of its work, and all are timed in turn within each run; ratios are medians of the per-run ratios.\n\n| scene | view | quality | points | old | path, baseline | path, {name} | wavefront, baseline | wavefront, {name} | path {name} / old | {name} / baseline (path) | wavefront / path ({name}) | rays/sample |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "### Shading samples per second (points of the view's visible surfaces)\n\n\"path\": one path at a time; \"wavefront\": up to 4096 paths (64 points of 64 paths) advance together, their shadow rays then their continuation rays traced as streams, a shadow ray trying the previous one's blocker first (DESIGN.md §7), the sun shadow rays of a point's paths traced eight at a time as packets (\"single rays\": without packets). \"old\": the renderer before its wide traversal and stratified first bounces (one path at a time over obvhs's compressed nodes, {name}, every path's first bounce drawn independently); the others run the wide traversal with stratified first bounces. Same points and seeds, same answers in distribution; each variant's figures include all of its work, and all are timed in turn within each run; ratios are medians of the per-run ratios.\n\n| scene | view | quality | points | old | path, baseline | path, {name} | wavefront, baseline | wavefront, {name} | wavefront, {name}, single rays | path {name} / old | {name} / baseline (path) | wavefront / path ({name}) | packets / single rays (wavefront, {name}) | rays/sample |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     let variants = [
         Variant::old(),
@@ -242,6 +255,7 @@ fn samples_per_second(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Res
         Variant::wide(Estimator::Path, best),
         Variant::wide(Estimator::Wavefront, VectorLevel::Baseline),
         Variant::wide(Estimator::Wavefront, best),
+        Variant::wide(Estimator::Wavefront, best).single_rays(),
     ];
     for (world, view) in scenes.iter_mut() {
         let points = visible_points(world, view, cfg.points)?;
@@ -256,7 +270,7 @@ fn samples_per_second(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Res
                 points: points.clone(),
             };
             let mut rays = 0;
-            let per_run: Vec<[f64; 5]> = (0..cfg.runs)
+            let per_run: Vec<[f64; 6]> = (0..cfg.runs)
                 .map(|_| {
                     variants.map(|variant| {
                         variant.apply(world);
@@ -267,13 +281,13 @@ fn samples_per_second(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Res
                 })
                 .collect();
             restore_defaults(world);
-            let rates: [f64; 5] =
+            let rates: [f64; 6] =
                 std::array::from_fn(|k| median(per_run.iter().map(|r| r[k]).collect()));
             let ratio =
                 |k: usize, base: usize| median(per_run.iter().map(|r| r[k] / r[base]).collect());
             writeln!(
                 md,
-                "| {} | {view} | {label} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2}× | {:.2}× | {:.2}× | {:.0} |",
+                "| {} | {view} | {label} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2}× | {:.2}× | {:.2}× | {:.2}× | {:.0} |",
                 world.scene.name,
                 points.len(),
                 rates[0],
@@ -281,9 +295,11 @@ fn samples_per_second(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Res
                 rates[2],
                 rates[3],
                 rates[4],
+                rates[5],
                 ratio(2, 0),
                 ratio(2, 1),
                 ratio(4, 2),
+                ratio(4, 5),
                 rays as f64 / points.len() as f64
             )?;
         }
@@ -306,7 +322,7 @@ fn reference_times(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Result
         Variant::wide(Estimator::Wavefront, best),
     ];
     let mut md = format!(
-        "### Reference render time and noise ({width}×{height}, {spp} paths per pixel, 2 bounces; s, median of {})\n\n\"old\": one path at a time over obvhs's compressed nodes, every path's first bounce drawn independently; \"path\" and \"wavefront\": the estimators over the wide traversal, the first bounces of a pixel's paths stratified (`strata`); all at {}, timed in turn within each run. Run r uses seed r, so the runs of one variant are independent images. Noise: RMS of the luminance difference of the first two runs' images over √2, relative to the mean luminance. \"at equal noise\": old time × old noise² ÷ (time × noise²), the speed-up to the same noise (a Monte Carlo estimator's error falls as 1/√paths).\n\n| scene | view | old s | path s | wavefront s | old / path | old / wavefront | noise, old | path | wavefront | at equal noise, path | wavefront | mean luminance, old | path | wavefront |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "### Reference render time and noise ({width}×{height}, {spp} paths per pixel, 2 bounces; s, median of {})\n\n\"old\": one path at a time over obvhs's compressed nodes, every path's first bounce drawn independently; \"path\" and \"wavefront\": the estimators over the wide traversal, the first bounces of a pixel's paths stratified (`strata`), the wavefront one tracing each pixel's camera rays and each point's sun shadow rays as packets of eight; all at {}, timed in turn within each run. Run r uses seed r, so the runs of one variant are independent images. Noise: RMS of the luminance difference of the first two runs' images over √2, relative to the mean luminance. \"at equal noise\": old time × old noise² ÷ (time × noise²), the speed-up to the same noise (a Monte Carlo estimator's error falls as 1/√paths).\n\n| scene | view | old s | path s | wavefront s | old / path | old / wavefront | noise, old | path | wavefront | at equal noise, path | wavefront | mean luminance, old | path | wavefront |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
         cfg.image_runs,
         best.name()
     );

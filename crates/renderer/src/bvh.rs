@@ -7,6 +7,10 @@
 //! - **compressed**: obvhs's own `traverse!` loop over the CWBVH nodes, the intersection passed
 //!   in as a closure, obvhs style (the only one elsewhere, and the comparison in benchmarks).
 //!
+//! Coherent rays (a pixel tile's camera rays, shadow rays toward the sun) may also be traced as
+//! packets of up to eight rays of one direction octant (`packet_traversal`, over the wide nodes);
+//! each ray gets the answer its one-ray query gives.
+//!
 //! Each query exists once per [`VectorLevel`]. Target features do not reach into a function that
 //! is not inlined, so both traversals are `#[inline(always)]` bodies compiled inside one entry
 //! point per level.
@@ -21,6 +25,8 @@ use scene::Mesh;
 pub use scene::bvh::BuildPreset;
 use scene::bvh::{build_cwbvh, bvh_triangles};
 
+#[cfg(target_arch = "x86_64")]
+use crate::packet_traversal::{self, PACKET, Packet};
 use crate::vector_level::VectorLevel;
 #[cfg(target_arch = "x86_64")]
 use crate::wide_bvh::WideBvh;
@@ -47,6 +53,10 @@ impl Traversal {
     }
 }
 
+/// Rays per packet of the packet queries ([`SceneBvh::closest_hit_packet`]): one AVX register
+/// of lanes.
+pub const PACKET_RAYS: usize = 8;
+
 /// The deepest tree the wide traversal runs.
 pub const WIDE_MAX_DEPTH: usize = 36;
 
@@ -56,6 +66,49 @@ pub struct Hit {
     /// Index into the scene's triangles.
     pub triangle: u32,
     pub t: f32,
+}
+
+/// The rays of a packet query: `origins[k] + t dirs[k]`, t in (0, tmaxs[k]).
+struct Rays<'a> {
+    origins: &'a [Vec3],
+    dirs: &'a [Vec3],
+    tmaxs: &'a [f32],
+}
+
+impl<'a> Rays<'a> {
+    /// Panics unless the slices, and the `answers` the query writes, are equally long.
+    fn new(origins: &'a [Vec3], dirs: &'a [Vec3], tmaxs: &'a [f32], answers: usize) -> Rays<'a> {
+        assert!(
+            dirs.len() == origins.len() && tmaxs.len() == origins.len(),
+            "one direction and one tmax per origin"
+        );
+        assert_eq!(answers, origins.len(), "one answer per ray");
+        Rays {
+            origins,
+            dirs,
+            tmaxs,
+        }
+    }
+
+    /// `answers[k]` for each ray: runs of [`PACKET_RAYS`] consecutive rays offered to
+    /// `as_packet` (which says whether it traced them), the rays of a run it declines to `single`.
+    fn by_packets<T>(
+        &self,
+        answers: &mut [T],
+        as_packet: impl Fn(&[Vec3], &[Vec3], &[f32], &mut [T]) -> bool,
+        single: impl Fn(Vec3, Vec3, f32) -> T,
+    ) {
+        for (k, answers) in answers.chunks_mut(PACKET_RAYS).enumerate() {
+            let run = k * PACKET_RAYS..k * PACKET_RAYS + answers.len();
+            let o = &self.origins[run.clone()];
+            let (d, t) = (&self.dirs[run.clone()], &self.tmaxs[run]);
+            if !as_packet(o, d, t, answers) {
+                for (k, answer) in answers.iter_mut().enumerate() {
+                    *answer = single(o[k], d[k], t[k]);
+                }
+            }
+        }
+    }
 }
 
 pub struct SceneBvh {
@@ -206,6 +259,152 @@ impl SceneBvh {
         }
     }
 
+    /// [`closest_hit`](Self::closest_hit) of each ray `origins[k] + t dirs[k]`, t in
+    /// (0, tmaxs[k]), into `hits[k]`. Consecutive rays go eight at a time as packets
+    /// (`packet_traversal`): worth it for coherent rays, such as a pixel tile's from one eye.
+    /// Eight rays not all of one direction octant, or a tree the wide traversal cannot run, are
+    /// traced one by one. Panics unless the four slices are equally long.
+    pub fn closest_hit_packet(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        tmaxs: &[f32],
+        hits: &mut [Option<Hit>],
+    ) {
+        let rays = Rays::new(origins, dirs, tmaxs, hits.len());
+        rays.by_packets(
+            hits,
+            |o, d, t, hits| self.closest_hit_as_packet(o, d, t, hits),
+            |o, d, t| self.closest_hit(o, d, t),
+        );
+    }
+
+    /// [`occluded`](Self::occluded) for each ray, into `blocked[k]`, eight rays at a time as in
+    /// [`closest_hit_packet`](Self::closest_hit_packet): worth it for shadow rays toward the sun,
+    /// which share nearly one direction.
+    pub fn occluded_packet(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        tmaxs: &[f32],
+        blocked: &mut [bool],
+    ) {
+        let rays = Rays::new(origins, dirs, tmaxs, blocked.len());
+        let as_packet = |o: &[Vec3], d: &[Vec3], t: &[f32], blocked: &mut [bool]| {
+            let mut occluders = [None; PACKET_RAYS];
+            let occluders = &mut occluders[..blocked.len()];
+            let traced = self.occluder_as_packet(o, d, t, occluders);
+            for (b, o) in blocked.iter_mut().zip(occluders.iter()) {
+                *b = o.is_some();
+            }
+            traced
+        };
+        rays.by_packets(blocked, as_packet, |o, d, t| self.occluded(o, d, t));
+    }
+
+    /// [`occluder`](Self::occluder) for each ray, into `occluders[k]`, eight rays at a time as
+    /// in [`closest_hit_packet`](Self::closest_hit_packet).
+    pub(crate) fn occluder_packet(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        tmaxs: &[f32],
+        occluders: &mut [Option<u32>],
+    ) {
+        let rays = Rays::new(origins, dirs, tmaxs, occluders.len());
+        rays.by_packets(
+            occluders,
+            |o, d, t, occluders| self.occluder_as_packet(o, d, t, occluders),
+            |o, d, t| self.occluder(o, d, t),
+        );
+    }
+
+    /// The wide tree and up to [`PACKET_RAYS`] rays as one packet, where the wide traversal runs
+    /// and the rays make one: more than one ray (a packet of one costs more than the one-ray
+    /// query), all of one direction octant.
+    #[cfg(target_arch = "x86_64")]
+    fn as_packet(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        tmaxs: &[f32],
+    ) -> Option<(&WideBvh, Packet)> {
+        let (Traversal::Wide, Some(wide)) = (self.traversal, &self.wide) else {
+            return None;
+        };
+        if origins.len() < 2 {
+            return None;
+        }
+        Some((wide, Packet::new(origins, dirs, tmaxs)?))
+    }
+
+    /// Up to [`PACKET_RAYS`] rays' closest hits as one packet (`as_packet`); false, nothing
+    /// written, where they make none.
+    fn closest_hit_as_packet(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        tmaxs: &[f32],
+        hits: &mut [Option<Hit>],
+    ) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if let Some((wide, packet)) = self.as_packet(origins, dirs, tmaxs) {
+            let mut found = [None; PACKET];
+            let prims = &self.prims;
+            match self.level {
+                // SAFETY: `level` is V3 only where the CPU has every feature of `x86_64_v3`.
+                VectorLevel::V3 => unsafe {
+                    x86_64_v3::packet_closest(wide, prims, &packet, &mut found)
+                },
+                // SAFETY: SSE is part of x86-64.
+                VectorLevel::Baseline => unsafe {
+                    packet_traversal::closest::<wide_traversal::Sse>(
+                        wide, prims, &packet, &mut found,
+                    )
+                },
+            }
+            for (hit, found) in hits.iter_mut().zip(found) {
+                *hit = found.map(|(prim, t)| Hit {
+                    triangle: self.prim_triangle[prim as usize],
+                    t,
+                });
+            }
+            return true;
+        }
+        let _ = (origins, dirs, tmaxs, hits);
+        false
+    }
+
+    /// Up to [`PACKET_RAYS`] rays' occluders as one packet; false as in
+    /// `closest_hit_as_packet`.
+    fn occluder_as_packet(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        tmaxs: &[f32],
+        occluders: &mut [Option<u32>],
+    ) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if let Some((wide, packet)) = self.as_packet(origins, dirs, tmaxs) {
+            let mut found = [None; PACKET];
+            let prims = &self.prims;
+            match self.level {
+                // SAFETY: as in `closest_hit_as_packet`.
+                VectorLevel::V3 => unsafe {
+                    x86_64_v3::packet_any(wide, prims, &packet, &mut found)
+                },
+                // SAFETY: SSE is part of x86-64.
+                VectorLevel::Baseline => unsafe {
+                    packet_traversal::any::<wide_traversal::Sse>(wide, prims, &packet, &mut found)
+                },
+            }
+            occluders.copy_from_slice(&found[..occluders.len()]);
+            return true;
+        }
+        let _ = (origins, dirs, tmaxs, occluders);
+        false
+    }
+
     /// Whether primitive `prim` (an [`occluder`](Self::occluder)) lies on the segment: the
     /// traversal's own triangle test, so a segment it blocks is one the traversal finds blocked.
     pub(crate) fn blocks(&self, prim: u32, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
@@ -274,7 +473,10 @@ impl SceneBvh {
 /// The queries compiled for `x86-64-v3`. The feature list is `vector_level::v3_detected`'s.
 #[cfg(target_arch = "x86_64")]
 mod x86_64_v3 {
-    use super::{Hit, Query, Ray, RtTriangle, SceneBvh, WideBvh, wide_traversal};
+    use super::{
+        Hit, PACKET, Packet, Query, Ray, RtTriangle, SceneBvh, WideBvh, packet_traversal,
+        wide_traversal,
+    };
 
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,movbe,f16c")]
     pub(super) unsafe fn closest_hit(bvh: &SceneBvh, ray: Ray) -> Option<Hit> {
@@ -301,169 +503,29 @@ mod x86_64_v3 {
         // SAFETY: as in `wide_closest`.
         unsafe { wide_traversal::any::<wide_traversal::Avx2>(bvh, prims, q) }
     }
+
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,movbe,f16c")]
+    pub(super) unsafe fn packet_closest(
+        bvh: &WideBvh,
+        prims: &[RtTriangle],
+        packet: &Packet,
+        hits: &mut [Option<(u32, f32)>; PACKET],
+    ) {
+        // SAFETY: as in `wide_closest`.
+        unsafe { packet_traversal::closest::<wide_traversal::Avx2>(bvh, prims, packet, hits) }
+    }
+
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,movbe,f16c")]
+    pub(super) unsafe fn packet_any(
+        bvh: &WideBvh,
+        prims: &[RtTriangle],
+        packet: &Packet,
+        occluders: &mut [Option<u32>; PACKET],
+    ) {
+        // SAFETY: as in `wide_closest`.
+        unsafe { packet_traversal::any::<wide_traversal::Avx2>(bvh, prims, packet, occluders) }
+    }
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use scene::Triangle;
-
-    fn quad_mesh(y: f32) -> Mesh {
-        Mesh {
-            positions: vec![
-                Vec3::new(-1.0, y, -1.0),
-                Vec3::new(1.0, y, -1.0),
-                Vec3::new(1.0, y, 1.0),
-                Vec3::new(-1.0, y, 1.0),
-            ],
-            normals: vec![Vec3::Y; 4],
-            triangles: vec![
-                Triangle {
-                    vertices: [0, 2, 1],
-                    material: 0,
-                },
-                Triangle {
-                    vertices: [0, 3, 2],
-                    material: 0,
-                },
-            ],
-        }
-    }
-
-    #[test]
-    fn closest_hit_finds_the_nearer_plane_and_its_distance() {
-        let mut mesh = quad_mesh(0.0);
-        let upper = quad_mesh(2.0);
-        let base = mesh.positions.len() as u32;
-        mesh.positions.extend(upper.positions);
-        mesh.normals.extend(upper.normals);
-        mesh.triangles
-            .extend(upper.triangles.iter().map(|t| Triangle {
-                vertices: t.vertices.map(|v| v + base),
-                material: 0,
-            }));
-        for preset in [BuildPreset::Fast, BuildPreset::Medium, BuildPreset::Slow] {
-            let bvh = SceneBvh::build(&mesh, preset);
-            let hit = bvh
-                .closest_hit(Vec3::new(0.3, 5.0, 0.2), Vec3::NEG_Y, f32::INFINITY)
-                .unwrap();
-            assert!((hit.t - 3.0).abs() < 1e-5);
-            assert!(hit.triangle >= 2, "upper plane is triangles 2 and 3");
-            let hit = bvh
-                .closest_hit(Vec3::new(0.3, 1.0, 0.2), Vec3::NEG_Y, f32::INFINITY)
-                .unwrap();
-            assert!((hit.t - 1.0).abs() < 1e-5 && hit.triangle < 2);
-            assert!(
-                bvh.closest_hit(Vec3::new(3.0, 1.0, 0.2), Vec3::NEG_Y, f32::INFINITY)
-                    .is_none()
-            );
-        }
-    }
-
-    #[test]
-    fn occlusion_respects_the_segment_length() {
-        let bvh = SceneBvh::build(&quad_mesh(0.0), BuildPreset::Slow);
-        let o = Vec3::new(0.1, 1.0, 0.1);
-        assert!(bvh.occluded(o, Vec3::NEG_Y, 2.0));
-        assert!(!bvh.occluded(o, Vec3::NEG_Y, 0.5));
-        assert!(!bvh.occluded(o, Vec3::Y, 10.0));
-    }
-
-    #[test]
-    fn an_occluder_found_blocks_its_segment_and_not_a_shorter_one() {
-        let bvh = SceneBvh::build(&quad_mesh(0.0), BuildPreset::Slow);
-        let o = Vec3::new(0.1, 1.0, 0.1);
-        let prim = bvh.occluder(o, Vec3::NEG_Y, 2.0).expect("the quad blocks");
-        assert!(bvh.blocks(prim, o, Vec3::NEG_Y, 2.0));
-        assert!(!bvh.blocks(prim, o, Vec3::NEG_Y, 0.5));
-        assert!(!bvh.blocks(prim, o, Vec3::Y, 10.0));
-        assert_eq!(bvh.occluder(o, Vec3::Y, 10.0), None);
-    }
-
-    /// A crumpled sheet of triangles over several scales, for comparing traversals.
-    fn crumpled_mesh() -> Mesh {
-        let n = 40;
-        let mut mesh = Mesh::default();
-        for i in 0..=n {
-            for j in 0..=n {
-                let (x, z) = (i as f32 * 0.25, j as f32 * 0.25);
-                let y = (x * 1.7).sin() * (z * 1.3).cos() + ((i * 31 + j * 17) % 7) as f32 * 0.02;
-                mesh.positions.push(Vec3::new(x, y, z));
-                mesh.normals.push(Vec3::Y);
-            }
-        }
-        let at = |i: usize, j: usize| (i * (n + 1) + j) as u32;
-        for i in 0..n {
-            for j in 0..n {
-                for vertices in [
-                    [at(i, j), at(i + 1, j), at(i + 1, j + 1)],
-                    [at(i, j), at(i + 1, j + 1), at(i, j + 1)],
-                ] {
-                    mesh.triangles.push(Triangle {
-                        vertices,
-                        material: 0,
-                    });
-                }
-            }
-        }
-        mesh
-    }
-
-    #[test]
-    fn both_traversals_give_the_same_answers_at_every_level() {
-        let mesh = crumpled_mesh();
-        let mut rng = crate::sampling::stream(7, 0);
-        let rays: Vec<(Vec3, Vec3, f32)> = (0..4000)
-            .map(|k| {
-                let u = crate::sampling::uniform2(&mut rng);
-                let v = crate::sampling::uniform2(&mut rng);
-                let origin = Vec3::new(u[0] * 10.0, 2.5 * v[0] - 0.5, u[1] * 10.0);
-                let w = crate::sampling::uniform2(&mut rng);
-                // A cone of half-angle π is the whole sphere.
-                let dir = crate::sampling::uniform_cone(Vec3::Y, 2.0, w);
-                // Some axis-parallel rays and some short segments too.
-                let dir = if k % 10 == 0 { Vec3::NEG_Y } else { dir };
-                let tmax = if k % 3 == 0 { 1.5 } else { f32::INFINITY };
-                (origin, dir, tmax)
-            })
-            .collect();
-        for preset in [BuildPreset::Medium, BuildPreset::Slow] {
-            let mut bvh = SceneBvh::build(&mesh, preset);
-            assert_eq!(bvh.traversal(), Traversal::Wide, "x86-64 runs the wide one");
-            for level in [VectorLevel::Baseline, VectorLevel::V3] {
-                if !level.available() {
-                    continue;
-                }
-                bvh.set_vector_level(level);
-                let mut hits = 0;
-                for &(o, d, tmax) in &rays {
-                    bvh.set_traversal(Traversal::Compressed);
-                    let (expected, blocked) =
-                        (bvh.closest_hit(o, d, tmax), bvh.occluded(o, d, tmax));
-                    bvh.set_traversal(Traversal::Wide);
-                    let got = bvh.closest_hit(o, d, tmax);
-                    assert_eq!(got.map(|h| h.t), expected.map(|h| h.t), "{o} {d} {tmax}");
-                    assert_eq!(bvh.occluded(o, d, tmax), blocked, "{o} {d} {tmax}");
-                    if let Some(prim) = bvh.occluder(o, d, tmax) {
-                        assert!(bvh.blocks(prim, o, d, tmax));
-                    }
-                    hits += usize::from(got.is_some());
-                }
-                assert!(
-                    hits > 1000 && hits < 3900,
-                    "{hits} of 4000 rays hit: a poor test set"
-                );
-            }
-        }
-    }
-
-    #[test]
-    fn empty_mesh_hits_nothing() {
-        let bvh = SceneBvh::build(&Mesh::default(), BuildPreset::Slow);
-        assert!(
-            bvh.closest_hit(Vec3::ZERO, Vec3::X, f32::INFINITY)
-                .is_none()
-        );
-        assert!(!bvh.occluded(Vec3::ZERO, Vec3::X, 1.0));
-    }
-}
+mod tests;

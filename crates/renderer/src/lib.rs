@@ -2,6 +2,8 @@
 //! (DESIGN.md §2, §7), plus per-pixel reference images (DESIGN.md §10).
 //!
 //! - [`world`]: a scene prepared for tracing ([`bvh`], [`lights`], [`material`], [`offset`]);
+//! - `wide_bvh`, `wide_traversal`, `packet_traversal`: the BVH's queries over eight-wide nodes,
+//!   one ray at a time or a packet of coherent rays at a time;
 //! - [`estimator`]: path tracing with next-event estimation, one path at a time or as ray
 //!   streams (`wavefront`), the first bounces of a point's paths stratified (`strata`);
 //! - [`point`]: shading points from (triangle, barycentrics, side), hidden-point relocation;
@@ -19,6 +21,8 @@ pub mod estimator;
 pub(crate) mod lights;
 pub(crate) mod material;
 pub(crate) mod offset;
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod packet_traversal;
 pub mod point;
 pub(crate) mod ray_order;
 pub mod reference;

@@ -187,10 +187,10 @@ fn row_as_waves(
     row
 }
 
-/// The camera rays of `pixels` of row `y` (`spp` jittered each), traced as one stream: a ray
-/// that escapes adds what it sees to its pixel of `row` at once; one that hits marks the pixel
-/// covered and becomes a path start (its stream is the pixel), returned with the emission the
-/// camera sees there.
+/// The camera rays of `pixels` of row `y` (`spp` jittered each), traced as one stream (each
+/// pixel's as packets where `World::packets` says so): a ray that escapes adds what it sees to
+/// its pixel of `row` at once; one that hits marks the pixel covered and becomes a path start
+/// (its stream is the pixel), returned with the emission the camera sees there.
 #[allow(clippy::too_many_arguments)]
 fn camera_paths(
     world: &World,
@@ -205,13 +205,22 @@ fn camera_paths(
     let origin = world.to_local(camera.eye_vec());
     let mut starts = Vec::with_capacity(pixels.len() * spp as usize);
     let mut emitted = Vec::with_capacity(starts.capacity());
+    let origins = vec![origin; spp as usize];
+    let mut dirs = vec![Vec3::ZERO; spp as usize];
+    let mut hits = vec![None; spp as usize];
     for x in pixels {
         // The pixel's paths stratify their first bounces together, as in [`pixel`].
         let strata = world.first_bounce.strata(&mut rngs[x]);
-        for k in 0..spp {
+        for dir in &mut dirs {
             let [jx, jy] = uniform2(&mut rngs[x]);
-            let dir = camera.ray_direction(x as f32 + jx, y as f32 + jy);
-            let Some(hit) = world.trace(origin, dir, RayKind::Camera, counts) else {
+            *dir = camera.ray_direction(x as f32 + jx, y as f32 + jy);
+        }
+        // A pixel's rays, from one eye through one pixel, are as coherent as rays get: traced
+        // together as packets (`World::trace_packet`). The jitters come first, then the traces,
+        // which draw nothing, so the answers are those of tracing each ray as it is drawn.
+        world.trace_packet(&origins, &dirs, RayKind::Camera, &mut hits, counts);
+        for (k, (&dir, &hit)) in (0..spp).zip(dirs.iter().zip(&hits)) {
+            let Some(hit) = hit else {
                 add_finite(&mut row[x].0, world.lights.escaped_radiance(dir, true));
                 continue;
             };
@@ -268,4 +277,39 @@ pub fn render_to_files(
         l_white,
     )?;
     Ok((image, counts))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wavefront_images_are_the_same_with_and_without_packets() {
+        let mut world = World::new(scene::load("bracara").expect("built-in bracara"));
+        world.estimator = Estimator::Wavefront;
+        let view = world.scene.settings.viewpoints[0].name.clone();
+        let s = ReferenceSettings {
+            width: 48,
+            height: 32,
+            spp: 8,
+            bounces: Some(1),
+            seed: 5,
+        };
+        let camera = camera_for(&world, &view, s.width, s.height).expect("the view");
+        let [packets, single] = [true, false].map(|packets| {
+            world.packets = packets;
+            render(&world, &camera, &s, None)
+        });
+        assert_eq!(packets.1.total(), single.1.total(), "the same rays");
+        assert_eq!(packets.0.covered, single.0.covered);
+        // Only the order in which a path's shadow rays add their light may differ: rounding.
+        for (a, b) in packets.0.pixels.iter().zip(&single.0.pixels) {
+            let scale = a.max_element().max(1e-3);
+            assert!((*a - *b).abs().max_element() <= 1e-5 * scale, "{a} vs {b}");
+        }
+        assert!(
+            packets.0.covered.iter().any(|&c| c),
+            "the view sees the scene"
+        );
+    }
 }

@@ -5,7 +5,9 @@
 //!
 //! The streams are there to make rays of one kind, and the rays of one shading point (which share
 //! an origin), follow one another through the BVH; shadow rays also try the triangle that blocked
-//! the previous one first (`World::occluded_after`). With obvhs's one-ray-at-a-time traversal
+//! the previous one first (`World::occluded_after`), and the sun shadow rays of a point's paths,
+//! which share an origin and nearly one direction, go eight at a time as packets
+//! (`World::packets`). With obvhs's one-ray-at-a-time traversal
 //! that alone buys little: docs/bench/renderer.md measures both schedules side by side, and
 //! `Estimator::default` is the one that measured faster. Every step is `estimator`'s own, so the
 //! answers are the same in distribution.
@@ -15,6 +17,7 @@
 
 use glam::Vec3;
 
+use crate::bvh::PACKET_RAYS;
 use crate::counters::{RayCounts, RayKind};
 use crate::estimator::{Depth, MAX_DEPTH, ShadowRay, arrive, continuation, shadow_rays};
 use crate::ray_order::RayOrder;
@@ -215,12 +218,78 @@ impl Wave {
         // same point toward it (same origin, nearly the same direction for the sun) are most
         // often blocked by it too.
         let mut last = [None; 3];
-        for ((&p, &origin), ray) in shadow.path.iter().zip(&shadow.origin).zip(&shadow.ray) {
-            let last = &mut last[light_slot(ray.kind)];
-            if !world.occluded_after(origin, ray.dir, ray.tmax, ray.kind, last, counts) {
+        let mut sun = SunPacket::default();
+        for (k, ((&p, &origin), ray)) in shadow
+            .path
+            .iter()
+            .zip(&shadow.origin)
+            .zip(&shadow.ray)
+            .enumerate()
+        {
+            let slot = light_slot(ray.kind);
+            if world.packets && ray.kind == RayKind::ShadowSun {
+                counts.count(ray.kind);
+                let blocked = last[slot]
+                    .is_some_and(|prim| world.bvh.blocks(prim, origin, ray.dir, ray.tmax));
+                if blocked {
+                    continue;
+                }
+                // Only rays from one origin (the paths of one point at their first vertex) make
+                // a packet: later vertices' rays start all over the scene and measured slower
+                // as packets than one by one.
+                if sun.len > 0 && shadow.origin[sun.rays[0]] != origin {
+                    self.trace_sun_packet(world, shadow, &mut sun, &mut last[slot]);
+                }
+                if sun.push(k) {
+                    self.trace_sun_packet(world, shadow, &mut sun, &mut last[slot]);
+                }
+                continue;
+            }
+            if !world.occluded_after(origin, ray.dir, ray.tmax, ray.kind, &mut last[slot], counts) {
                 self.radiance[p as usize] += ray.contribution;
             }
         }
+        self.trace_sun_packet(
+            world,
+            shadow,
+            &mut sun,
+            &mut last[light_slot(RayKind::ShadowSun)],
+        );
+    }
+
+    /// Traces the sun shadow rays waiting in `sun` as one packet (they share nearly one
+    /// direction, DESIGN.md §7), adds what the unblocked ones bring, and empties it; a blocker
+    /// found becomes `last`.
+    fn trace_sun_packet(
+        &mut self,
+        world: &World,
+        shadow: &ShadowStream,
+        sun: &mut SunPacket,
+        last: &mut Option<u32>,
+    ) {
+        let rays = &sun.rays[..sun.len];
+        let (mut origins, mut dirs) = ([Vec3::ZERO; PACKET_RAYS], [Vec3::ZERO; PACKET_RAYS]);
+        let mut tmaxs = [0.0; PACKET_RAYS];
+        for (lane, &k) in rays.iter().enumerate() {
+            origins[lane] = shadow.origin[k];
+            dirs[lane] = shadow.ray[k].dir;
+            tmaxs[lane] = shadow.ray[k].tmax;
+        }
+        let mut occluders = [None; PACKET_RAYS];
+        let occluders = &mut occluders[..rays.len()];
+        world.bvh.occluder_packet(
+            &origins[..rays.len()],
+            &dirs[..rays.len()],
+            &tmaxs[..rays.len()],
+            occluders,
+        );
+        for (&k, occluder) in rays.iter().zip(occluders.iter()) {
+            match occluder {
+                None => self.radiance[shadow.path[k] as usize] += shadow.ray[k].contribution,
+                Some(prim) => *last = Some(*prim),
+            }
+        }
+        sun.len = 0;
     }
 
     /// Traces the continuation rays in `sequence`'s order; the paths that found a next vertex
@@ -266,6 +335,23 @@ impl Wave {
         self.wo.clear();
         self.depth.clear();
         self.first_bounce.clear();
+    }
+}
+
+/// Up to [`PACKET_RAYS`] sun shadow rays of a stream (their indices) waiting to be traced
+/// together.
+#[derive(Default)]
+struct SunPacket {
+    rays: [usize; PACKET_RAYS],
+    len: usize,
+}
+
+impl SunPacket {
+    /// Adds ray `k`; true when the packet is full.
+    fn push(&mut self, k: usize) -> bool {
+        self.rays[self.len] = k;
+        self.len += 1;
+        self.len == PACKET_RAYS
     }
 }
 

@@ -25,14 +25,14 @@ use crate::wide_bvh::{LEAF, STACK, WideBvh, WideNode, leaf_range};
 /// so a plane through the origin gives 0, never 0 · ∞), their product, and which of a node's
 /// plane arrays the ray meets first.
 pub(crate) struct Query {
-    ray: Ray,
-    origin: [f32; 3],
-    inv: [f32; 3],
+    pub(crate) ray: Ray,
+    pub(crate) origin: [f32; 3],
+    pub(crate) inv: [f32; 3],
     /// origin · inv, for the fused slab test.
-    origin_inv: [f32; 3],
+    pub(crate) origin_inv: [f32; 3],
     /// Index into `WideNode::bounds` of the planes met first on each axis (always below 6: the
     /// box tests read them unchecked).
-    near: [usize; 3],
+    pub(crate) near: [usize; 3],
 }
 
 impl Query {
@@ -53,7 +53,7 @@ impl Query {
 
 /// Slack on a box's exit distance, so rounding in the slab test never loses a box the ray
 /// grazes (a few ulps, as in robust BVH traversal).
-const EXIT_SLACK: f32 = 1.0 + 4.0 * f32::EPSILON;
+pub(crate) const EXIT_SLACK: f32 = 1.0 + 4.0 * f32::EPSILON;
 
 /// The children of a node that a ray enters within (0, tmax): a bit per slot, and each slot's
 /// entry distance in `entry`.
@@ -157,7 +157,12 @@ impl BoxTest for Avx2 {
 /// The nearest of a leaf's triangles hit before `tmax`: (primitive, distance). obvhs's own
 /// triangle test, so the answers are its traversal's.
 #[inline(always)]
-fn leaf_nearest(prims: &[RtTriangle], leaf: u32, ray: &Ray, tmax: f32) -> Option<(u32, f32)> {
+pub(crate) fn leaf_nearest(
+    prims: &[RtTriangle],
+    leaf: u32,
+    ray: &Ray,
+    tmax: f32,
+) -> Option<(u32, f32)> {
     let mut nearest = None;
     let mut best = tmax;
     for prim in leaf_range(leaf) {
@@ -172,7 +177,7 @@ fn leaf_nearest(prims: &[RtTriangle], leaf: u32, ray: &Ray, tmax: f32) -> Option
 
 /// Some triangle of a leaf hit before `tmax`.
 #[inline(always)]
-fn leaf_any(prims: &[RtTriangle], leaf: u32, ray: &Ray) -> Option<u32> {
+pub(crate) fn leaf_any(prims: &[RtTriangle], leaf: u32, ray: &Ray) -> Option<u32> {
     leaf_range(leaf)
         .find(|&prim| prims[prim].intersect(ray) < ray.tmax)
         .map(|prim| prim as u32)
@@ -180,14 +185,14 @@ fn leaf_any(prims: &[RtTriangle], leaf: u32, ray: &Ray) -> Option<u32> {
 
 /// A traversal's stack: [`STACK`] entries left uninitialised, since clearing them would cost
 /// more than many node visits (a ray is traced in about a microsecond).
-struct Stack<T: Copy> {
+pub(crate) struct Stack<T: Copy> {
     items: [MaybeUninit<T>; STACK],
-    len: usize,
+    pub(crate) len: usize,
 }
 
 impl<T: Copy> Stack<T> {
     #[inline(always)]
-    fn new() -> Stack<T> {
+    pub(crate) fn new() -> Stack<T> {
         Stack {
             items: [const { MaybeUninit::uninit() }; STACK],
             len: 0,
@@ -197,29 +202,42 @@ impl<T: Copy> Stack<T> {
     /// Panics past [`STACK`] entries, which a tree of at most `wide_bvh::MAX_DEPTH` levels
     /// never reaches.
     #[inline(always)]
-    fn push(&mut self, item: T) {
+    pub(crate) fn push(&mut self, item: T) {
         self.items[self.len] = MaybeUninit::new(item);
         self.len += 1;
     }
 
     #[inline(always)]
-    fn pop(&mut self) -> Option<T> {
+    pub(crate) fn pop(&mut self) -> Option<T> {
         self.len = self.len.checked_sub(1)?;
         // SAFETY: every entry below `len` was written by `push` or `insert_sorted`.
         Some(unsafe { self.items[self.len].assume_init() })
     }
 }
 
-impl Stack<(u32, f32)> {
+/// A stack entry that a nearest-first traversal orders by the distance at which its child is
+/// entered.
+pub(crate) trait EntryDistance: Copy {
+    fn entry_distance(&self) -> f32;
+}
+
+impl EntryDistance for (u32, f32) {
+    #[inline(always)]
+    fn entry_distance(&self) -> f32 {
+        self.1
+    }
+}
+
+impl<T: EntryDistance> Stack<T> {
     /// Pushes `item` among the entries above `base`, which are kept farthest first, so the
     /// nearest is on top.
     #[inline(always)]
-    fn insert_sorted(&mut self, base: usize, item: (u32, f32)) {
+    pub(crate) fn insert_sorted(&mut self, base: usize, item: T) {
         let mut at = self.len;
         while at > base {
             // SAFETY: `base..len` were written.
             let below = unsafe { self.items[at - 1].assume_init() };
-            if below.1 >= item.1 {
+            if below.entry_distance() >= item.entry_distance() {
                 break;
             }
             self.items[at] = MaybeUninit::new(below);

@@ -14,7 +14,7 @@
 use glam::{DVec3, Vec3};
 use scene::{Effects, Scene};
 
-use crate::bvh::{BuildPreset, Hit, SceneBvh};
+use crate::bvh::{BuildPreset, Hit, PACKET_RAYS, SceneBvh};
 use crate::counters::{RayCounts, RayKind};
 use crate::estimator::Estimator;
 use crate::lights::Lights;
@@ -44,6 +44,11 @@ pub struct World {
     pub estimator: Estimator,
     /// How the first bounce of a point's or pixel's paths is sampled (stratified by default).
     pub first_bounce: FirstBounce,
+    /// Whether the wavefront estimator traces its most coherent rays eight at a time as packets
+    /// (`SceneBvh`'s packet queries): a reference pixel's camera rays, and the sun shadow rays of
+    /// a point's paths, which share an origin and nearly one direction (DESIGN.md §7). The
+    /// answers are the same either way; docs/bench/renderer.md measures the cost.
+    pub packets: bool,
     bsdfs: Vec<Bsdf>,
     /// Unit counter-clockwise normal per triangle (zero for a degenerate one).
     face_normals: Vec<Vec3>,
@@ -81,6 +86,7 @@ impl World {
             extent,
             estimator: Estimator::default(),
             first_bounce: FirstBounce::default(),
+            packets: true,
             bvh,
             lights,
             bsdfs,
@@ -160,6 +166,35 @@ impl World {
     ) -> Option<Hit> {
         counts.count(kind);
         self.bvh.closest_hit(origin, dir, tmax)
+    }
+
+    /// [`trace`](Self::trace) for each ray `origins[k] + t dirs[k]`, into `hits[k]`: as packets
+    /// (`SceneBvh::closest_hit_packet`) when [`packets`](Self::packets) says so, else one by
+    /// one. For coherent rays, such as neighbouring pixels' camera rays.
+    pub(crate) fn trace_packet(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        kind: RayKind,
+        hits: &mut [Option<Hit>],
+        counts: &mut RayCounts,
+    ) {
+        const UNBOUNDED: [f32; PACKET_RAYS] = [f32::INFINITY; PACKET_RAYS];
+        for (k, hits) in hits.chunks_mut(PACKET_RAYS).enumerate() {
+            let rays = k * PACKET_RAYS..k * PACKET_RAYS + hits.len();
+            for _ in rays.clone() {
+                counts.count(kind);
+            }
+            let (origins, dirs) = (&origins[rays.clone()], &dirs[rays]);
+            if self.packets {
+                let tmaxs = &UNBOUNDED[..hits.len()];
+                self.bvh.closest_hit_packet(origins, dirs, tmaxs, hits);
+            } else {
+                for (k, hit) in hits.iter_mut().enumerate() {
+                    *hit = self.bvh.closest_hit(origins[k], dirs[k], f32::INFINITY);
+                }
+            }
+        }
     }
 
     pub fn occluded(
