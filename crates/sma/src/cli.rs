@@ -148,6 +148,10 @@ pub struct Cli {
     /// while the viewer rests, up to this many paths each.
     #[arg(long, default_value_t = defaults().schedule.max_paths)]
     pub max_paths: u32,
+    /// No early rung on the quality ladder: upgrades from direct light and the samples of
+    /// refinement steps get the scene's quality at once instead of a quarter of its paths first.
+    #[arg(long)]
+    pub no_early_rung: bool,
     /// Bounces of every path, in place of the scene's quality preset's (fewer: faster and
     /// less accurate).
     #[arg(long)]
@@ -271,6 +275,7 @@ impl Cli {
             coarsen_after_passes: self.coarsen_after_passes,
             seed: self.seed,
             max_paths: self.max_paths,
+            early_rung: !self.no_early_rung,
             bounces: self.bounces,
             display_error: self.display_error,
         }

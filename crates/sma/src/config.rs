@@ -106,6 +106,10 @@ pub struct ScheduleConfig {
     pub seed: u64,
     /// The quality ladder's last rung: paths per sample (DESIGN.md §5).
     pub max_paths: u32,
+    /// Whether the ladder has its early rung, a quarter of the scene's paths, for direct-light
+    /// upgrades and refinement samples (`schedule::plan::Qualities`); off, both get the scene's
+    /// quality at once, so that the two can be measured side by side.
+    pub early_rung: bool,
     /// Bounces of every path, in place of the scene's quality preset's (None: the preset's):
     /// what accuracy costs in time is measured by trading it (DESIGN.md §10).
     pub bounces: Option<u32>,
@@ -137,6 +141,7 @@ impl Default for ScheduleConfig {
             seed: 1,
             // 64 × 4 × 4: two rungs past the interactive preset, a quarter of its noise.
             max_paths: 1024,
+            early_rung: true,
             bounces: None,
             // One step of an 8-bit display.
             display_error: 1.0 / 255.0,

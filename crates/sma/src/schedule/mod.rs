@@ -141,6 +141,7 @@ impl Schedule {
                 bounces: config.bounces.or(quality.bounces),
             },
             config.max_paths,
+            config.early_rung,
         );
         let aging = Aging {
             max_angle_rad: config.view_angle_deg.to_radians(),

@@ -43,11 +43,19 @@ pub fn targets(
 }
 
 /// The quality ladder of progressive shading (DESIGN.md §5, §7): a cheap direct-light sample
-/// first where it is cheaper than the scene's, then the scene's quality, then four times the
-/// paths at each further rung, at the scene's depth, up to `cap_paths`.
+/// first where it is cheaper than the scene's; then an early rung, a quarter of the scene's paths
+/// at its depth; then the scene's quality, which the early rung's paths count toward (same depth:
+/// they accumulate); then four times the paths at each further rung, up to `cap_paths`.
+///
+/// The early rung is what new vertices of a refinement step get, and what a direct-light sample
+/// is upgraded to first: a refinement round waits for its samples, and at a quarter of the paths
+/// the rounds that find the picture's shadow edges and light pools come four times as fast. The
+/// noise-aware criteria weigh the early samples' larger noise (DESIGN.md §4), and every shown
+/// sample is still brought to the scene's quality (`Urgency::Better`) before any climbs past it.
 #[derive(Clone, Copy, Debug)]
 pub struct Qualities {
     pub first: Quality,
+    pub early: Quality,
     pub full: Quality,
     pub cap_paths: u32,
 }
@@ -55,17 +63,47 @@ pub struct Qualities {
 /// Paths grow by this factor from one rung to the next: each rung halves the standard error.
 const RUNG_FACTOR: u32 = 4;
 
+/// The fewest paths of an early rung: below it a sample's variance, which the criteria and the
+/// stopping rule read, says too little.
+const EARLY_MIN_PATHS: u32 = 8;
+
 impl Qualities {
-    pub fn new(full: Quality, cap_paths: u32) -> Self {
+    /// Without `early_rung`, the early rung is the scene's quality itself.
+    pub fn new(full: Quality, cap_paths: u32, early_rung: bool) -> Self {
         let first = if Quality::DIRECT.rank() < full.rank() {
             Quality::DIRECT
         } else {
             full
         };
+        let early_paths = full.paths / RUNG_FACTOR;
+        let early = if early_rung && early_paths >= EARLY_MIN_PATHS {
+            Quality {
+                paths: early_paths,
+                bounces: full.bounces,
+            }
+        } else {
+            full
+        };
         Qualities {
             first,
+            early,
             full,
             cap_paths: cap_paths.max(full.paths),
+        }
+    }
+
+    /// What a shown sample below the scene's quality is upgraded with: (paths traced, total
+    /// reached). One at the scene's depth gets the paths that make up the scene's quality; one
+    /// at another depth (direct light) is replaced by an early-rung sample.
+    pub fn upgrade(&self, cached: Quality) -> (Quality, Quality) {
+        if cached.bounces == self.full.bounces && cached.paths < self.full.paths {
+            let added = Quality {
+                paths: self.full.paths - cached.paths,
+                bounces: self.full.bounces,
+            };
+            (added, self.full)
+        } else {
+            (self.early, self.early)
         }
     }
 
@@ -173,26 +211,29 @@ fn need_key(
         side: key.side,
         eye: view_dependent.then(|| input.eye.to_array()),
     };
-    let full = input.qualities.full;
-    let mut push = |quality, urgency, new_eye| {
+    let qualities = &input.qualities;
+    let mut push = |(quality, target), urgency, new_eye| {
         out.push(Need {
             point,
             quality,
-            target: quality,
+            target,
             urgency,
             priority,
             new_eye,
         });
     };
+    let early = (qualities.early, qualities.early);
     match input.cache.get_seen_from(key, Some(input.eye)) {
-        None if refining => push(full, Urgency::Refinement, false),
+        None if refining => push(early, Urgency::Refinement, false),
         None => {
-            push(input.qualities.first, Urgency::Missing, false);
-            push(full, Urgency::Better, false);
+            push((qualities.first, qualities.first), Urgency::Missing, false);
+            push(early, Urgency::Better, false);
         }
-        Some(s) if s.quality.rank() < full.rank() => push(full, Urgency::Better, false),
+        Some(s) if s.quality.rank() < qualities.full.rank() => {
+            push(qualities.upgrade(s.quality), Urgency::Better, false);
+        }
         Some(s) if s.view_dependent && input.aging.is_stale(mv.position, s.eye, input.eye) => {
-            push(full, Urgency::Better, true);
+            push(early, Urgency::Better, true);
         }
         Some(_) => {}
     }
@@ -287,7 +328,7 @@ mod tests {
             mesh: &mesh,
             cache: &cache,
             view_dependent: &[false; 2],
-            qualities: Qualities::new(Quality::INTERACTIVE, 1024),
+            qualities: Qualities::new(Quality::INTERACTIVE, 1024, true),
             aging: Aging { max_angle_rad: 0.1 },
             more_paths: Some(more),
         })
@@ -320,8 +361,26 @@ mod tests {
     }
 
     #[test]
+    fn direct_light_is_upgraded_to_the_early_rung_whose_paths_then_count_toward_the_scene_quality()
+    {
+        let q = Qualities::new(Quality::INTERACTIVE, 1024, true);
+        let at = |paths, bounces| Quality { paths, bounces };
+        assert_eq!(q.early, at(16, Some(2)));
+        assert_eq!(q.upgrade(at(16, Some(0))), (q.early, q.early));
+        assert_eq!(
+            q.upgrade(at(16, Some(2))),
+            (at(48, Some(2)), at(64, Some(2)))
+        );
+        let few = Qualities::new(at(16, Some(1)), 1024, true);
+        assert_eq!(few.early, few.full, "no early rung under eight paths");
+        let off = Qualities::new(Quality::INTERACTIVE, 1024, false);
+        assert_eq!(off.early, off.full);
+        assert_eq!(off.upgrade(at(16, Some(0))), (off.full, off.full));
+    }
+
+    #[test]
     fn the_ladder_climbs_by_four_at_the_scene_depth_up_to_its_cap() {
-        let q = Qualities::new(Quality::INTERACTIVE, 1024);
+        let q = Qualities::new(Quality::INTERACTIVE, 1024, true);
         let at = |paths, bounces| Quality { paths, bounces };
         assert_eq!(q.first, Quality::DIRECT);
         assert_eq!(
@@ -338,7 +397,7 @@ mod tests {
             None,
             "direct light is upgraded, not climbed"
         );
-        let capped = Qualities::new(Quality::INTERACTIVE, 500);
+        let capped = Qualities::new(Quality::INTERACTIVE, 500, true);
         assert_eq!(
             capped.next_rung(at(256, Some(2))),
             Some((at(244, Some(2)), at(500, Some(2))))
