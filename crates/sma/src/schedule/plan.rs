@@ -51,7 +51,8 @@ pub fn targets(
 /// is upgraded to first: a refinement round waits for its samples, and at a quarter of the paths
 /// the rounds that find the picture's shadow edges and light pools come four times as fast. The
 /// noise-aware criteria weigh the early samples' larger noise (DESIGN.md §4), and every shown
-/// sample is still brought to the scene's quality (`Urgency::Better`) before any climbs past it.
+/// sample is still brought to the scene's quality, whatever its noise shows, as more paths
+/// (`Urgency::Paths`, below refinement) once the viewer has a tone map.
 #[derive(Clone, Copy, Debug)]
 pub struct Qualities {
     pub first: Quality,
@@ -229,8 +230,15 @@ fn need_key(
             push((qualities.first, qualities.first), Urgency::Missing, false);
             push(early, Urgency::Better, false);
         }
+        // An early-rung sample's paths up to the scene's quality come with the viewer's other
+        // more paths (`more_paths`), below refinement: were they `Better`, every round's new
+        // vertices would wait for them before the next round (`turns::refinement_candidate`),
+        // and the rounds would cost the scene's quality again.
         Some(s) if s.quality.rank() < qualities.full.rank() => {
-            push(qualities.upgrade(s.quality), Urgency::Better, false);
+            let top_up = s.quality.bounces == qualities.full.bounces;
+            if !(top_up && input.more_paths.is_some()) {
+                push(qualities.upgrade(s.quality), Urgency::Better, false);
+            }
         }
         Some(s) if s.view_dependent && input.aging.is_stale(mv.position, s.eye, input.eye) => {
             push(early, Urgency::Better, true);
@@ -253,7 +261,10 @@ fn more_paths(
         return;
     };
     let error = sample.estimate().display_standard_error(more.l_white);
-    let urgency = if error > more.threshold {
+    // Below the scene's quality (an early-rung sample) it gets its paths whatever its noise
+    // shows: a variance read from a quarter of the paths may miss what is rare.
+    let below_scene_quality = sample.quality.rank() < input.qualities.full.rank();
+    let urgency = if error > more.threshold || below_scene_quality {
         Urgency::Paths
     } else if more.polish {
         Urgency::Polish
@@ -275,7 +286,11 @@ fn more_paths(
         quality,
         target,
         urgency,
-        priority: error * pixels as f32,
+        priority: if below_scene_quality {
+            error.max(more.threshold)
+        } else {
+            error
+        } * pixels as f32,
         new_eye: false,
     });
 }
@@ -289,6 +304,15 @@ mod tests {
     /// The needs of one visible triangle whose three samples are at the scene's quality with
     /// `luminance_variance` over their paths.
     fn needs_of_one_leaf(luminance_variance: f32, more: MorePaths) -> Vec<Need> {
+        needs_of_one_leaf_at(Quality::INTERACTIVE, luminance_variance, Some(more))
+    }
+
+    /// As [`needs_of_one_leaf`], the samples at `quality`.
+    fn needs_of_one_leaf_at(
+        quality: Quality,
+        luminance_variance: f32,
+        more: Option<MorePaths>,
+    ) -> Vec<Need> {
         let mesh = SubdivisionMesh::new(&crate::mesh::grid_mesh(1), Default::default());
         let mut cache = ShadingCache::new(1 << 20);
         for vertex in mesh.node(0).vertices {
@@ -301,7 +325,7 @@ mod tests {
                 CachedSample {
                     rgb: [0.2; 3],
                     luminance_variance,
-                    quality: Quality::INTERACTIVE,
+                    quality,
                     view_dependent: false,
                     eye: None,
                     last_seen: 0,
@@ -330,8 +354,36 @@ mod tests {
             view_dependent: &[false; 2],
             qualities: Qualities::new(Quality::INTERACTIVE, 1024, true),
             aging: Aging { max_angle_rad: 0.1 },
-            more_paths: Some(more),
+            more_paths: more,
         })
+    }
+
+    #[test]
+    fn early_samples_get_their_paths_below_refinement_once_there_is_a_tone_map() {
+        let early = Quality {
+            paths: 16,
+            bounces: Some(2),
+        };
+        let more = MorePaths {
+            l_white: 1.0,
+            threshold: 1.0 / 255.0,
+            polish: false,
+        };
+        // Quiet or not, an early sample is brought to the scene's 64 paths, as more paths.
+        for variance in [1e-6, 4.0] {
+            let needs = needs_of_one_leaf_at(early, variance, Some(more));
+            assert_eq!(needs.len(), 3);
+            assert!(needs.iter().all(|n| n.urgency == Urgency::Paths
+                && n.quality.paths == 48
+                && n.target == Quality::INTERACTIVE));
+        }
+        // Before the viewer has a tone map it is an upgrade like any other.
+        let needs = needs_of_one_leaf_at(early, 4.0, None);
+        assert!(
+            needs
+                .iter()
+                .all(|n| n.urgency == Urgency::Better && n.quality.paths == 48)
+        );
     }
 
     #[test]

@@ -18,12 +18,13 @@ pub enum Urgency {
     Missing,
     /// A pending refinement step waits for it (DESIGN.md §4).
     Refinement,
-    /// A shown sample to upgrade to the scene's quality, or a view-dependent one to retake for
-    /// the eye that moved (DESIGN.md §5, §7).
+    /// A shown direct-light sample to upgrade to the ladder's early rung (or, without one, to
+    /// the scene's quality), or a view-dependent one to retake for the eye that moved (DESIGN.md
+    /// §5, §7).
     Better,
-    /// More paths for a sample whose noise the person can still see (the quality ladder,
-    /// DESIGN.md §5): the work that fills the renderers whenever nothing above waits, so rest
-    /// time is never idle.
+    /// More paths for a sample whose noise the person can still see, or for an early-rung
+    /// sample up to the scene's quality (the quality ladder, DESIGN.md §5): the work that fills
+    /// the renderers whenever nothing above waits, so rest time is never idle.
     Paths,
     /// More paths for a sample whose noise is already below the threshold, while refinement
     /// still runs: a refinement round waits for its samples and a pass, and near the end those
