@@ -189,13 +189,14 @@ pub struct ConvergenceArgs {
     /// Length of each run; snapshots every second.
     #[arg(long, default_value_t = 60.0)]
     pub seconds: f64,
-    /// Fixed sample counts at which snapshots are also taken: half steps of a doubling, so the
-    /// first seconds, when the error falls fastest, are sampled several times a second (a time
-    /// to reach an error is read at the first snapshot at or below it).
+    /// Fixed sample counts at which snapshots are also taken: quarter steps of a doubling up to
+    /// 32000 samples, half steps after, so the first seconds, when the error falls fastest, are
+    /// sampled several times a second (a time to reach an error is read at the first snapshot at
+    /// or below it, so the grid bounds how finely it is read).
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "1000,1500,2000,3000,4000,6000,8000,12000,16000,24000,32000,48000,64000,96000,128000,192000,256000"
+        default_value = "1000,1250,1500,1750,2000,2500,3000,3500,4000,5000,6000,7000,8000,10000,12000,14000,16000,20000,24000,28000,32000,48000,64000,96000,128000,192000,256000"
     )]
     pub at_samples: Vec<u64>,
     #[command(flatten)]
@@ -230,6 +231,10 @@ pub struct ConvergenceArgs {
     /// Measure nothing: redraw the plots, the section and BENCHMARKS.md from the CSVs in --out.
     #[arg(long)]
     pub report_only: bool,
+    /// Render the views' missing ground truths (into --gt-cache) and stop: they may render while
+    /// the machine does other work, the timed runs may not.
+    #[arg(long, conflicts_with = "report_only")]
+    pub ground_truths_only: bool,
 }
 
 impl ConvergenceArgs {
@@ -253,6 +258,7 @@ impl ConvergenceArgs {
             add_repetitions: self.add_repetitions,
             no_report: self.no_report,
             report_only: self.report_only,
+            ground_truths_only: self.ground_truths_only,
         }
     }
 }

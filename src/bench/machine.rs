@@ -33,3 +33,22 @@ pub fn load_average() -> String {
         .and_then(|load| load.split_whitespace().next().map(str::to_string))
         .unwrap_or_else(|| "unknown".into())
 }
+
+/// When and on what code a figure is measured: today's UTC date and the checkout's commit
+/// (`+` when the work tree has uncommitted changes), so a report that keeps older views' figures
+/// beside new ones says which is which.
+pub fn measured_stamp() -> String {
+    let output = |program: &str, args: &[&str]| {
+        std::process::Command::new(program)
+            .args(args)
+            .output()
+            .ok()
+            .filter(|o| o.status.success())
+            .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+    };
+    let date = output("date", &["-u", "+%Y-%m-%d"]).unwrap_or_else(|| "unknown date".into());
+    let commit = output("git", &["rev-parse", "--short", "HEAD"]).unwrap_or_else(|| "?".into());
+    let dirty = output("git", &["status", "--porcelain", "--untracked-files=no"])
+        .is_some_and(|s| !s.is_empty());
+    format!("{date} at {commit}{}", if dirty { "+" } else { "" })
+}

@@ -6,19 +6,18 @@
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::Instant;
 
 use anyhow::Context;
 
 use crate::bench::convergence::cpu;
 use crate::bench::convergence::manifest::{self, ViewRecord};
 use crate::bench::convergence::record::{self, Measurement, run_labels, run_rows, time_to_reach};
-use crate::bench::convergence::{GROUND_TRUTH_SEED, INTERACTIVE_BOUNCES};
-use crate::bench::metrics::Reference;
 use testkit::loopback::CpuShares;
 
+mod direct;
 mod targets;
+
+use direct::Direct;
 
 pub const SECTION: &str = "docs/bench/accuracy.md";
 
@@ -37,12 +36,6 @@ pub struct AccuracyConfig {
     pub no_report: bool,
 }
 
-/// The competitor on one view.
-pub(crate) struct Direct {
-    seconds: f64,
-    flip: f64,
-}
-
 pub(crate) struct ViewResult {
     record: ViewRecord,
     rows: Vec<Measurement>,
@@ -54,12 +47,9 @@ pub(crate) struct ViewResult {
 pub fn run(args: AccuracyConfig) -> anyhow::Result<()> {
     let exe = std::env::current_exe().context("locating the walkthrough binary")?;
     let mut results = Vec::new();
+    let mut stored = direct::read_records(&args.convergence)?;
     for record in manifest::read(&args.convergence)? {
-        eprintln!(
-            "accuracy: direct render of {} {} at {} paths per pixel…",
-            record.label, record.view, args.spp
-        );
-        let direct = direct_render(&exe, &record, &args)?;
+        let direct = direct::measure_or_recall(&exe, &record, &args, &mut stored)?;
         let rows = record::read_csv(&args.convergence.join(format!("{}.csv", record.stem())))?;
         let cpu = cpu::read_csv(&args.convergence.join(format!("{}-cpu.csv", record.stem())))?;
         results.push(ViewResult {
@@ -72,65 +62,11 @@ pub fn run(args: AccuracyConfig) -> anyhow::Result<()> {
     let md = section(&results, &args);
     print!("{md}");
     if !args.no_report {
+        direct::write_records(&args.convergence, &stored)?;
         std::fs::write(SECTION, &md)?;
         crate::bench::report::assemble(Path::new("BENCHMARKS.md"))?;
     }
     Ok(())
-}
-
-/// Times `walkthrough renderer reference` at the interactive preset as a user would run it (scene
-/// load and BVH build included, as in the thesis's Radiance times), and measures its image.
-fn direct_render(exe: &Path, r: &ViewRecord, args: &AccuracyConfig) -> anyhow::Result<Direct> {
-    std::fs::create_dir_all(&args.direct)?;
-    let out = args.direct.join(format!(
-        "{}-{}x{}-{}spp.exr",
-        r.stem(),
-        r.width,
-        r.height,
-        args.spp
-    ));
-    let started = Instant::now();
-    let status = Command::new(exe)
-        .args([
-            "renderer",
-            "reference",
-            "--scene",
-            &r.scene,
-            "--view",
-            &r.view,
-        ])
-        .args([
-            "--width",
-            &r.width.to_string(),
-            "--height",
-            &r.height.to_string(),
-        ])
-        .args([
-            "--spp",
-            &args.spp.to_string(),
-            "--bounces",
-            &INTERACTIVE_BOUNCES.to_string(),
-        ])
-        // Sharing the ground truth's per-pixel streams would replay its first paths and flatter
-        // the direct render's error.
-        .args(["--seed", &(GROUND_TRUTH_SEED + 1).to_string()])
-        .arg("--out")
-        .arg(&out)
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .status()
-        .context("starting the direct render")?;
-    let seconds = started.elapsed().as_secs_f64();
-    anyhow::ensure!(
-        status.success(),
-        "the direct render of {} failed ({status})",
-        r.stem()
-    );
-    let reference = Reference::read_exr(Path::new(&r.ground_truth))?;
-    let flip = reference
-        .error_of(&crate::bench::metrics::LinearImage::read_exr(&out)?)?
-        .flip;
-    Ok(Direct { seconds, flip })
 }
 
 fn section(results: &[ViewResult], args: &AccuracyConfig) -> String {
@@ -155,8 +91,16 @@ fn view_table(md: &mut String, v: &ViewResult, levels: &[f64]) {
     let r = &v.record;
     let _ = writeln!(
         md,
-        "### {} {} ({}×{}, runs of {} s)\n\nDirect render: {:.1} s, its own mean FLIP {:.3}.\n",
-        r.label, r.view, r.width, r.height, r.seconds, v.direct.seconds, v.direct.flip
+        "### {} {} ({}×{}, runs of {} s{})\n\nDirect render: {:.1} s, its own mean FLIP {:.3} ({}).\n",
+        r.label,
+        r.view,
+        r.width,
+        r.height,
+        r.seconds,
+        crate::bench::convergence::measured_note(&r.measured),
+        v.direct.seconds,
+        v.direct.flip,
+        v.direct.provenance()
     );
     md.push_str("| criterion |");
     for level in levels {

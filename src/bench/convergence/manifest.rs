@@ -7,7 +7,8 @@ use std::path::Path;
 use anyhow::Context;
 
 const FILE: &str = "views.csv";
-const HEADER: &str = "label,scene,view,width,height,gt_spp,seconds,sample_counts,ground_truth";
+const HEADER: &str =
+    "label,scene,view,width,height,gt_spp,seconds,sample_counts,ground_truth,measured";
 
 /// One measured view and its terms.
 #[derive(Clone, Debug, PartialEq)]
@@ -25,6 +26,9 @@ pub struct ViewRecord {
     pub sample_counts: Vec<u64>,
     /// The ground truth EXR (in the ignored cache folder).
     pub ground_truth: String,
+    /// When and at which commit the runs were made (`machine::measured_stamp`); empty in a line
+    /// written before the column existed.
+    pub measured: String,
 }
 
 impl ViewRecord {
@@ -38,18 +42,22 @@ impl ViewRecord {
         let counts: Vec<String> = r.sample_counts.iter().map(u64::to_string).collect();
         let (width, height, spp, seconds) = (r.width, r.height, r.gt_spp, r.seconds);
         format!(
-            "{},{},{},{width},{height},{spp},{seconds},{},{}",
+            "{},{},{},{width},{height},{spp},{seconds},{},{},{}",
             r.label,
             r.scene,
             r.view,
             counts.join(";"),
-            r.ground_truth
+            r.ground_truth,
+            r.measured
         )
     }
 
     fn parse(line: &str) -> anyhow::Result<ViewRecord> {
         let f: Vec<&str> = line.split(',').collect();
-        anyhow::ensure!(f.len() == 9, "expected 9 fields");
+        anyhow::ensure!(
+            f.len() == 9 || f.len() == 10,
+            "expected 10 fields (9 before `measured`)"
+        );
         Ok(ViewRecord {
             label: f[0].into(),
             scene: f[1].into(),
@@ -64,6 +72,7 @@ impl ViewRecord {
                 .map(str::parse)
                 .collect::<Result<_, _>>()?,
             ground_truth: f[8].into(),
+            measured: f.get(9).copied().unwrap_or("").into(),
         })
     }
 }
@@ -108,7 +117,17 @@ mod tests {
             seconds,
             sample_counts: vec![1000, 2000],
             ground_truth: "out/gt/x.exr".into(),
+            measured: "2026-12-04 at abc1234".into(),
         }
+    }
+
+    #[test]
+    fn a_line_from_before_the_measured_column_still_reads() {
+        let mut r = record("MC", 5.0);
+        let line = r.line();
+        let old = line.rsplit_once(',').unwrap().0;
+        r.measured.clear();
+        assert_eq!(ViewRecord::parse(old).unwrap(), r);
     }
 
     #[test]

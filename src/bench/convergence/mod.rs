@@ -85,6 +85,9 @@ pub struct ConvergenceConfig {
     pub no_report: bool,
     /// Measure nothing: redraw the plots, the section and BENCHMARKS.md from the CSVs in --out.
     pub report_only: bool,
+    /// Render the views' missing ground truths and stop: they take minutes a view and time
+    /// nothing, so they may render while the machine does other work; the runs may not.
+    pub ground_truths_only: bool,
 }
 
 /// A view of a scene to measure.
@@ -110,11 +113,15 @@ pub fn run(args: ConvergenceConfig) -> anyhow::Result<()> {
         views(args.scene.as_deref(), &args.views)?
     };
     for spec in specs {
+        if args.ground_truths_only {
+            ground_truth(&args, &spec).ensure(&args.gt_cache)?;
+            continue;
+        }
         eprintln!("convergence: {} {}", spec.label, spec.view);
         let record = measure_view(&args, &exe, &spec, &criteria)?;
         manifest::upsert(&args.out, &record)?;
     }
-    if !args.no_report {
+    if !args.no_report && !args.ground_truths_only {
         std::fs::create_dir_all(Path::new(SECTION).parent().expect("a folder"))?;
         std::fs::write(SECTION, section(&args.out)?)?;
         crate::bench::report::assemble(Path::new("BENCHMARKS.md"))?;
@@ -194,15 +201,18 @@ fn strings(v: &[&str]) -> Vec<String> {
     v.iter().map(|s| s.to_string()).collect()
 }
 
-/// Ground truth, the run without refinement and one run per criterion; writes the view's CSV and
-/// strip (the plot is drawn with the section, from the CSV).
-fn measure_view(
-    args: &ConvergenceConfig,
-    exe: &Path,
-    spec: &ViewSpec,
-    criteria: &[String],
-) -> anyhow::Result<ViewRecord> {
-    let gt = GroundTruth {
+/// "; measured …" for a view's heading, nothing for a record older than the stamp.
+pub(crate) fn measured_note(measured: &str) -> String {
+    if measured.is_empty() {
+        String::new()
+    } else {
+        format!("; measured {measured}")
+    }
+}
+
+/// The view's ground truth at the runs' size and the interactive depth.
+fn ground_truth(args: &ConvergenceConfig, spec: &ViewSpec) -> GroundTruth {
+    GroundTruth {
         scene: spec.scene.clone(),
         view: spec.view.clone(),
         width: args.width,
@@ -211,7 +221,17 @@ fn measure_view(
         bounces: INTERACTIVE_BOUNCES,
         seed: GROUND_TRUTH_SEED,
     }
-    .ensure(&args.gt_cache)?;
+}
+
+/// Ground truth, the run without refinement and one run per criterion; writes the view's CSV and
+/// strip (the plot is drawn with the section, from the CSV).
+fn measure_view(
+    args: &ConvergenceConfig,
+    exe: &Path,
+    spec: &ViewSpec,
+    criteria: &[String],
+) -> anyhow::Result<ViewRecord> {
+    let gt = ground_truth(args, spec).ensure(&args.gt_cache)?;
     let reference = Reference::read_exr(&gt)?;
     let record = ViewRecord {
         label: spec.label.clone(),
@@ -223,6 +243,7 @@ fn measure_view(
         seconds: args.seconds,
         sample_counts: args.at_samples.clone(),
         ground_truth: gt.to_string_lossy().into_owned(),
+        measured: crate::bench::machine::measured_stamp(),
     };
     let runs_dir = args.runs.join(record.stem());
     let csv = args.out.join(format!("{}.csv", record.stem()));
@@ -407,8 +428,14 @@ pub fn section(out: &Path) -> anyhow::Result<String> {
         plots::error_panels(&out.join(format!("{}.svg", record.stem())), &title, &rows)?;
         let _ = writeln!(
             md,
-            "### {} {} ({}×{}, ground truth {} paths per pixel, runs of {} s)\n",
-            record.label, record.view, record.width, record.height, record.gt_spp, record.seconds
+            "### {} {} ({}×{}, ground truth {} paths per pixel, runs of {} s{})\n",
+            record.label,
+            record.view,
+            record.width,
+            record.height,
+            record.gt_spp,
+            record.seconds,
+            measured_note(&record.measured)
         );
         if let Some(base) = base_mesh(&rows) {
             let _ = writeln!(

@@ -141,6 +141,7 @@ mod tests {
             seconds: 2.0,
             sample_counts: vec![100, 200, 400],
             ground_truth: "gt.exr".into(),
+            measured: String::new(),
         }
     }
 
