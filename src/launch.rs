@@ -206,6 +206,11 @@ impl Termination {
     }
 }
 
+/// How long the children together get to stop after SIGINT. On two cores loaded by other work,
+/// with wgpu on a software rasteriser (lavapipe), a child has been seen to need just over three
+/// seconds to close; one that is really stuck is still killed well before a person gives up.
+const GRACEFUL_STOP: Duration = Duration::from_secs(8);
+
 /// Ends every child. After a signal each is asked to stop (SIGINT: the renderer and the SMA shut
 /// down their listeners, the viewer simply exits) and all together get a few seconds before the
 /// rest are killed; a signal sent to the launcher alone, not to its process group as a terminal's
@@ -220,7 +225,7 @@ async fn stop_all(children: &mut [Child], ask_first: bool) {
             }
         }
     }
-    let deadline = tokio::time::Instant::now() + Duration::from_secs(3);
+    let deadline = tokio::time::Instant::now() + GRACEFUL_STOP;
     // Last started, first stopped: the SMA before its renderers, so it does not report them lost.
     for child in children.iter_mut().rev() {
         if ask_first
@@ -230,13 +235,21 @@ async fn stop_all(children: &mut [Child], ask_first: bool) {
         {
             continue;
         }
+        // One that ended just as the deadline passed is no child to kill.
+        if ask_first && matches!(child.try_wait(), Ok(Some(_))) {
+            continue;
+        }
         if ask_first {
             let program = child
                 .id()
                 .and_then(|pid| std::fs::read_to_string(format!("/proc/{pid}/cmdline")).ok())
                 .map(|cmdline| cmdline.replace('\0', " "))
                 .unwrap_or_default();
-            tracing::warn!(%program, "a child did not stop within 3 s: killing it");
+            tracing::warn!(
+                %program,
+                seconds = GRACEFUL_STOP.as_secs(),
+                "a child did not stop in time: killing it"
+            );
         }
         let _ = child.kill().await;
     }
