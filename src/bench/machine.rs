@@ -34,9 +34,9 @@ pub fn load_average() -> String {
         .unwrap_or_else(|| "unknown".into())
 }
 
-/// When and on what code a figure is measured: today's UTC date and the checkout's commit
-/// (`+` when the work tree has uncommitted changes), so a report that keeps older views' figures
-/// beside new ones says which is which.
+/// When and on what code a figure is measured: today's UTC date and the checkout's commit (`+`
+/// when its code has uncommitted changes; the reports a benchmark writes do not count), so a
+/// report that keeps older views' figures beside new ones says which is which.
 pub fn measured_stamp() -> String {
     let output = |program: &str, args: &[&str]| {
         std::process::Command::new(program)
@@ -48,7 +48,15 @@ pub fn measured_stamp() -> String {
     };
     let date = output("date", &["-u", "+%Y-%m-%d"]).unwrap_or_else(|| "unknown date".into());
     let commit = output("git", &["rev-parse", "--short", "HEAD"]).unwrap_or_else(|| "?".into());
-    let dirty = output("git", &["status", "--porcelain", "--untracked-files=no"])
-        .is_some_and(|s| !s.is_empty());
+    let code = ["Cargo.toml", "Cargo.lock", "crates", "src", "tests"];
+    let dirty = output(
+        "git",
+        &[
+            &["status", "--porcelain", "--untracked-files=no", "--"][..],
+            &code[..],
+        ]
+        .concat(),
+    )
+    .is_some_and(|s| !s.is_empty());
     format!("{date} at {commit}{}", if dirty { "+" } else { "" })
 }

@@ -7,7 +7,10 @@
 //! so no region is skipped. A pass ends at 1-pixel quadrants. A call that reaches R selections
 //! resumes there next time, on whatever image it is then given; a pass that selected something
 //! is followed by another on the image of that time (refinement has changed it), one that
-//! selected nothing ends the criterion's work for the camera. At most `nld_is_fraction` × width ×
+//! selected nothing ends the criterion's work for the camera. A pass starts only on an image
+//! that shows something: the SMA paces its viewer syncs, so a round may come before the first
+//! triangles are shown, and a pass over that blank image would find nothing and end the work
+//! before the picture exists. At most `nld_is_fraction` × width ×
 //! height leaves are selected per camera.
 
 use std::collections::{HashMap, HashSet, VecDeque};
@@ -209,6 +212,9 @@ impl NldIs {
     /// With the queue empty: ends the pass under way, if any (another is due only if it
     /// selected something), and starts the next over the whole image if one is due.
     fn start_pass(&mut self, image: &LuminanceImage) -> bool {
+        if !shows_anything(image) {
+            return false;
+        }
         if self.in_pass {
             self.in_pass = false;
             self.pass_due = self.found;
@@ -226,6 +232,16 @@ impl NldIs {
         });
         true
     }
+}
+
+/// Whether any pixel that sees geometry is lit: a luminance image of a view whose triangles are
+/// not shown yet is black wherever it sees geometry.
+fn shows_anything(image: &LuminanceImage) -> bool {
+    image
+        .ids
+        .iter()
+        .zip(&image.luminance)
+        .any(|(&id, &l)| id != LuminanceImage::NONE && l > 0.0)
 }
 
 #[cfg(test)]
@@ -268,6 +284,20 @@ mod tests {
         assert!(is.select(&edge.input(), usize::MAX).is_empty());
         assert!(is.queue.is_empty() && !is.pass_due);
         is.reset();
+        assert!(!is.select(&edge.input(), usize::MAX).is_empty());
+    }
+
+    /// A round before the first triangles are shown sees a blank image: it selects nothing and
+    /// does not end the work, so the picture, once shown, is refined.
+    #[test]
+    fn a_blank_image_neither_selects_nor_ends_the_work() {
+        let mut edge = Synthetic::new(4, 64, Shading::ShadowEdge);
+        let shown = edge.image.luminance.clone();
+        edge.image.luminance.fill(0.0);
+        let mut is = NldIs::new(&CriterionSettings::default(), Metric::Thesis);
+        assert!(is.select(&edge.input(), usize::MAX).is_empty());
+        assert!(is.select(&edge.input(), usize::MAX).is_empty());
+        edge.image.luminance = shown;
         assert!(!is.select(&edge.input(), usize::MAX).is_empty());
     }
 
