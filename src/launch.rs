@@ -235,11 +235,11 @@ async fn stop_all(children: &mut [Child], ask_first: bool) {
         {
             continue;
         }
-        // One that ended just as the deadline passed is no child to kill.
-        if ask_first && matches!(child.try_wait(), Ok(Some(_))) {
-            continue;
-        }
         if ask_first {
+            // One that ended just as the deadline passed is no child to kill.
+            if matches!(child.try_wait(), Ok(Some(_))) {
+                continue;
+            }
             let program = child
                 .id()
                 .and_then(|pid| std::fs::read_to_string(format!("/proc/{pid}/cmdline")).ok())
