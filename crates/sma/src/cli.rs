@@ -152,6 +152,11 @@ pub struct Cli {
     /// refinement steps get the scene's quality at once instead of a quarter of its paths first.
     #[arg(long)]
     pub no_early_rung: bool,
+    /// While refinement's samples wait, this share of the paths traced still goes to bringing
+    /// early-rung samples up to the scene's quality (0..1; 0: only when refinement waits for
+    /// nothing).
+    #[arg(long, default_value_t = defaults().schedule.top_up_share)]
+    pub top_up_share: f64,
     /// Bounces of every path, in place of the scene's quality preset's (fewer: faster and
     /// less accurate).
     #[arg(long)]
@@ -276,6 +281,7 @@ impl Cli {
             seed: self.seed,
             max_paths: self.max_paths,
             early_rung: !self.no_early_rung,
+            top_up_share: self.top_up_share,
             bounces: self.bounces,
             display_error: self.display_error,
         }

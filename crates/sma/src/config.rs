@@ -110,6 +110,10 @@ pub struct ScheduleConfig {
     /// upgrades and refinement samples (`schedule::plan::Qualities`); off, both get the scene's
     /// quality at once, so that the two can be measured side by side.
     pub early_rung: bool,
+    /// While refinement's samples are queued, the share of the paths traced that goes to
+    /// bringing early-rung samples up to the scene's quality (`schedule::requests::Urgency::
+    /// TopUp`); 0: only when refinement waits for nothing.
+    pub top_up_share: f64,
     /// Bounces of every path, in place of the scene's quality preset's (None: the preset's):
     /// what accuracy costs in time is measured by trading it (DESIGN.md §10).
     pub bounces: Option<u32>,
@@ -142,6 +146,7 @@ impl Default for ScheduleConfig {
             // 64 × 4 × 4: two rungs past the interactive preset, a quarter of its noise.
             max_paths: 1024,
             early_rung: true,
+            top_up_share: 0.5,
             bounces: None,
             // One step of an 8-bit display.
             display_error: 1.0 / 255.0,

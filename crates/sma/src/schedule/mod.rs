@@ -155,7 +155,7 @@ impl Schedule {
             converged: false,
             coarsening,
             cache: ShadingCache::new(config.cache_budget_bytes),
-            requests: Requests::new(config.seed),
+            requests: Requests::new(config.seed, config.top_up_share),
             config,
             view_dependent,
             qualities,

@@ -51,8 +51,9 @@ pub fn targets(
 /// is upgraded to first: a refinement round waits for its samples, and at a quarter of the paths
 /// the rounds that find the picture's shadow edges and light pools come four times as fast. The
 /// noise-aware criteria weigh the early samples' larger noise (DESIGN.md §4), and every shown
-/// sample is still brought to the scene's quality, whatever its noise shows, as more paths
-/// (`Urgency::Paths`, below refinement) once the viewer has a tone map.
+/// sample is still brought to the scene's quality, whatever its noise shows, as a top-up
+/// (`Urgency::TopUp`: refinement does not wait for it, but it gets a share of the paths) once
+/// the viewer has a tone map.
 #[derive(Clone, Copy, Debug)]
 pub struct Qualities {
     pub first: Quality,
@@ -230,8 +231,8 @@ fn need_key(
             push((qualities.first, qualities.first), Urgency::Missing, false);
             push(early, Urgency::Better, false);
         }
-        // An early-rung sample's paths up to the scene's quality come with the viewer's other
-        // more paths (`more_paths`), below refinement: were they `Better`, every round's new
+        // An early-rung sample's paths up to the scene's quality come as a top-up
+        // (`more_paths`), which refinement does not wait for: were they `Better`, every round's new
         // vertices would wait for them before the next round (`turns::refinement_candidate`),
         // and the rounds would cost the scene's quality again.
         Some(s) if s.quality.rank() < qualities.full.rank() => {
@@ -264,7 +265,9 @@ fn more_paths(
     // Below the scene's quality (an early-rung sample) it gets its paths whatever its noise
     // shows: a variance read from a quarter of the paths may miss what is rare.
     let below_scene_quality = sample.quality.rank() < input.qualities.full.rank();
-    let urgency = if error > more.threshold || below_scene_quality {
+    let urgency = if below_scene_quality {
+        Urgency::TopUp
+    } else if error > more.threshold {
         Urgency::Paths
     } else if more.polish {
         Urgency::Polish
@@ -359,7 +362,7 @@ mod tests {
     }
 
     #[test]
-    fn early_samples_get_their_paths_below_refinement_once_there_is_a_tone_map() {
+    fn early_samples_are_topped_up_below_refinement_once_there_is_a_tone_map() {
         let early = Quality {
             paths: 16,
             bounces: Some(2),
@@ -369,11 +372,11 @@ mod tests {
             threshold: 1.0 / 255.0,
             polish: false,
         };
-        // Quiet or not, an early sample is brought to the scene's 64 paths, as more paths.
+        // Quiet or not, an early sample is brought to the scene's 64 paths, as a top-up.
         for variance in [1e-6, 4.0] {
             let needs = needs_of_one_leaf_at(early, variance, Some(more));
             assert_eq!(needs.len(), 3);
-            assert!(needs.iter().all(|n| n.urgency == Urgency::Paths
+            assert!(needs.iter().all(|n| n.urgency == Urgency::TopUp
                 && n.quality.paths == 48
                 && n.target == Quality::INTERACTIVE));
         }

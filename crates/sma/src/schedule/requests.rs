@@ -3,7 +3,7 @@
 //! priorities follow the camera; a key already in flight at a quality at least as good is never
 //! asked twice.
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::{HashMap, HashSet, VecDeque};
 
 use glam::Vec3;
 use protocol::renderer_link::{Quality, SampleKey, ShadeBatch, ShadePoint};
@@ -22,9 +22,15 @@ pub enum Urgency {
     /// the scene's quality), or a view-dependent one to retake for the eye that moved (DESIGN.md
     /// §5, §7).
     Better,
-    /// More paths for a sample whose noise the person can still see, or for an early-rung
-    /// sample up to the scene's quality (the quality ladder, DESIGN.md §5): the work that fills
-    /// the renderers whenever nothing above waits, so rest time is never idle.
+    /// An early-rung sample's paths up to the scene's quality (the quality ladder, DESIGN.md
+    /// §5). Refinement never waits for them (each round's new vertices would otherwise cost the
+    /// scene's quality again before the next round), but while refinement runs they take a share
+    /// of the paths traced (`Requests::new`'s `top_up_share`): without one, a scene whose
+    /// refinement never stops within the run keeps most of its shown samples at the early
+    /// rung's noise.
+    TopUp,
+    /// More paths for a sample whose noise the person can still see: the work that fills the
+    /// renderers whenever nothing above waits, so rest time is never idle.
     Paths,
     /// More paths for a sample whose noise is already below the threshold, while refinement
     /// still runs: a refinement round waits for its samples and a pass, and near the end those
@@ -47,6 +53,22 @@ pub struct Need {
     pub priority: f32,
     /// Wanted although a sample of this quality is cached: its eye is out of date.
     pub new_eye: bool,
+}
+
+/// A batch taken from the queue, and the kind of its needs (`kind_of`).
+struct Taken {
+    kind: Urgency,
+    batch: ShadeBatch,
+}
+
+/// The kinds a batch never mixes: awaited needs (as `Urgency::Missing`), top-ups, and more
+/// paths (as `Urgency::Paths`, polish included).
+fn kind_of(urgency: Urgency) -> Urgency {
+    match urgency {
+        u if awaited(u) => Urgency::Missing,
+        Urgency::TopUp => Urgency::TopUp,
+        _ => Urgency::Paths,
+    }
 }
 
 /// How far down the queue, in batches of needs, a batch looks for needs of its own quality.
@@ -79,23 +101,65 @@ struct InFlight {
     count: u32,
 }
 
+/// Whether a need is one a picture or a refinement step waits for.
+fn awaited(urgency: Urgency) -> bool {
+    urgency < Urgency::TopUp
+}
+
+/// Each batch taken shrinks the paths counted before it by this factor, so the share of
+/// `TopUpShare` is held over the last few dozen batches, not since the start.
+const SHARE_MEMORY: f64 = 0.95;
+
+/// Paths traced recently for awaited needs and for top-ups taken beside them.
+#[derive(Clone, Copy, Debug, Default)]
+struct TopUpShare {
+    awaited_paths: f64,
+    top_up_paths: f64,
+}
+
+impl TopUpShare {
+    /// Whether the next batch should be top-ups, to keep their share of the paths at `share`.
+    fn owes_top_ups(&self, share: f64) -> bool {
+        let total = self.awaited_paths + self.top_up_paths;
+        self.top_up_paths < share * total || (total == 0.0 && share > 0.0)
+    }
+
+    fn count(&mut self, paths: f64, top_up: bool) {
+        self.awaited_paths *= SHARE_MEMORY;
+        self.top_up_paths *= SHARE_MEMORY;
+        if top_up {
+            self.top_up_paths += paths;
+        } else {
+            self.awaited_paths += paths;
+        }
+    }
+}
+
 #[derive(Default)]
 pub struct Requests {
     /// Sorted by urgency, then priority; only ever popped at the front.
     queue: VecDeque<Need>,
     in_flight: HashMap<SampleKey, InFlight, FastHash>,
     batches_in_flight: usize,
-    /// Batches in flight for needs above [`Urgency::Paths`], and their points: what refinement
-    /// waits for (a batch holds needs of one kind only, see `next_batch`).
-    urgent_batches: HashMap<u64, usize, FastHash>,
+    /// Batches in flight for awaited needs (above [`Urgency::TopUp`]), and their points: what
+    /// refinement waits for (a batch holds needs of one kind only, see `next_batch`).
+    awaited_batches: HashMap<u64, usize, FastHash>,
+    /// Top-up batches taken beside awaited ones: they go out with them, ahead of more paths.
+    shared_batches: HashSet<u64, FastHash>,
+    /// The share of the paths that top-ups get while awaited needs are queued.
+    top_up_share: f64,
+    recent: TopUpShare,
     next_batch_id: u64,
     seed: u64,
 }
 
 impl Requests {
-    pub fn new(seed: u64) -> Self {
+    /// `top_up_share`: the fraction of the paths traced that go to early-rung top-ups while
+    /// needs a picture or a refinement step waits for are queued (0: only once none are).
+    pub fn new(seed: u64, top_up_share: f64) -> Self {
         Requests {
             seed,
+            top_up_share: top_up_share.clamp(0.0, 1.0),
             ..Default::default()
         }
     }
@@ -129,11 +193,11 @@ impl Requests {
         self.queue.len()
     }
 
-    /// Samples queued or in flight that a picture or a refinement step waits for: all but more
-    /// paths for samples already shown, which only fill the renderers' spare time.
+    /// Samples queued or in flight that a picture or a refinement step waits for: all but
+    /// top-ups and more paths for samples already shown.
     pub fn outstanding_before_paths(&self) -> usize {
-        self.queue.partition_point(|n| n.urgency < Urgency::Paths)
-            + self.urgent_batches.values().sum::<usize>()
+        self.queue.partition_point(|n| awaited(n.urgency))
+            + self.awaited_batches.values().sum::<usize>()
     }
 
     pub fn in_flight_keys(&self) -> usize {
@@ -144,9 +208,10 @@ impl Requests {
         self.batches_in_flight
     }
 
-    /// Whether a batch in flight holds needs a picture or a refinement step waits for.
+    /// Whether a batch goes out ahead of more paths: it holds needs a picture or a refinement
+    /// step waits for, or top-ups taken as their share beside those.
     pub fn is_urgent(&self, batch_id: u64) -> bool {
-        self.urgent_batches.contains_key(&batch_id)
+        self.awaited_batches.contains_key(&batch_id) || self.shared_batches.contains(&batch_id)
     }
 
     /// Whether `key` is being shaded at `quality` or better.
@@ -156,29 +221,65 @@ impl Requests {
             .is_some_and(|f| f.best >= quality.rank())
     }
 
-    /// The next batch: up to `max_points` queued needs of the quality and kind (more paths or
-    /// not) of the first unsatisfied need, taken from the next `BATCH_WINDOW` batches' worth of
-    /// the queue, skipping those a cached sample or one in flight already satisfies. Needs of
-    /// other qualities keep their places. (Taking only a run of equal qualities from the head
-    /// made batches of one to three points where rungs of the ladder alternate, and the
-    /// renderers spent their time on per-batch overhead.)
+    /// The next batch: up to `max_points` queued needs of the quality and kind (awaited,
+    /// top-up, or more paths) of the first unsatisfied need, taken from the next `BATCH_WINDOW`
+    /// batches' worth of the queue, skipping those a cached sample or one in flight already
+    /// satisfies. Needs of other qualities keep their places. (Taking only a run of equal
+    /// qualities from the head made batches of one to three points where rungs of the ladder
+    /// alternate, and the renderers spent their time on per-batch overhead.) While awaited
+    /// needs are queued, top-ups get their share of the paths (`TopUpShare`).
     pub fn next_batch(&mut self, max_points: usize, cache: &ShadingCache) -> Option<ShadeBatch> {
+        let top_ups = self.queue.partition_point(|n| awaited(n.urgency));
+        let has_top_ups = self
+            .queue
+            .get(top_ups)
+            .is_some_and(|n| n.urgency == Urgency::TopUp);
+        let shared = top_ups > 0 && has_top_ups && self.recent.owes_top_ups(self.top_up_share);
+        let batch = if shared {
+            self.batch_from(top_ups, Some(Urgency::TopUp), max_points, cache)
+        } else {
+            None
+        };
+        let batch = batch.or_else(|| self.batch_from(0, None, max_points, cache))?;
+        let Taken { kind, batch } = batch;
+        let paths = batch.points.len() as f64 * f64::from(batch.quality.paths);
+        let batch_id = batch.batch_id;
+        if awaited(kind) {
+            self.awaited_batches.insert(batch_id, batch.points.len());
+            self.recent.count(paths, false);
+        } else if kind == Urgency::TopUp && top_ups > 0 {
+            self.shared_batches.insert(batch_id);
+            self.recent.count(paths, true);
+        }
+        Some(batch)
+    }
+
+    /// A batch whose first need is the first unsatisfied one at or after `start` in the queue
+    /// (of kind `only`, if given: none when the queue holds no more of it there).
+    fn batch_from(
+        &mut self,
+        start: usize,
+        only: Option<Urgency>,
+        max_points: usize,
+        cache: &ShadingCache,
+    ) -> Option<Taken> {
         let head = loop {
-            let need = self.queue.pop_front()?;
+            let next = self.queue.get(start)?;
+            if only.is_some_and(|kind| kind_of(next.urgency) != kind) {
+                return None;
+            }
+            let need = self.queue.remove(start)?;
             if !self.satisfied(&need, cache) {
                 break need;
             }
         };
-        let (quality, urgent) = (head.quality, head.urgency < Urgency::Paths);
-        let window = self
-            .queue
-            .len()
-            .min(max_points.saturating_mul(BATCH_WINDOW));
+        let (quality, kind) = (head.quality, kind_of(head.urgency));
+        let window = (self.queue.len() - start).min(max_points.saturating_mul(BATCH_WINDOW));
         let mut kept = Vec::new();
         let mut points = Vec::new();
         self.take(&head, &mut points);
-        for need in self.queue.drain(..window).collect::<Vec<_>>() {
-            let same_kind = need.quality == quality && (need.urgency < Urgency::Paths) == urgent;
+        for need in self.queue.drain(start..start + window).collect::<Vec<_>>() {
+            let same_kind = need.quality == quality && kind_of(need.urgency) == kind;
             if points.len() >= max_points || !same_kind {
                 kept.push(need);
             } else if !self.satisfied(&need, cache) {
@@ -186,20 +287,20 @@ impl Requests {
             }
         }
         for need in kept.into_iter().rev() {
-            self.queue.push_front(need);
+            self.queue.insert(start, need);
         }
         self.next_batch_id += 1;
         self.batches_in_flight += 1;
         let batch_id = self.next_batch_id;
-        if urgent {
-            self.urgent_batches.insert(batch_id, points.len());
-        }
         let seed = self.seed ^ batch_id.wrapping_mul(0x9E37_79B9_7F4A_7C15);
-        Some(ShadeBatch {
-            batch_id,
-            quality,
-            seed,
-            points,
+        Some(Taken {
+            kind,
+            batch: ShadeBatch {
+                batch_id,
+                quality,
+                seed,
+                points,
+            },
         })
     }
 
@@ -225,7 +326,8 @@ impl Requests {
     /// A batch came back (answered or failed): its keys are no longer in flight for it.
     pub fn finished(&mut self, batch: &ShadeBatch) {
         self.batches_in_flight = self.batches_in_flight.saturating_sub(1);
-        self.urgent_batches.remove(&batch.batch_id);
+        self.awaited_batches.remove(&batch.batch_id);
+        self.shared_batches.remove(&batch.batch_id);
         for point in &batch.points {
             if let Some(f) = self.in_flight.get_mut(&point.key) {
                 f.count -= 1;
@@ -268,7 +370,7 @@ mod tests {
     #[test]
     fn batches_follow_urgency_then_priority_and_never_repeat_a_key_in_flight() {
         let cache = ShadingCache::new(1 << 20);
-        let mut r = Requests::new(7);
+        let mut r = Requests::new(7, 0.0);
         r.replan(vec![
             need(1, Quality::INTERACTIVE, Urgency::Better, 100.0),
             need(2, Quality::DIRECT, Urgency::Missing, 1.0),
@@ -293,7 +395,7 @@ mod tests {
     #[test]
     fn the_queue_orders_by_urgency_then_larger_priority_and_keeps_equals_in_order() {
         let cache = ShadingCache::new(1 << 20);
-        let mut r = Requests::new(7);
+        let mut r = Requests::new(7, 0.0);
         let priorities = [
             0.5,
             -3.0,
@@ -322,7 +424,7 @@ mod tests {
     #[test]
     fn alternating_rungs_of_the_ladder_still_fill_whole_batches_in_order() {
         let cache = ShadingCache::new(1 << 20);
-        let mut r = Requests::new(7);
+        let mut r = Requests::new(7, 0.0);
         let rung = |i: u32| Quality {
             paths: if i.is_multiple_of(2) { 192 } else { 768 },
             bounces: Some(2),
@@ -348,7 +450,7 @@ mod tests {
     #[test]
     fn more_paths_fill_their_own_batches_and_never_hold_refinement_back() {
         let cache = ShadingCache::new(1 << 20);
-        let mut r = Requests::new(7);
+        let mut r = Requests::new(7, 0.0);
         r.replan(vec![
             need(1, Quality::INTERACTIVE, Urgency::Paths, 9.0),
             need(2, Quality::INTERACTIVE, Urgency::Paths, 8.0),
@@ -367,11 +469,61 @@ mod tests {
     }
 
     #[test]
+    fn top_ups_get_their_share_of_the_paths_while_refinement_waits_and_are_not_awaited() {
+        let cache = ShadingCache::new(1 << 20);
+        let early = Quality {
+            paths: 16,
+            bounces: Some(2),
+        };
+        let top_up = Quality {
+            paths: 48,
+            bounces: Some(2),
+        };
+        let queue = || {
+            let refinement = (0..64).map(|i| need(i, early, Urgency::Refinement, 1.0));
+            let top_ups = (100..164).map(|i| need(i, top_up, Urgency::TopUp, 1.0));
+            refinement.chain(top_ups).collect::<Vec<_>>()
+        };
+        // Share 0: refinement's eight batches first, then the top-ups.
+        let mut r = Requests::new(7, 0.0);
+        r.replan(queue());
+        let kinds: Vec<u32> = (0..16)
+            .map(|_| r.next_batch(8, &cache).unwrap().quality.paths)
+            .collect();
+        assert_eq!(kinds, [[16; 8], [48; 8]].concat());
+        // Share 1/2: top-up batches cost three times the paths, so about one in four batches.
+        let mut r = Requests::new(7, 0.5);
+        r.replan(queue());
+        let mut taken = Vec::new();
+        while r.queue.front().is_some_and(|n| awaited(n.urgency)) {
+            let batch = r.next_batch(8, &cache).unwrap();
+            assert!(
+                r.is_urgent(batch.batch_id),
+                "top-ups go out with refinement"
+            );
+            taken.push(batch);
+        }
+        let paths = |q: u32| -> u32 {
+            let of = taken.iter().filter(|b| b.quality.paths == q);
+            of.map(|b| b.points.len() as u32 * q).sum()
+        };
+        let share = f64::from(paths(48)) / f64::from(paths(16) + paths(48));
+        assert!((0.4..=0.6).contains(&share), "top-ups took {share:.2}");
+        // Top-ups in flight hold no refinement back.
+        let refinement: usize = taken.iter().filter(|b| b.quality.paths == 16).count();
+        assert_eq!(refinement, 8);
+        for b in taken.iter().filter(|b| b.quality.paths == 16) {
+            r.finished(b);
+        }
+        assert_eq!(r.outstanding_before_paths(), 0);
+    }
+
+    #[test]
     fn needs_satisfied_while_queued_leave_nothing_outstanding_once_submission_passes() {
         // The schedule counts `outstanding` after submitting: a queue whose needs were all
         // answered meanwhile must drain to zero then, or an epoch would never report completion.
         let mut cache = ShadingCache::new(1 << 20);
-        let mut r = Requests::new(7);
+        let mut r = Requests::new(7, 0.0);
         r.replan(vec![
             need(1, Quality::DIRECT, Urgency::Missing, 1.0),
             need(2, Quality::DIRECT, Urgency::Missing, 1.0),
