@@ -142,14 +142,17 @@ fn weld(positions: &[Vec3]) -> (Vec<Vec3>, Vec<u32>) {
 }
 
 /// Zero area, or so thin that its normal means nothing: twice its area is below 1e-7 of its
-/// longest edge squared (a sine of the smallest angle below ~1e-7), or it overflows.
+/// longest edge squared (a sine of the smallest angle below ~1e-7). Also a triangle whose
+/// normal cannot be made unit in `f32`: its squared length overflows (edges beyond ~4e9) or
+/// falls to zero or into subnormals (twice the area below ~1e-19), where normalising gives a
+/// zero or inexact vector instead of the unit normal the renderer and the SMA rely on.
 fn is_degenerate([a, b, c]: [Vec3; 3]) -> bool {
-    let twice_area = (b - a).cross(c - a).length();
+    let twice_area_squared = (b - a).cross(c - a).length_squared();
     let longest = (b - a)
         .length_squared()
         .max((c - b).length_squared())
         .max((a - c).length_squared());
-    twice_area.is_nan() || twice_area <= 1e-7 * longest
+    !twice_area_squared.is_normal() || twice_area_squared.sqrt() <= 1e-7 * longest
 }
 
 #[cfg(test)]
@@ -250,6 +253,20 @@ mod tests {
         let v = b.vertex(Vec3::ONE);
         b.triangle([v, v, v], m);
         assert!(matches!(b.build(), Err(SceneError::Empty)));
+    }
+
+    #[test]
+    fn triangles_whose_normal_overflows_or_underflows_are_dropped() {
+        let mut b = SceneBuilder::new(settings());
+        let m = b.material(Material::diffuse("grey", Vec3::splat(0.5)));
+        for scale in [1e10, 1e-20, 1.0] {
+            let [p, q, r] = [Vec3::ZERO, Vec3::X, Vec3::Y].map(|v| b.vertex(v * scale));
+            b.triangle([p, q, r], m);
+        }
+        let scene = b.build().expect("the unit triangle is kept");
+        assert_eq!(scene.report.dropped_triangles, 2);
+        assert_eq!(scene.mesh.triangles.len(), 1);
+        assert!(scene.mesh.normals.iter().all(|n| n.is_normalized()));
     }
 
     /// A random triangle soup over a small grid of points (so vertices are shared, welded,
