@@ -90,7 +90,8 @@ pub struct ScheduleConfig {
     /// rate: it covers the schedule's longest turns (a pass, a refinement round), so the
     /// renderers never wait for them.
     pub renderer_backlog: Duration,
-    /// Refinement waits until fewer samples than this are queued or in flight.
+    /// Refinement waits until fewer samples than this, of those a picture or a refinement step
+    /// waits for (`Requests::outstanding_before_paths`), are queued or in flight.
     pub queue_low: usize,
     /// A camera rests once unchanged this long.
     pub rest: Duration,
@@ -136,7 +137,8 @@ impl Default for ScheduleConfig {
             batch_points: 128,
             batches_per_renderer: 4,
             renderer_backlog: Duration::from_millis(500),
-            queue_low: 256,
+            // Overlaps a round with the shading of the last one's upgrades (see `cli.rs`).
+            queue_low: 4096,
             rest: Duration::from_millis(100),
             view_angle_deg: 2.0,
             stats_every: Duration::from_secs(2),
