@@ -84,6 +84,9 @@ pub struct ScheduleConfig {
     pub revisit_samples: u64,
     /// Points per shade batch.
     pub batch_points: usize,
+    /// Paths per shade batch, at most (at least one point): a batch at a high rung of the
+    /// quality ladder carries fewer points (`schedule::requests::BatchLimit`).
+    pub batch_paths: u64,
     /// Batches in flight per connected renderer.
     pub batches_per_renderer: usize,
     /// Work the pool keeps waiting beyond the renderers' batches, in time at their measured
@@ -135,6 +138,8 @@ impl Default for ScheduleConfig {
             min_split_pixels: 2,
             revisit_samples: 20_000,
             batch_points: 128,
+            // As `Cli::batch_paths`, with the figures that chose it.
+            batch_paths: 16_384,
             batches_per_renderer: 4,
             renderer_backlog: Duration::from_millis(500),
             // Overlaps a round with the shading of the last one's upgrades (see `cli.rs`).

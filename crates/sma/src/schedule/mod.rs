@@ -53,7 +53,7 @@ use coarsening::Coarsening;
 use costs::{Pace, Work, WorkCosts};
 use pending::PendingRefinement;
 use plan::{Aging, MorePaths, NeedsInput, Qualities};
-use requests::Requests;
+use requests::{BatchLimit, Requests};
 use turns::{Feed, RefineGate, TurnView};
 use viewers::{SyncInput, Viewer};
 use waits::Owed;
@@ -516,10 +516,11 @@ impl Schedule {
             if in_flight >= most || (in_flight >= held && backlog_full) {
                 break;
             }
-            let Some(batch) = self
-                .requests
-                .next_batch(self.config.batch_points, &self.cache)
-            else {
+            let limit = BatchLimit {
+                points: self.config.batch_points,
+                paths: self.config.batch_paths,
+            };
+            let Some(batch) = self.requests.next_batch(limit, &self.cache) else {
                 break;
             };
             let lane = if self.requests.is_urgent(batch.batch_id) {

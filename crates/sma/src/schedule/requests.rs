@@ -74,6 +74,28 @@ fn kind_of(urgency: Urgency) -> Urgency {
 /// How far down the queue, in batches of needs, a batch looks for needs of its own quality.
 const BATCH_WINDOW: usize = 8;
 
+/// How much one batch may carry (`ScheduleConfig::batch_points`, `batch_paths`). The paths bound
+/// keeps a batch's time at the renderer short at every rung of the quality ladder: a renderer
+/// finishes the batches it holds before it starts the next, so an awaited sample (a picture or a
+/// refinement step waits for it) queues behind at most a few of them, and a batch of 128 points
+/// at 1024 paths each takes a tenth of a second on Sponza.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BatchLimit {
+    pub points: usize,
+    pub paths: u64,
+}
+
+impl BatchLimit {
+    /// The points of a batch that traces `quality`: at most `points`, and at most `paths` paths
+    /// in all, but always one.
+    fn points_at(self, quality: Quality) -> usize {
+        let by_paths = self.paths / u64::from(quality.paths.max(1));
+        self.points
+            .min(usize::try_from(by_paths).unwrap_or(usize::MAX))
+            .max(1)
+    }
+}
+
 /// What a queue holds once: a key at a quality (`Quality::rank`).
 type NeedId = (SampleKey, (u32, u32));
 
@@ -221,14 +243,14 @@ impl Requests {
             .is_some_and(|f| f.best >= quality.rank())
     }
 
-    /// The next batch: up to `max_points` queued needs of the quality and kind (awaited,
+    /// The next batch: up to `limit`'s queued needs of the quality and kind (awaited,
     /// top-up, or more paths) of the first unsatisfied need, taken from the next `BATCH_WINDOW`
     /// batches' worth of the queue, skipping those a cached sample or one in flight already
     /// satisfies. Needs of other qualities keep their places. (Taking only a run of equal
     /// qualities from the head made batches of one to three points where rungs of the ladder
     /// alternate, and the renderers spent their time on per-batch overhead.) While awaited
     /// needs are queued, top-ups get their share of the paths (`TopUpShare`).
-    pub fn next_batch(&mut self, max_points: usize, cache: &ShadingCache) -> Option<ShadeBatch> {
+    pub fn next_batch(&mut self, limit: BatchLimit, cache: &ShadingCache) -> Option<ShadeBatch> {
         let top_ups = self.queue.partition_point(|n| awaited(n.urgency));
         let has_top_ups = self
             .queue
@@ -236,11 +258,11 @@ impl Requests {
             .is_some_and(|n| n.urgency == Urgency::TopUp);
         let shared = top_ups > 0 && has_top_ups && self.recent.owes_top_ups(self.top_up_share);
         let batch = if shared {
-            self.batch_from(top_ups, Some(Urgency::TopUp), max_points, cache)
+            self.batch_from(top_ups, Some(Urgency::TopUp), limit, cache)
         } else {
             None
         };
-        let batch = batch.or_else(|| self.batch_from(0, None, max_points, cache))?;
+        let batch = batch.or_else(|| self.batch_from(0, None, limit, cache))?;
         let Taken { kind, batch } = batch;
         let paths = batch.points.len() as f64 * f64::from(batch.quality.paths);
         let batch_id = batch.batch_id;
@@ -263,11 +285,11 @@ impl Requests {
         &mut self,
         start: usize,
         only: Option<Urgency>,
-        max_points: usize,
+        limit: BatchLimit,
         cache: &ShadingCache,
     ) -> Option<Taken> {
         let before: Vec<Need> = self.queue.drain(..start.min(self.queue.len())).collect();
-        let taken = self.batch_at_front(only, max_points, cache);
+        let taken = self.batch_at_front(only, limit, cache);
         for need in before.into_iter().rev() {
             self.queue.push_front(need);
         }
@@ -278,7 +300,7 @@ impl Requests {
     fn batch_at_front(
         &mut self,
         only: Option<Urgency>,
-        max_points: usize,
+        limit: BatchLimit,
         cache: &ShadingCache,
     ) -> Option<Taken> {
         let head = loop {
@@ -292,10 +314,11 @@ impl Requests {
             }
         };
         let (quality, kind) = (head.quality, kind_of(head.urgency));
+        let max_points = limit.points_at(quality);
         let window = self
             .queue
             .len()
-            .min(max_points.saturating_mul(BATCH_WINDOW));
+            .min(limit.points.saturating_mul(BATCH_WINDOW));
         let mut kept = Vec::new();
         let mut points = Vec::new();
         self.take(&head, &mut points);
@@ -388,6 +411,44 @@ mod tests {
         }
     }
 
+    /// At most `n` points, whatever their paths.
+    fn points(n: usize) -> BatchLimit {
+        BatchLimit {
+            points: n,
+            paths: u64::MAX,
+        }
+    }
+
+    #[test]
+    fn a_batch_of_many_paths_per_point_carries_fewer_points() {
+        let cache = ShadingCache::new(1 << 20);
+        let mut r = Requests::new(7, 0.0);
+        let rung = Quality {
+            paths: 256,
+            ..Quality::INTERACTIVE
+        };
+        r.replan(
+            (0..10)
+                .map(|v| need(v, rung, Urgency::Paths, 1.0))
+                .chain((10..20).map(|v| need(v, Quality::DIRECT, Urgency::Paths, 0.5)))
+                .collect(),
+        );
+        let limit = BatchLimit {
+            points: 8,
+            paths: 1000,
+        };
+        let sizes = |r: &mut Requests, limit| {
+            let b: ShadeBatch = r.next_batch(limit, &cache).unwrap();
+            (b.quality.paths, b.points.len())
+        };
+        assert_eq!(sizes(&mut r, limit), (256, 3), "1000 / 256 paths");
+        assert_eq!(sizes(&mut r, limit), (256, 3));
+        let tight = BatchLimit { paths: 1, ..limit };
+        assert_eq!(sizes(&mut r, tight), (256, 1), "never empty");
+        assert_eq!(sizes(&mut r, limit), (256, 3));
+        assert_eq!(sizes(&mut r, limit), (16, 8), "points bound cheap ones");
+    }
+
     #[test]
     fn batches_follow_urgency_then_priority_and_never_repeat_a_key_in_flight() {
         let cache = ShadingCache::new(1 << 20);
@@ -399,7 +460,7 @@ mod tests {
             need(3, Quality::DIRECT, Urgency::Missing, 10.0),
         ]);
         assert_eq!(r.outstanding(), 3);
-        let b = r.next_batch(8, &cache).unwrap();
+        let b = r.next_batch(points(8), &cache).unwrap();
         assert_eq!(b.quality, Quality::DIRECT);
         assert_eq!(
             b.points.iter().map(|p| p.key.vertex).collect::<Vec<_>>(),
@@ -407,7 +468,7 @@ mod tests {
         );
         // Re-planning the same needs while they fly asks nothing twice.
         r.replan(vec![need(3, Quality::DIRECT, Urgency::Missing, 50.0)]);
-        assert!(r.next_batch(8, &cache).is_none());
+        assert!(r.next_batch(points(8), &cache).is_none());
         r.finished(&b);
         assert_eq!(r.in_flight_keys(), 0);
         assert_eq!(r.batches_in_flight(), 0);
@@ -435,7 +496,7 @@ mod tests {
             .collect();
         needs.push(need(100, Quality::DIRECT, Urgency::Missing, -1e9));
         r.replan(needs);
-        let batch = r.next_batch(16, &cache).unwrap();
+        let batch = r.next_batch(points(16), &cache).unwrap();
         let order: Vec<u32> = batch.points.iter().map(|p| p.key.vertex).collect();
         // Missing before Better whatever the priority; then descending `total_cmp` (0.0 above
         // -0.0), the two 7.25 in the order given.
@@ -455,11 +516,11 @@ mod tests {
                 .map(|i| need(i, rung(i), Urgency::Paths, 100.0 - i as f32))
                 .collect(),
         );
-        let first = r.next_batch(8, &cache).unwrap();
+        let first = r.next_batch(points(8), &cache).unwrap();
         assert_eq!(first.quality.paths, 192);
         let vertices: Vec<u32> = first.points.iter().map(|p| p.key.vertex).collect();
         assert_eq!(vertices, vec![0, 2, 4, 6, 8, 10, 12, 14]);
-        let second = r.next_batch(8, &cache).unwrap();
+        let second = r.next_batch(points(8), &cache).unwrap();
         assert_eq!(
             second.quality.paths, 768,
             "the skipped needs kept their place"
@@ -478,10 +539,10 @@ mod tests {
             need(3, Quality::INTERACTIVE, Urgency::Refinement, 1.0),
         ]);
         assert_eq!((r.outstanding(), r.outstanding_before_paths()), (3, 1));
-        let refinement = r.next_batch(8, &cache).unwrap();
+        let refinement = r.next_batch(points(8), &cache).unwrap();
         assert_eq!(refinement.points.len(), 1, "a batch holds one kind of need");
         assert_eq!(r.outstanding_before_paths(), 1, "in flight, still awaited");
-        let paths = r.next_batch(8, &cache).unwrap();
+        let paths = r.next_batch(points(8), &cache).unwrap();
         assert_eq!(paths.points.len(), 2);
         r.finished(&refinement);
         assert_eq!((r.outstanding(), r.outstanding_before_paths()), (2, 0));
@@ -509,7 +570,7 @@ mod tests {
         let mut r = Requests::new(7, 0.0);
         r.replan(queue());
         let kinds: Vec<u32> = (0..16)
-            .map(|_| r.next_batch(8, &cache).unwrap().quality.paths)
+            .map(|_| r.next_batch(points(8), &cache).unwrap().quality.paths)
             .collect();
         assert_eq!(kinds, [[16; 8], [48; 8]].concat());
         // Share 1/2: top-up batches cost three times the paths, so about one in four batches.
@@ -517,7 +578,7 @@ mod tests {
         r.replan(queue());
         let mut taken = Vec::new();
         while r.queue.front().is_some_and(|n| awaited(n.urgency)) {
-            let batch = r.next_batch(8, &cache).unwrap();
+            let batch = r.next_batch(points(8), &cache).unwrap();
             assert!(
                 r.is_urgent(batch.batch_id),
                 "top-ups go out with refinement"
@@ -565,7 +626,7 @@ mod tests {
             cache.insert(key, sample);
         }
         assert_eq!(r.outstanding(), 2);
-        assert!(r.next_batch(8, &cache).is_none());
+        assert!(r.next_batch(points(8), &cache).is_none());
         assert_eq!(r.outstanding(), 0);
     }
 }

@@ -26,6 +26,9 @@ pub struct LeafView {
     pub submitted_leaves: usize,
 }
 
+/// Cameras whose level-1 result is kept: one per viewer resting while another walks.
+const KEPT_LEVEL1: usize = 8;
+
 /// Owns the device, the ID pipeline and the uploaded base mesh.
 pub struct Visibility {
     gpu: Gpu,
@@ -36,6 +39,11 @@ pub struct Visibility {
     leaves: TriangleBuffer,
     /// Scene bounds, for near and far planes that hold the whole scene.
     bounds: (Vec3, Vec3),
+    /// The visible base triangles of the latest cameras, latest first. The base mesh never
+    /// changes, so level 1 depends on the camera alone: a pass that follows a refinement round
+    /// (the leaves changed, the camera did not) renders level 2 only. On Sponza level 1 was
+    /// about a third of a pass, and the passes most of the SMA's time.
+    level1: Vec<(Camera, Vec<u32>)>,
 }
 
 impl Visibility {
@@ -56,6 +64,7 @@ impl Visibility {
             base,
             leaves: TriangleBuffer::default(),
             bounds,
+            level1: Vec::new(),
         }
     }
 
@@ -75,14 +84,7 @@ impl Visibility {
     ) -> Result<LeafView, GpuError> {
         let view = self.view(camera);
         let (w, h) = (camera.width, camera.height);
-        let level1 = self.pass.render(&self.gpu, &self.base, &view)?;
-        let bases: Vec<u32> = level1
-            .coverage(mesh.base_count())
-            .iter()
-            .enumerate()
-            .filter(|(_, c)| c.pixels > 0)
-            .map(|(b, _)| b as u32)
-            .collect();
+        let bases = self.visible_bases(mesh, camera, &view)?;
         let submitted: Vec<NodeId> = bases.iter().flat_map(|&b| mesh.leaves_of_base(b)).collect();
         let positions: Vec<[Vec3; 3]> = submitted.iter().map(|&l| mesh.leaf_positions(l)).collect();
         self.leaves.upload(&self.gpu, &positions, view.eye());
@@ -115,6 +117,33 @@ impl Visibility {
             visible_bases: bases.len(),
             submitted_leaves: submitted.len(),
         })
+    }
+}
+
+impl Visibility {
+    /// Level 1: the base triangles `camera` sees, rendered unless kept from an earlier pass.
+    fn visible_bases(
+        &mut self,
+        mesh: &SubdivisionMesh,
+        camera: &Camera,
+        view: &View,
+    ) -> Result<Vec<u32>, GpuError> {
+        if let Some(at) = self.level1.iter().position(|(c, _)| c == camera) {
+            let kept = self.level1.remove(at);
+            self.level1.insert(0, kept);
+            return Ok(self.level1[0].1.clone());
+        }
+        let level1 = self.pass.render(&self.gpu, &self.base, view)?;
+        let bases: Vec<u32> = level1
+            .coverage(mesh.base_count())
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.pixels > 0)
+            .map(|(b, _)| b as u32)
+            .collect();
+        self.level1.insert(0, (camera.clone(), bases.clone()));
+        self.level1.truncate(KEPT_LEVEL1);
+        Ok(bases)
     }
 }
 
