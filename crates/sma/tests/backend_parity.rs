@@ -10,7 +10,6 @@
 use std::collections::HashMap;
 
 use protocol::Side;
-use protocol::types::Viewpoint;
 use protocol::viewer_link::Camera;
 use sma::mesh::{MeshParams, NodeId, SubdivisionMesh};
 use sma::visibility::{Gpu, LeafView, Visibility};
@@ -41,14 +40,7 @@ fn open(name: &str, backends: wgpu::Backends) -> Option<Gpu> {
 }
 
 fn camera(vp: &scene::ViewpointSetting) -> Camera {
-    let viewpoint = Viewpoint {
-        name: vp.name.clone(),
-        eye: vp.eye,
-        target: vp.target,
-        up: vp.up,
-        fov_y_deg: vp.fov_y_deg,
-    };
-    Camera::from_viewpoint(&viewpoint, 1, W, H)
+    testkit::views::camera(vp, W, H)
 }
 
 /// Pixels per visible (leaf, side).

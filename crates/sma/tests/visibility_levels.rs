@@ -5,7 +5,6 @@
 //! unless `WALKTHROUGH_REQUIRE_GPU` is set, where it fails.
 
 use glam::Vec3;
-use protocol::types::Viewpoint;
 use protocol::viewer_link::Camera;
 use sma::mesh::{MeshParams, NodeId, SubdivisionMesh};
 use sma::visibility::{Gpu, LeafView, Visibility};
@@ -15,14 +14,7 @@ const W: u32 = 256;
 const H: u32 = 192;
 
 fn camera(vp: &scene::ViewpointSetting) -> Camera {
-    let viewpoint = Viewpoint {
-        name: vp.name.clone(),
-        eye: vp.eye,
-        target: vp.target,
-        up: vp.up,
-        fov_y_deg: vp.fov_y_deg,
-    };
-    Camera::from_viewpoint(&viewpoint, 1, W, H)
+    testkit::views::camera(vp, W, H)
 }
 
 /// Each visible (leaf, side) with its pixels.

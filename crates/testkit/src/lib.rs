@@ -9,7 +9,8 @@
 //! - [`fake_sma`]: an SMA stand-in that sends what a viewer test queues and reports what it hears;
 //! - [`ground_truth`]: a view's per-pixel reference image, rendered once and kept on disk;
 //! - [`gpu`]: the `WALKTHROUGH_REQUIRE_GPU` rule for tests that need an adapter;
-//! - [`moved_scene`]: a scene moved far from the origin, geometry and viewpoints.
+//! - [`moved_scene`]: a scene moved far from the origin, geometry and viewpoints;
+//! - [`views`]: a scene's viewpoint as a viewer's camera.
 
 pub mod child;
 pub mod fake_renderer;
@@ -20,3 +21,4 @@ pub mod liar;
 pub mod loopback;
 pub mod moved_scene;
 pub mod probe;
+pub mod views;
