@@ -11,16 +11,13 @@ use protocol::viewer_link::{Camera, Epoch, ViewerToSma};
 use crate::camera_path::CameraPath;
 use crate::camera_sender::{CameraSender, DEFAULT_INTERVAL};
 use crate::config::ViewerConfig;
-use crate::draw::{DrawSettings, depth_range};
-use crate::gpu::Gpu;
+use crate::draw::DrawSettings;
 use crate::link::{Link, LinkEvent};
-use crate::offscreen::{DISPLAY_FORMAT, Offscreen};
-use crate::overlay::{PanelPainter, fixed_screen};
 use crate::panel::Facts;
 use crate::progress::ProgressPrinter;
 use crate::session::{pick_viewpoint, preferences};
 use crate::snapshot_files::{SnapshotRecord, SnapshotWriter};
-use crate::vertex_buffer::GpuTriangles;
+use crate::snapshot_painter::{Canvas, Frame};
 use crate::view_state::{Reaction, ViewState};
 use crate::walk_camera::WalkCamera;
 
@@ -116,27 +113,26 @@ pub fn run(config: &ViewerConfig) -> anyhow::Result<()> {
         .as_ref()
         .map(|p| std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display())))
         .transpose()?;
-    let gpu = Gpu::headless()?;
-    tracing::debug!(adapter = %gpu.describe(), "headless viewer");
+    let canvas = Canvas {
+        width: config.width,
+        height: config.height,
+        overlay: config.overlay,
+    };
+    let (writer, adapter) = SnapshotWriter::create(&config.out, canvas)?;
+    tracing::debug!(%adapter, "headless viewer");
     tracing::info!("snapshots go to {}", config.out.display());
     let (tx, events) = mpsc::channel();
     let link = Link::spawn(config.connect.clone(), move |event| {
         let _ = tx.send(event);
     })?;
-    let panel = config
-        .overlay
-        .then(|| PanelPainter::new(&gpu.device, DISPLAY_FORMAT));
     let mut headless = Headless {
-        offscreen: Offscreen::new(&gpu, config.width, config.height),
-        triangles: GpuTriangles::new(&gpu),
-        writer: SnapshotWriter::create(&config.out)?,
+        writer,
         plan: SnapshotPlan::new(
             config.snapshot_every,
             config.snapshot_at_samples.clone(),
             config.snapshot_when_idle,
             config.seconds,
         ),
-        gpu,
         config,
         path_text,
         link,
@@ -145,7 +141,6 @@ pub fn run(config: &ViewerConfig) -> anyhow::Result<()> {
         walk: None,
         snapshots: 0,
         progress: ProgressPrinter::new(config.progress),
-        panel,
     };
     let result = headless.run(&events);
     headless.link.close();
@@ -162,9 +157,6 @@ struct Walk {
 
 struct Headless<'a> {
     config: &'a ViewerConfig,
-    gpu: Gpu,
-    offscreen: Offscreen,
-    triangles: GpuTriangles,
     writer: SnapshotWriter,
     plan: SnapshotPlan,
     path_text: Option<String>,
@@ -175,8 +167,6 @@ struct Headless<'a> {
     walk: Option<Walk>,
     snapshots: u32,
     progress: ProgressPrinter,
-    /// `--overlay`: the window's panel over the PNG snapshots.
-    panel: Option<PanelPainter>,
 }
 
 impl Headless<'_> {
@@ -188,6 +178,9 @@ impl Headless<'_> {
                     self.restate()?;
                 }
             }
+            // No GPU copy follows this table (a snapshot copies it whole), so the slots it
+            // changed need no keeping.
+            self.state.table.clear_dirty();
             self.progress.tick(&self.state);
             let Some(walk) = &self.walk else {
                 let waited = launched.elapsed().as_secs_f64();
@@ -256,36 +249,20 @@ impl Headless<'_> {
         let Some(walk) = &self.walk else {
             return Ok(());
         };
-        self.triangles.sync(&self.gpu, &mut self.state.table);
         let settings = DrawSettings {
             tone_map: self.config.tone_map,
             l_white: self.state.l_white,
             wireframe: self.config.wireframe,
             sky: self.state.sky(),
         };
-        let depth = depth_range(&walk.camera, self.state.table.extent());
-        let facts = Facts {
+        // `--overlay`: the window's panel over the PNG snapshots.
+        let facts = self.config.overlay.then(|| Facts {
             tone_map: settings.tone_map,
             wireframe: settings.wireframe,
             paused: self.config.no_refine,
             ..Facts::of(&self.state, &self.config.connect)
-        };
-        let gpu = (&self.gpu.device, &self.gpu.queue);
-        let panel = &mut self.panel;
-        let mut paint = |encoder: &mut wgpu::CommandEncoder,
-                         target: (&wgpu::TextureView, [u32; 2])| {
-            if let Some(panel) = panel.as_mut() {
-                panel.paint(gpu, encoder, target, fixed_screen(target.1), &facts);
-            }
-        };
-        let image = self.offscreen.snapshot_painted(
-            &self.gpu,
-            &self.triangles,
-            &walk.camera,
-            depth,
-            &settings,
-            &mut paint,
-        )?;
+        });
+        let frame = Frame::capture(&self.state.table, &walk.camera, settings, facts);
         let (inserted, removed) = self.state.take_interval();
         let epoch = self.state.epoch.unwrap_or_default();
         let record = SnapshotRecord {
@@ -308,7 +285,7 @@ impl Headless<'_> {
             samples = record.samples,
             "snapshot"
         );
-        self.writer.write(record, image)?;
+        self.writer.write(record, frame)?;
         self.snapshots += 1;
         Ok(())
     }

@@ -10,7 +10,8 @@
 //!   the shader by a test); [`offscreen`]: the same pass into textures, read back;
 //! - [`progress`]: the one-line progress a parent process shows (`--progress`);
 //! - [`panel`] (egui, drawn by `overlay`): what the system does, the keys, buttons for them;
-//! - [`window`] (winit) and [`headless`] (snapshots, [`snapshot_files`]) front ends, with
+//! - [`window`] (winit) and [`headless`] (snapshots: copied at their instant, drawn later by
+//!   [`snapshot_painter`] on [`snapshot_files`]' idle writer thread) front ends, with
 //!   [`walk_camera`], [`camera_path`], [`camera_sender`] and [`session`];
 //! - [`gpu`]: device setup and the `WALKTHROUGH_REQUIRE_GPU` rule;
 //! - [`config`]: the viewer's configuration, plain values;
@@ -31,6 +32,7 @@ pub mod panel;
 pub mod progress;
 pub(crate) mod session;
 pub(crate) mod snapshot_files;
+pub(crate) mod snapshot_painter;
 pub mod table;
 pub mod update;
 pub mod vertex_buffer;

@@ -44,10 +44,12 @@ pub fn viewpoint_button(index: usize) -> Rect {
     )
 }
 
-/// What the panel shows, taken from the viewer's state for one frame.
-pub struct Facts<'a> {
-    pub scene: Option<&'a str>,
-    pub sma: &'a str,
+/// What the panel shows, taken from the viewer's state for one frame. It owns its text, so a
+/// headless snapshot can carry it to the thread that draws it.
+#[derive(Clone, Debug)]
+pub struct Facts {
+    pub scene: Option<String>,
+    pub sma: String,
     pub activity: Activity,
     pub samples: u64,
     pub samples_per_sec: f32,
@@ -56,30 +58,31 @@ pub struct Facts<'a> {
     pub quality: Option<String>,
     pub fps: f64,
     pub renderers: u32,
-    pub viewpoints: Vec<&'a str>,
-    pub criteria: &'a [String],
-    pub criterion: Option<&'a str>,
+    pub viewpoints: Vec<String>,
+    pub criteria: Vec<String>,
+    pub criterion: Option<String>,
     pub tone_map: ToneMap,
     pub wireframe: bool,
     pub paused: bool,
 }
 
-impl<'a> Facts<'a> {
+impl Facts {
     /// The facts of the viewer's state; the front end's own (fps, its switches) are the
     /// caller's to fill in.
-    pub fn of(state: &'a ViewState, sma: &'a str) -> Facts<'a> {
+    pub fn of(state: &ViewState, sma: &str) -> Facts {
         let scene = state.scene.as_ref();
         let quality = scene.map(|s| match s.quality.bounces {
             Some(b) => format!("{} paths, {b} bounces", s.quality.paths),
             None => format!("{} paths, unbounded", s.quality.paths),
         });
         Facts {
-            scene: scene.map(|s| s.name.as_str()),
+            scene: scene.map(|s| s.name.clone()),
             sma: if state.connected {
                 sma
             } else {
                 "connecting…"
-            },
+            }
+            .to_string(),
             activity: state.activity(),
             samples: state.epoch.map_or(0, |e| e.samples),
             samples_per_sec: state.stats.samples_per_sec,
@@ -88,10 +91,10 @@ impl<'a> Facts<'a> {
             fps: 0.0,
             renderers: state.stats.renderers,
             viewpoints: scene.map_or(Vec::new(), |s| {
-                s.viewpoints.iter().map(|v| v.name.as_str()).collect()
+                s.viewpoints.iter().map(|v| v.name.clone()).collect()
             }),
-            criteria: scene.map_or(&[], |s| s.criteria.as_slice()),
-            criterion: state.refinement.as_ref().map(|(c, _)| c.as_str()),
+            criteria: scene.map_or(Vec::new(), |s| s.criteria.clone()),
+            criterion: state.refinement.as_ref().map(|(c, _)| c.clone()),
             tone_map: crate::ToneMap::default(),
             wireframe: false,
             paused: false,
@@ -154,12 +157,15 @@ fn status(ui: &mut egui::Ui, facts: &Facts) {
             ui.strong(value);
             ui.end_row();
         };
-        row("scene", facts.scene.unwrap_or("—").to_string());
+        row("scene", facts.scene.as_deref().unwrap_or("—").to_string());
         row("state", facts.activity.to_string());
         row("samples", facts.samples.to_string());
         row("samples/s", format!("{:.0}", facts.samples_per_sec));
         row("triangles shown", facts.shown.to_string());
-        row("criterion", facts.criterion.unwrap_or("—").to_string());
+        row(
+            "criterion",
+            facts.criterion.as_deref().unwrap_or("—").to_string(),
+        );
         row(
             "quality",
             facts.quality.clone().unwrap_or_else(|| "—".to_string()),
@@ -173,8 +179,8 @@ fn status(ui: &mut egui::Ui, facts: &Facts) {
 fn controls(ui: &mut egui::Ui, facts: &Facts, actions: &mut Vec<Action>) {
     ui.label("criterion");
     ui.horizontal_wrapped(|ui| {
-        for name in facts.criteria {
-            let active = facts.criterion == Some(name.as_str());
+        for name in &facts.criteria {
+            let active = facts.criterion.as_deref() == Some(name.as_str());
             if ui.selectable_label(active, name).clicked() && !active {
                 actions.push(Action::Criterion(name.clone()));
             }

@@ -2,25 +2,29 @@
 //! and one line per snapshot in `snapshots.csv`, the raw material of the convergence measurements
 //! (DESIGN.md §10).
 //!
-//! Encoding a 1024×768 snapshot takes a few hundred milliseconds of CPU, a quarter of a core at one
-//! snapshot a second: taken from the system being measured, that would slow the very convergence
-//! the snapshots record. So the viewer only renders and reads back a snapshot at its instant, and
-//! hands it to a writer thread that runs at the lowest scheduling priority (`SCHED_IDLE` on Linux):
-//! it encodes when the renderer, the SMA and the viewer leave a core idle, and at the latest once
-//! the run ends. The record's time is the snapshot's, not the file's.
+//! Drawing a 1024×768 snapshot on a software rasterizer and encoding it take a few hundred
+//! milliseconds of CPU, a quarter of a core at one snapshot a second: taken from the system being
+//! measured, that would slow the very convergence the snapshots record. So the viewer only copies
+//! what it would draw at the instant (`snapshot_painter::Frame`) and hands it to a writer thread
+//! that runs at the lowest scheduling priority (`SCHED_IDLE` on Linux) and draws it with a device
+//! of its own: it works when the renderer, the SMA and the viewer leave a core idle, and at the
+//! latest once the run ends. The record's time is the snapshot's, not the file's.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
+use std::sync::mpsc::{Receiver, Sender, channel, sync_channel};
+use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 
 use anyhow::Context;
 
 use crate::offscreen::Snapshot;
+use crate::snapshot_painter::{Canvas, Frame, SnapshotPainter};
 
-/// Snapshots waiting for the writer, at most (about 13 MB each at 1024×768: a 60-s run at one a
-/// second fits). Beyond it the viewer waits for the writer rather than hold more.
-const MAX_WAITING_SNAPSHOTS: usize = 64;
+/// Memory the frames waiting for the writer may hold, at most (a frame is 72 bytes per shown
+/// triangle: 14 MB at 200 000; a 60-s benchmark run at 1024×768 queues a few hundred MB). Beyond
+/// it the viewer waits for the writer rather than hold more.
+const MAX_WAITING_BYTES: usize = 1 << 30;
 
 pub const CSV_NAME: &str = "snapshots.csv";
 /// `inserted`/`removed` are summed over the epochs since the previous snapshot (Δins, Δrem);
@@ -45,33 +49,68 @@ pub struct SnapshotRecord {
     pub converged: bool,
 }
 
-/// Writes snapshots on a background thread of the lowest priority (see the module documentation).
+/// Draws and writes snapshots on a background thread of the lowest priority (see the module
+/// documentation).
 pub struct SnapshotWriter {
-    waiting: Option<SyncSender<(SnapshotRecord, Snapshot)>>,
+    waiting: Option<Sender<(SnapshotRecord, Frame)>>,
+    budget: Arc<Budget>,
     thread: Option<JoinHandle<anyhow::Result<()>>>,
 }
 
 impl SnapshotWriter {
-    /// Creates `dir` and a fresh CSV with its header, and starts the writer thread.
-    pub fn create(dir: &Path) -> anyhow::Result<SnapshotWriter> {
+    /// Creates `dir` and a fresh CSV with its header, and starts the writer thread, which opens
+    /// its device before this returns (a missing adapter is this call's error). Returns the
+    /// writer and the adapter it draws with.
+    pub fn create(dir: &Path, canvas: Canvas) -> anyhow::Result<(SnapshotWriter, String)> {
         let files = SnapshotFiles::create(dir)?;
-        let (waiting, queue) = sync_channel(MAX_WAITING_SNAPSHOTS);
+        let (waiting, queue) = channel();
+        let (opened, adapter) = sync_channel(1);
+        let budget = Arc::new(Budget::default());
+        let thread_budget = Arc::clone(&budget);
         let thread = std::thread::Builder::new()
             .name("snapshot-writer".into())
-            .spawn(move || write_all(files, queue))
+            .spawn(move || {
+                // Stopped on every exit, so a viewer waiting for room never waits on a writer
+                // that has gone.
+                let _stopped = StopOnDrop(&thread_budget);
+                lowest_priority();
+                let painter = SnapshotPainter::open(canvas);
+                let _ = opened.send(
+                    painter
+                        .as_ref()
+                        .map(|p| p.describe())
+                        .map_err(|e| format!("{e:#}")),
+                );
+                write_all(files, painter?, queue, &thread_budget)
+            })
             .context("starting the snapshot writer")?;
-        Ok(SnapshotWriter {
+        let mut writer = SnapshotWriter {
             waiting: Some(waiting),
+            budget,
             thread: Some(thread),
-        })
+        };
+        match adapter.recv() {
+            Ok(Ok(adapter)) => Ok((writer, adapter)),
+            Ok(Err(e)) => {
+                let _ = writer.finish();
+                Err(anyhow::anyhow!(e))
+            }
+            Err(_) => Err(writer
+                .finish()
+                .err()
+                .unwrap_or_else(|| anyhow::anyhow!("the snapshot writer stopped"))),
+        }
     }
 
-    /// Queues one snapshot; fails with the writer's error if it stopped on one.
-    pub fn write(&mut self, record: SnapshotRecord, snapshot: Snapshot) -> anyhow::Result<()> {
-        let sent = self
-            .waiting
-            .as_ref()
-            .is_some_and(|w| w.send((record, snapshot)).is_ok());
+    /// Queues one snapshot, waiting while the frames already queued hold too much memory; fails
+    /// with the writer's error if it stopped on one.
+    pub fn write(&mut self, record: SnapshotRecord, frame: Frame) -> anyhow::Result<()> {
+        let bytes = frame.bytes();
+        let sent = self.budget.reserve(bytes)
+            && self
+                .waiting
+                .as_ref()
+                .is_some_and(|w| w.send((record, frame)).is_ok());
         if sent {
             Ok(())
         } else {
@@ -99,19 +138,66 @@ impl Drop for SnapshotWriter {
     }
 }
 
+/// Bytes of the frames queued and not yet written, and whether the writer has stopped.
+#[derive(Default)]
+struct Budget {
+    state: Mutex<(usize, bool)>,
+    changed: Condvar,
+}
+
+impl Budget {
+    /// Waits until `bytes` more fit (a frame always fits into an empty queue); false once the
+    /// writer has stopped.
+    fn reserve(&self, bytes: usize) -> bool {
+        let guard = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        let mut state = self
+            .changed
+            .wait_while(guard, |(held, stopped)| {
+                !*stopped && *held > 0 && *held + bytes > MAX_WAITING_BYTES
+            })
+            .unwrap_or_else(|e| e.into_inner());
+        state.0 += bytes;
+        !state.1
+    }
+
+    fn release(&self, bytes: usize) {
+        let mut state = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        state.0 = state.0.saturating_sub(bytes);
+        self.changed.notify_all();
+    }
+
+    fn stop(&self) {
+        self.state.lock().unwrap_or_else(|e| e.into_inner()).1 = true;
+        self.changed.notify_all();
+    }
+}
+
+struct StopOnDrop<'a>(&'a Budget);
+
+impl Drop for StopOnDrop<'_> {
+    fn drop(&mut self) {
+        self.0.stop();
+    }
+}
+
 fn write_all(
     mut files: SnapshotFiles,
-    queue: Receiver<(SnapshotRecord, Snapshot)>,
+    mut painter: SnapshotPainter,
+    queue: Receiver<(SnapshotRecord, Frame)>,
+    budget: &Budget,
 ) -> anyhow::Result<()> {
-    lowest_priority();
-    for (record, snapshot) in queue {
+    for (record, frame) in queue {
+        let snapshot = painter.paint(&frame)?;
+        budget.release(frame.bytes());
+        drop(frame);
         files.write(&record, &snapshot)?;
     }
     Ok(())
 }
 
 /// Puts the calling thread in Linux's `SCHED_IDLE` class: it runs only on a core nothing else
-/// wants. Elsewhere the thread keeps its priority.
+/// wants, and so do the threads it starts (a software rasterizer's workers among them).
+/// Elsewhere the thread keeps its priority.
 fn lowest_priority() {
     #[cfg(target_os = "linux")]
     {
@@ -189,4 +275,50 @@ pub fn write_exr(path: &Path, snapshot: &Snapshot) -> anyhow::Result<()> {
         (r, g, b, f32::from(u8::from(snapshot.covered[i])))
     })
     .with_context(|| format!("writing {}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::time::Duration;
+
+    use super::*;
+
+    #[test]
+    fn the_budget_holds_a_frame_back_until_room_is_released() {
+        let budget = Arc::new(Budget::default());
+        assert!(budget.reserve(MAX_WAITING_BYTES - 10));
+        let admitted = Arc::new(AtomicBool::new(false));
+        let waiter = {
+            let (budget, admitted) = (Arc::clone(&budget), Arc::clone(&admitted));
+            std::thread::spawn(move || {
+                let open = budget.reserve(100);
+                admitted.store(true, Ordering::SeqCst);
+                open
+            })
+        };
+        std::thread::sleep(Duration::from_millis(100));
+        assert!(!admitted.load(Ordering::SeqCst), "100 bytes do not fit yet");
+        budget.release(MAX_WAITING_BYTES - 10);
+        assert!(waiter.join().unwrap(), "room was released");
+    }
+
+    #[test]
+    fn a_frame_larger_than_the_budget_fits_an_empty_queue() {
+        let budget = Budget::default();
+        assert!(budget.reserve(2 * MAX_WAITING_BYTES));
+    }
+
+    #[test]
+    fn a_stopped_writer_releases_whoever_waits_for_room() {
+        let budget = Arc::new(Budget::default());
+        assert!(budget.reserve(MAX_WAITING_BYTES));
+        let waiter = {
+            let budget = Arc::clone(&budget);
+            std::thread::spawn(move || budget.reserve(1))
+        };
+        std::thread::sleep(Duration::from_millis(50));
+        drop(StopOnDrop(&budget));
+        assert!(!waiter.join().unwrap(), "the writer has stopped");
+    }
 }

@@ -15,7 +15,7 @@ use conventions::camera::relative_to;
 use glam::DVec3;
 
 use crate::gpu::Gpu;
-use crate::table::{TRIANGLE_BYTES, TriangleTable, Vertex};
+use crate::table::{Extent, TRIANGLE_BYTES, TriangleTable, Vertex};
 
 const MIN_CAPACITY: u64 = 4096;
 /// Runs at least this long go through `write_buffer`; shorter ones are scattered.
@@ -87,23 +87,9 @@ impl GpuTriangles {
         let len = table.len() as u64;
         // Every live slot was written since a sync that found none, so all go up relative to
         // the new origin.
-        if len == 0 {
-            self.origin = None;
-        } else if self.origin.is_none() {
-            self.origin = table.extent().map(|e| {
-                0.5 * (glam::Vec3::from(e.min).as_dvec3() + glam::Vec3::from(e.max).as_dvec3())
-            });
-        }
+        self.place_origin(len, table.extent());
         let origin = self.origin();
-        let max = gpu.device.limits().max_buffer_size / TRIANGLE_BYTES;
-        let grow = len > self.capacity && self.capacity < max;
-        if grow {
-            self.capacity = len.next_power_of_two().clamp(MIN_CAPACITY, max);
-            self.buffer = create(&gpu.device, self.capacity);
-            if let Some(s) = &mut self.scatter {
-                s.bind_group = None;
-            }
-        }
+        let grow = self.grow_for(gpu, len);
         // A table larger than the largest buffer the device allows is drawn as a prefix; changes
         // past it are dropped, so the first sync that fits again sends everything.
         let refill = self.truncated && len <= self.capacity;
@@ -118,7 +104,13 @@ impl GpuTriangles {
         if grow || refill {
             self.count = len.min(self.capacity) as u32;
             table.clear_dirty();
-            let bytes = write(&gpu.queue, &self.buffer, table, 0..self.count, origin);
+            let bytes = write(
+                &gpu.queue,
+                &self.buffer,
+                table.vertices(),
+                0..self.count,
+                origin,
+            );
             return Upload {
                 bytes,
                 writes: 1,
@@ -146,13 +138,13 @@ impl GpuTriangles {
                 for slot in range {
                     patches.push(slot);
                     patches.extend_from_slice(bytemuck::cast_slice(&relative_vertices(
-                        table,
+                        table.vertices(),
                         slot..slot + 1,
                         origin,
                     )));
                 }
             } else {
-                upload.bytes += write(&gpu.queue, &self.buffer, table, range, origin);
+                upload.bytes += write(&gpu.queue, &self.buffer, table.vertices(), range, origin);
                 upload.writes += 1;
             }
         }
@@ -165,16 +157,65 @@ impl GpuTriangles {
         }
         upload
     }
+
+    /// Makes the GPU copy hold exactly `vertices` (three per triangle) at once, as a whole: for
+    /// a copy of the table taken elsewhere (a headless snapshot), which no dirty slots describe.
+    pub fn replace(&mut self, gpu: &Gpu, vertices: &[Vertex], extent: Option<Extent>) -> Upload {
+        let len = (vertices.len() / 3) as u64;
+        self.place_origin(len, extent);
+        self.grow_for(gpu, len);
+        self.truncated = len > self.capacity;
+        self.count = len.min(self.capacity) as u32;
+        let bytes = write(
+            &gpu.queue,
+            &self.buffer,
+            vertices,
+            0..self.count,
+            self.origin(),
+        );
+        Upload {
+            bytes,
+            writes: 1,
+            scattered: 0,
+            full: true,
+        }
+    }
+
+    /// No origin while the table is empty; the centre of its extent once it holds triangles.
+    fn place_origin(&mut self, len: u64, extent: Option<Extent>) {
+        if len == 0 {
+            self.origin = None;
+        } else if self.origin.is_none() {
+            self.origin = extent.map(|e| {
+                0.5 * (glam::Vec3::from(e.min).as_dvec3() + glam::Vec3::from(e.max).as_dvec3())
+            });
+        }
+    }
+
+    /// Doubles the buffer (a fresh, empty one) until `len` triangles fit or the device's limit
+    /// is reached; whether it did.
+    fn grow_for(&mut self, gpu: &Gpu, len: u64) -> bool {
+        let max = gpu.device.limits().max_buffer_size / TRIANGLE_BYTES;
+        let grow = len > self.capacity && self.capacity < max;
+        if grow {
+            self.capacity = len.next_power_of_two().clamp(MIN_CAPACITY, max);
+            self.buffer = create(&gpu.device, self.capacity);
+            if let Some(s) = &mut self.scatter {
+                s.bind_group = None;
+            }
+        }
+        grow
+    }
 }
 
 fn write(
     queue: &wgpu::Queue,
     buffer: &wgpu::Buffer,
-    table: &TriangleTable,
+    vertices: &[Vertex],
     slots: std::ops::Range<u32>,
     origin: DVec3,
 ) -> u64 {
-    let vertices = relative_vertices(table, slots.clone(), origin);
+    let vertices = relative_vertices(vertices, slots.clone(), origin);
     let bytes: &[u8] = bytemuck::cast_slice(&vertices);
     if !bytes.is_empty() {
         queue.write_buffer(buffer, slots.start as u64 * TRIANGLE_BYTES, bytes);
@@ -184,11 +225,11 @@ fn write(
 
 /// The vertices of `slots` as the GPU holds them: positions relative to `origin`.
 fn relative_vertices(
-    table: &TriangleTable,
+    vertices: &[Vertex],
     slots: std::ops::Range<u32>,
     origin: DVec3,
 ) -> Vec<Vertex> {
-    table.vertices()[3 * slots.start as usize..3 * slots.end as usize]
+    vertices[3 * slots.start as usize..3 * slots.end as usize]
         .iter()
         .map(|v| Vertex {
             position: relative_to(glam::Vec3::from(v.position), origin).to_array(),
@@ -442,5 +483,37 @@ mod tests {
                 use_scatter && gpu_triangles.scatter.is_some()
             );
         }
+    }
+
+    /// A whole copy replaces what the GPU held, however much it was, and keeps the origin a
+    /// synced table chose.
+    #[test]
+    fn a_replaced_copy_holds_exactly_the_given_vertices() {
+        let Some(gpu) =
+            headless_or_skip("a_replaced_copy_holds_exactly_the_given_vertices").unwrap()
+        else {
+            return;
+        };
+        let mut big = TriangleTable::new();
+        big.apply(&[TableOp::Insert((0..5000).map(triangle).collect())]);
+        let mut gpu_triangles = GpuTriangles::new(&gpu);
+        gpu_triangles.sync(&gpu, &mut big);
+        let origin = gpu_triangles.origin();
+        let mut small = TriangleTable::new();
+        small.apply(&[TableOp::Insert((7..10).map(triangle).collect())]);
+        let upload = gpu_triangles.replace(&gpu, small.vertices(), small.extent());
+        assert!(upload.full);
+        assert_eq!(gpu_triangles.count(), 3);
+        assert_eq!(gpu_triangles.origin(), origin);
+        let on_gpu = read_back(&gpu, gpu_triangles.buffer(), 3 * TRIANGLE_BYTES);
+        let want = relative_vertices(small.vertices(), 0..3, origin);
+        assert!(on_gpu == bytemuck::cast_slice::<Vertex, u8>(&want));
+        gpu_triangles.replace(&gpu, &[], None);
+        assert_eq!(gpu_triangles.count(), 0);
+        assert_eq!(
+            gpu_triangles.origin(),
+            DVec3::ZERO,
+            "an empty copy has no origin"
+        );
     }
 }
