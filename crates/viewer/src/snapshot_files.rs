@@ -7,8 +7,9 @@
 //! measured, that would slow the very convergence the snapshots record. So the viewer only copies
 //! what it would draw at the instant (`snapshot_painter::Frame`) and hands it to a writer thread
 //! that runs at the lowest scheduling priority (`SCHED_IDLE` on Linux) and draws it with a device
-//! of its own: it works when the renderer, the SMA and the viewer leave a core idle, and at the
-//! latest once the run ends. The record's time is the snapshot's, not the file's.
+//! of its own: it works when the renderer, the SMA and the viewer leave a core idle. Once the run
+//! ends, the viewer's own thread draws and writes what is left, at its normal priority. The
+//! record's time is the snapshot's, not the file's.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -50,11 +51,19 @@ pub struct SnapshotRecord {
 }
 
 /// Draws and writes snapshots on a background thread of the lowest priority (see the module
-/// documentation).
+/// documentation); what it has not written when the run ends, the caller of `finish` writes.
 pub struct SnapshotWriter {
     waiting: Option<Sender<(SnapshotRecord, Frame)>>,
-    budget: Arc<Budget>,
-    thread: Option<JoinHandle<anyhow::Result<()>>>,
+    shared: Arc<Shared>,
+    canvas: Canvas,
+    thread: Option<JoinHandle<anyhow::Result<Leftover>>>,
+}
+
+/// What the idle thread hands back when told to finish: the files, and the frames it did not
+/// get to.
+struct Leftover {
+    files: SnapshotFiles,
+    queue: Receiver<(SnapshotRecord, Frame)>,
 }
 
 impl SnapshotWriter {
@@ -65,28 +74,25 @@ impl SnapshotWriter {
         let files = SnapshotFiles::create(dir)?;
         let (waiting, queue) = channel();
         let (opened, adapter) = sync_channel(1);
-        let budget = Arc::new(Budget::default());
-        let thread_budget = Arc::clone(&budget);
+        let shared = Arc::new(Shared::default());
+        let thread_shared = Arc::clone(&shared);
         let thread = std::thread::Builder::new()
             .name("snapshot-writer".into())
             .spawn(move || {
                 // Stopped on every exit, so a viewer waiting for room never waits on a writer
                 // that has gone.
-                let _stopped = StopOnDrop(&thread_budget);
+                let _stopped = StopOnDrop(&thread_shared);
                 lowest_priority();
                 let painter = SnapshotPainter::open(canvas);
-                let _ = opened.send(
-                    painter
-                        .as_ref()
-                        .map(|p| p.describe())
-                        .map_err(|e| format!("{e:#}")),
-                );
-                write_all(files, painter?, queue, &thread_budget)
+                let description = painter.as_ref().map(|p| p.describe());
+                let _ = opened.send(description.map_err(|e| format!("{e:#}")));
+                write_while_running(files, painter?, queue, &thread_shared)
             })
             .context("starting the snapshot writer")?;
         let mut writer = SnapshotWriter {
             waiting: Some(waiting),
-            budget,
+            shared,
+            canvas,
             thread: Some(thread),
         };
         match adapter.recv() {
@@ -106,7 +112,7 @@ impl SnapshotWriter {
     /// with the writer's error if it stopped on one.
     pub fn write(&mut self, record: SnapshotRecord, frame: Frame) -> anyhow::Result<()> {
         let bytes = frame.bytes();
-        let sent = self.budget.reserve(bytes)
+        let sent = self.shared.reserve(bytes)
             && self
                 .waiting
                 .as_ref()
@@ -119,14 +125,30 @@ impl SnapshotWriter {
         }
     }
 
-    /// Waits until every queued snapshot is on disk.
+    /// Writes every queued snapshot and returns once they are on disk. The run is over, so
+    /// nothing is measured any more: the idle thread stops after the frame in hand, and the
+    /// caller draws the rest at its own priority, on a device of its own. Left to the idle
+    /// thread, they would wait for whatever else keeps the machine busy (a ground truth
+    /// rendering beside the benchmark, other tests).
     pub fn finish(&mut self) -> anyhow::Result<()> {
+        self.shared.finish();
         self.waiting = None;
-        match self.thread.take().map(JoinHandle::join) {
-            None => Ok(()),
-            Some(Ok(written)) => written,
+        let leftover = match self.thread.take().map(JoinHandle::join) {
+            None => return Ok(()),
+            Some(Ok(leftover)) => leftover?,
             Some(Err(_)) => anyhow::bail!("the snapshot writer panicked"),
+        };
+        let Leftover { mut files, queue } = leftover;
+        let rest: Vec<_> = queue.try_iter().collect();
+        if rest.is_empty() {
+            return Ok(());
         }
+        tracing::debug!(snapshots = rest.len(), "writing the snapshots left");
+        let mut painter = SnapshotPainter::open(self.canvas)?;
+        for (record, frame) in rest {
+            files.write(&record, &painter.paint(&frame)?)?;
+        }
+        Ok(())
     }
 }
 
@@ -138,41 +160,60 @@ impl Drop for SnapshotWriter {
     }
 }
 
-/// Bytes of the frames queued and not yet written, and whether the writer has stopped.
+/// What the viewer and the writer thread share: bytes of the frames queued and not yet
+/// written, whether the writer has stopped, and whether it is asked to finish.
 #[derive(Default)]
-struct Budget {
-    state: Mutex<(usize, bool)>,
+struct Shared {
+    state: Mutex<SharedState>,
     changed: Condvar,
 }
 
-impl Budget {
+#[derive(Default)]
+struct SharedState {
+    held: usize,
+    stopped: bool,
+    finishing: bool,
+}
+
+impl Shared {
+    fn lock(&self) -> std::sync::MutexGuard<'_, SharedState> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
     /// Waits until `bytes` more fit (a frame always fits into an empty queue); false once the
     /// writer has stopped.
     fn reserve(&self, bytes: usize) -> bool {
-        let guard = self.state.lock().unwrap_or_else(|e| e.into_inner());
         let mut state = self
             .changed
-            .wait_while(guard, |(held, stopped)| {
-                !*stopped && *held > 0 && *held + bytes > MAX_WAITING_BYTES
+            .wait_while(self.lock(), |s| {
+                !s.stopped && s.held > 0 && s.held + bytes > MAX_WAITING_BYTES
             })
             .unwrap_or_else(|e| e.into_inner());
-        state.0 += bytes;
-        !state.1
+        state.held += bytes;
+        !state.stopped
     }
 
     fn release(&self, bytes: usize) {
-        let mut state = self.state.lock().unwrap_or_else(|e| e.into_inner());
-        state.0 = state.0.saturating_sub(bytes);
+        let mut state = self.lock();
+        state.held = state.held.saturating_sub(bytes);
         self.changed.notify_all();
     }
 
     fn stop(&self) {
-        self.state.lock().unwrap_or_else(|e| e.into_inner()).1 = true;
+        self.lock().stopped = true;
         self.changed.notify_all();
+    }
+
+    fn finish(&self) {
+        self.lock().finishing = true;
+    }
+
+    fn finishing(&self) -> bool {
+        self.lock().finishing
     }
 }
 
-struct StopOnDrop<'a>(&'a Budget);
+struct StopOnDrop<'a>(&'a Shared);
 
 impl Drop for StopOnDrop<'_> {
     fn drop(&mut self) {
@@ -180,19 +221,23 @@ impl Drop for StopOnDrop<'_> {
     }
 }
 
-fn write_all(
+/// The idle thread's work: each frame as it comes, until the queue closes or the run is over.
+fn write_while_running(
     mut files: SnapshotFiles,
     mut painter: SnapshotPainter,
     queue: Receiver<(SnapshotRecord, Frame)>,
-    budget: &Budget,
-) -> anyhow::Result<()> {
-    for (record, frame) in queue {
+    shared: &Shared,
+) -> anyhow::Result<Leftover> {
+    while !shared.finishing() {
+        let Ok((record, frame)) = queue.recv() else {
+            break;
+        };
         let snapshot = painter.paint(&frame)?;
-        budget.release(frame.bytes());
+        shared.release(frame.bytes());
         drop(frame);
         files.write(&record, &snapshot)?;
     }
-    Ok(())
+    Ok(Leftover { files, queue })
 }
 
 /// Puts the calling thread in Linux's `SCHED_IDLE` class: it runs only on a core nothing else
@@ -284,9 +329,72 @@ mod tests {
 
     use super::*;
 
+    fn record(index: u32) -> SnapshotRecord {
+        SnapshotRecord {
+            index,
+            time_s: f64::from(index),
+            camera_seq: 1,
+            shown: 0,
+            inserted: 0,
+            removed: 0,
+            samples: u64::from(index),
+            paths: 0,
+            outstanding: 0,
+            renderer_busy: 0.0,
+            converged: false,
+        }
+    }
+
+    /// However far the idle thread got, `finish` leaves every queued snapshot on disk, in order.
+    #[test]
+    fn finish_writes_every_queued_snapshot_in_order() {
+        let Some(_) =
+            crate::gpu::headless_or_skip("finish_writes_every_queued_snapshot_in_order").unwrap()
+        else {
+            return;
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let canvas = Canvas {
+            width: 32,
+            height: 24,
+            overlay: false,
+        };
+        let (mut writer, _) = SnapshotWriter::create(dir.path(), canvas).unwrap();
+        let camera = protocol::viewer_link::Camera {
+            seq: 1,
+            eye: [0.0, 0.0, 5.0],
+            orientation: [0.0, 0.0, 0.0, 1.0],
+            fov_y_deg: 60.0,
+            width: 32,
+            height: 24,
+        };
+        let table = crate::table::TriangleTable::new();
+        for index in 0..6 {
+            let frame = Frame::capture(&table, &camera, Default::default(), None);
+            writer.write(record(index), frame).unwrap();
+        }
+        writer.finish().unwrap();
+        let csv = std::fs::read_to_string(dir.path().join(CSV_NAME)).unwrap();
+        let indices: Vec<&str> = csv
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').next().unwrap())
+            .collect();
+        assert_eq!(indices, ["0", "1", "2", "3", "4", "5"], "{csv}");
+        for index in 0..6 {
+            for ext in ["png", "exr"] {
+                assert!(
+                    dir.path()
+                        .join(format!("snapshot_{index:03}.{ext}"))
+                        .is_file()
+                );
+            }
+        }
+    }
+
     #[test]
     fn the_budget_holds_a_frame_back_until_room_is_released() {
-        let budget = Arc::new(Budget::default());
+        let budget = Arc::new(Shared::default());
         assert!(budget.reserve(MAX_WAITING_BYTES - 10));
         let admitted = Arc::new(AtomicBool::new(false));
         let waiter = {
@@ -305,13 +413,13 @@ mod tests {
 
     #[test]
     fn a_frame_larger_than_the_budget_fits_an_empty_queue() {
-        let budget = Budget::default();
+        let budget = Shared::default();
         assert!(budget.reserve(2 * MAX_WAITING_BYTES));
     }
 
     #[test]
     fn a_stopped_writer_releases_whoever_waits_for_room() {
-        let budget = Arc::new(Budget::default());
+        let budget = Arc::new(Shared::default());
         assert!(budget.reserve(MAX_WAITING_BYTES));
         let waiter = {
             let budget = Arc::clone(&budget);
