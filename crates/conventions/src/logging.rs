@@ -10,6 +10,11 @@ use tracing_subscriber::EnvFilter;
 const DEFAULT_FILTER: &str = "warn,conventions=info,protocol=info,scene=info,renderer=info,\
                               sma=info,viewer=info,walkthrough=info,testkit=info,egui_wgpu=error";
 
+/// The message a headless viewer logs (at `info`) when its measured run ends, before it closes
+/// its link and writes the snapshots left: a harness that reads its log takes the processes'
+/// CPU times and the run's wall time there, not at its exit.
+pub const HEADLESS_RUN_OVER: &str = "headless run over";
+
 /// Logs to stderr at [`DEFAULT_FILTER`] unless `RUST_LOG` says otherwise, without the module
 /// path, in colour only when stderr is a terminal. A second call (a test that runs two front
 /// ends) keeps the first.

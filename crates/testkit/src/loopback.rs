@@ -7,6 +7,8 @@ use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+use conventions::logging::HEADLESS_RUN_OVER;
+
 use crate::child::{Process, start_renderer, start_sma, strings};
 
 /// What the SMA and its renderers run.
@@ -102,24 +104,19 @@ impl System {
         )?;
         let deadline = Instant::now() + config.time_limit;
         let mut viewer_cpu = 0.0;
+        // The CPU times and wall time when the viewer's run ended, once its log says so: after
+        // it, the viewer only writes the snapshots left, which the run must not be charged with.
+        let mut at_run_end: Option<CpuShares> = None;
         loop {
             // Read while the viewer runs: once it is reaped, /proc no longer has it.
             viewer_cpu = viewer.cpu_seconds().unwrap_or(viewer_cpu);
+            if at_run_end.is_none() && viewer.log_text().contains(HEADLESS_RUN_OVER) {
+                at_run_end = Some(self.shares_since(started, &servers_before, viewer_cpu));
+            }
             if let Some(status) = viewer.exited() {
                 return if status.success() {
-                    let used: Vec<f64> = self
-                        .server_cpu()
-                        .iter()
-                        .zip(&servers_before)
-                        .map(|(after, before)| after - before)
-                        .collect();
-                    let (sma, renderers) = used.split_last().expect("an SMA");
-                    Ok(CpuShares {
-                        wall_s: started.elapsed().as_secs_f64(),
-                        renderers_s: renderers.iter().sum(),
-                        sma_s: *sma,
-                        viewer_s: viewer_cpu,
-                    })
+                    Ok(at_run_end
+                        .unwrap_or_else(|| self.shares_since(started, &servers_before, viewer_cpu)))
                 } else {
                     Err(viewer.failure(&format!("failed ({status})")))
                 };
@@ -147,6 +144,24 @@ impl System {
 }
 
 impl System {
+    /// Where the time went since `started`, given the servers' CPU seconds then and the
+    /// viewer's now.
+    fn shares_since(&self, started: Instant, servers_before: &[f64], viewer_s: f64) -> CpuShares {
+        let used: Vec<f64> = self
+            .server_cpu()
+            .iter()
+            .zip(servers_before)
+            .map(|(after, before)| after - before)
+            .collect();
+        let (sma, renderers) = used.split_last().expect("an SMA");
+        CpuShares {
+            wall_s: started.elapsed().as_secs_f64(),
+            renderers_s: renderers.iter().sum(),
+            sma_s: *sma,
+            viewer_s,
+        }
+    }
+
     /// CPU seconds of each server so far: the renderers, then the SMA (the order started).
     fn server_cpu(&self) -> Vec<f64> {
         self.servers

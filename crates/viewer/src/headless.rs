@@ -201,6 +201,12 @@ impl Headless<'_> {
                 self.snapshot(t)?;
             }
             if self.plan.finished(t) {
+                tracing::info!(
+                    t = format!("{t:.1}"),
+                    snapshots = self.snapshots,
+                    "{}",
+                    conventions::logging::HEADLESS_RUN_OVER
+                );
                 return Ok(());
             }
         }
