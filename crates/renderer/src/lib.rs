@@ -12,6 +12,7 @@
 //! - [`service`]: the TCP server of the renderer link;
 //! - [`reference`] and [`tonemap`]: reference images (EXR + tone-mapped PNG);
 //! - [`vector_level`]: the CPU's vector instructions the ray queries use, chosen at run time;
+//!   [`subnormals`]: tiny floats flushed to zero on the tracing threads;
 //! - [`cli`]: `renderer serve` and `renderer reference`, the only module that parses arguments.
 
 pub(crate) mod bvh;
@@ -30,6 +31,7 @@ pub mod sampling;
 pub mod service;
 pub(crate) mod shade;
 pub(crate) mod strata;
+pub mod subnormals;
 pub mod tonemap;
 pub mod vector_level;
 pub(crate) mod wavefront;

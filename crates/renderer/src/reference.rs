@@ -76,6 +76,7 @@ pub fn render(
     let rows: Vec<(Vec<(Vec3, bool)>, RayCounts)> = (0..s.height)
         .into_par_iter()
         .map(|y| {
+            crate::subnormals::flush_on_this_thread();
             let mut counts = RayCounts::default();
             let mut rngs: Vec<Rng> = (0..s.width)
                 .map(|x| stream(s.seed, y as u64 * width as u64 + x as u64))

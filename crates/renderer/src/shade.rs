@@ -181,6 +181,7 @@ pub fn shade_batch(world: &World, batch: &ShadeBatch) -> (Radiance, RayCounts) {
                 .par_iter()
                 .enumerate()
                 .map(|(i, p)| {
+                    crate::subnormals::flush_on_this_thread();
                     let mut counts = RayCounts::default();
                     let mut rng = stream(batch.seed, i as u64);
                     let shaded = shade_point(world, p, batch.quality, &mut rng, &mut counts);
@@ -197,7 +198,10 @@ pub fn shade_batch(world: &World, batch: &ShadeBatch) -> (Radiance, RayCounts) {
                 .points
                 .par_chunks(chunk)
                 .enumerate()
-                .map(|(k, points)| shade_wave(world, batch, k * chunk, points))
+                .map(|(k, points)| {
+                    crate::subnormals::flush_on_this_thread();
+                    shade_wave(world, batch, k * chunk, points)
+                })
                 .collect();
             let counts = sum_counts(results.iter().map(|(_, c)| *c));
             (results.into_iter().flat_map(|(s, _)| s).collect(), counts)
