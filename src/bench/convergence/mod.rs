@@ -453,7 +453,11 @@ pub fn section(out: &Path) -> anyhow::Result<String> {
         md.push_str(&tables::paths_table(&rows));
         let shares = cpu::read_csv(&out.join(format!("{}-cpu.csv", record.stem())))?;
         if !shares.is_empty() {
-            md.push_str("\nWhere the CPU went over each run (share of all cores):\n\n");
+            md.push_str(
+                "\nWhere the CPU went over each run (share of all cores, until the viewer's run \
+                 ended; the viewer's share includes drawing and encoding its snapshots at idle \
+                 priority, on cores nothing else wanted):\n\n",
+            );
             md.push_str(&cpu::table(&shares));
         }
         let dir = out.to_string_lossy();
