@@ -112,7 +112,7 @@ pub struct Cli {
     /// No leaf covering fewer pixels is split (one sample per few pixels is the useful limit).
     #[arg(long, default_value_t = defaults().schedule.min_split_pixels)]
     pub min_split_pixels: u32,
-    /// K: visibility is re-run after this many new samples.
+    /// K: the views are revisited after this many new samples (a camera at rest without a pass)
     #[arg(long, default_value_t = defaults().schedule.revisit_samples)]
     pub revisit_samples: u64,
     /// Points per shade batch sent to a renderer.

@@ -80,7 +80,8 @@ pub struct ScheduleConfig {
     pub max_selections: usize,
     /// No leaf covering fewer pixels is split.
     pub min_split_pixels: u32,
-    /// K: visibility is re-run after this many new samples.
+    /// K: the views are revisited after this many new samples (thesis §4.1; a camera at rest is
+    /// carried over to the current leaves, `visibility::carry_over`, without a pass).
     pub revisit_samples: u64,
     /// Points per shade batch.
     pub batch_points: usize,

@@ -14,7 +14,7 @@ pub mod synthetic;
 
 use crate::cache::ShadingCache;
 use crate::mesh::{NodeId, SubdivisionMesh};
-use crate::sample::Estimate;
+use crate::sample::{DisplayMap, Displayed, Estimate};
 use crate::visible_set::VisibleSet;
 
 pub use nld_is::NldIs;
@@ -251,15 +251,15 @@ impl CriterionSettings {
 /// leaf in a hundred, and the ladder settles the samples while the view rests: the view still
 /// refines down to one step, after its samples, not before.
 fn leaf_floor(
-    input: &CriterionInput,
     settings: &CriterionSettings,
     estimates: &[Estimate; 3],
+    shown: &[Displayed; 3],
     metric: Metric,
 ) -> f32 {
-    let settled = estimates.iter().all(|e| {
-        e.paths >= settings.max_paths
-            || e.display_standard_error(input.l_white) <= settings.display_error
-    });
+    let settled = estimates
+        .iter()
+        .zip(shown)
+        .all(|(e, d)| e.paths >= settings.max_paths || d.standard_error <= settings.display_error);
     match metric {
         Metric::NoiseAware if settled => settings.display_error,
         Metric::Thesis | Metric::NoiseAware => settings.s_min,
@@ -276,10 +276,17 @@ fn leaf_nld_and_floor(
     metric: Metric,
 ) -> Option<(f32, f32)> {
     let estimates = input.cache.leaf_estimates(input.mesh, leaf, side)?;
+    let shown = displayed(input, &estimates);
     Some((
-        nld_of(input, &estimates, metric),
-        leaf_floor(input, settings, &estimates, metric),
+        nld_of(input, &estimates, &shown, metric),
+        leaf_floor(settings, &estimates, &shown, metric),
     ))
+}
+
+/// The three estimates as the person sees them.
+fn displayed(input: &CriterionInput, estimates: &[Estimate; 3]) -> [Displayed; 3] {
+    let map = DisplayMap::new(input.l_white);
+    estimates.map(|e| e.displayed(&map))
 }
 
 /// S over a leaf's three cached vertex samples by `metric`, `None` while one is missing.
@@ -291,22 +298,29 @@ fn leaf_nld(
     metric: Metric,
 ) -> Option<f32> {
     let estimates = input.cache.leaf_estimates(input.mesh, leaf, side)?;
-    Some(nld_of(input, &estimates, metric))
+    Some(nld_of(
+        input,
+        &estimates,
+        &displayed(input, &estimates),
+        metric,
+    ))
 }
 
-/// S over three vertex estimates by `metric`.
-fn nld_of(input: &CriterionInput, estimates: &[Estimate; 3], metric: Metric) -> f32 {
+/// S over three vertex estimates (`shown`: as displayed) by `metric`.
+fn nld_of(
+    input: &CriterionInput,
+    estimates: &[Estimate; 3],
+    shown: &[Displayed; 3],
+    metric: Metric,
+) -> f32 {
     match metric {
         Metric::Thesis => crate::nld::nld3(
             estimates.map(|e| conventions::luminance(e.rgb)),
             input.l_white,
         ),
-        Metric::NoiseAware => crate::nld::noise_aware_nld(&estimates.map(|e| {
-            (
-                e.display_luminance(input.l_white),
-                e.display_standard_error(input.l_white),
-            )
-        })),
+        Metric::NoiseAware => {
+            crate::nld::noise_aware_nld(&shown.map(|d| (d.luminance, d.standard_error)))
+        }
     }
 }
 
@@ -316,8 +330,9 @@ fn leaf_display_error(input: &CriterionInput, leaf: NodeId, side: protocol::Side
         .cache
         .leaf_estimates(input.mesh, leaf, side)
         .map_or(0.0, |e| {
-            e.iter()
-                .map(|e| e.display_standard_error(input.l_white))
+            displayed(input, &e)
+                .iter()
+                .map(|d| d.standard_error)
                 .sum::<f32>()
                 / 3.0
         })

@@ -1,5 +1,7 @@
 //! GPU visibility, headless (DESIGN.md §3 steps 2–3; thesis §4.1).
 //!
+//! - [`carry_over`]: a view brought to a refined or coarsened mesh without a pass, the camera
+//!   unchanged;
 //! - [`gpu`]: the device (a GPU when there is one, else Mesa) and offscreen targets with readback;
 //! - [`id_pass`]: triangles into an R32Uint ID buffer with depth, per-triangle pixel coverage;
 //! - [`levels`]: level 1 over the base mesh, level 2 over the leaves of visible base triangles;
@@ -7,6 +9,7 @@
 //! - [`coverage_mask`]: the pixels a set of triangles covers, for tests;
 //! - [`view`]: a camera and depth range; every pass draws camera-relative.
 
+pub mod carry_over;
 pub mod coverage_mask;
 pub mod gpu;
 pub mod id_pass;
@@ -14,6 +17,7 @@ pub mod levels;
 pub mod luminance_pass;
 pub mod view;
 
+pub use carry_over::carry_over;
 pub use coverage_mask::coverage;
 pub use gpu::{Gpu, GpuError};
 pub use id_pass::{Coverage, IdImage, IdPass, TriangleBuffer};

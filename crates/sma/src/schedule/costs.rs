@@ -11,6 +11,8 @@ use std::time::{Duration, Instant};
 pub enum Work {
     /// Visibility passes (the software rasterizer's threads work inside them).
     Pass,
+    /// Views carried over to a refined or coarsened mesh without a pass (`visibility::carry_over`).
+    CarryOver,
     /// Rebuilding the request queue from the visible sets and the cache.
     Replan,
     /// Bringing the viewers up to date.
@@ -20,7 +22,13 @@ pub enum Work {
 }
 
 impl Work {
-    const ALL: [Work; 4] = [Work::Pass, Work::Replan, Work::Sync, Work::Round];
+    const ALL: [Work; 5] = [
+        Work::Pass,
+        Work::CarryOver,
+        Work::Replan,
+        Work::Sync,
+        Work::Round,
+    ];
 
     fn index(self) -> usize {
         self as usize
@@ -30,8 +38,8 @@ impl Work {
 /// How many times each kind of work ran and how long it took, since the last `take`.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct WorkCosts {
-    runs: [u32; 4],
-    spent: [Duration; 4],
+    runs: [u32; Work::ALL.len()],
+    spent: [Duration; Work::ALL.len()],
 }
 
 impl WorkCosts {

@@ -9,13 +9,15 @@ use protocol::Side;
 use protocol::viewer_link::{Recolour, ShownTriangle, SmaToViewer, TriangleId};
 
 use crate::cache::ShadingCache;
+use crate::mesh::fast_hash::FastHash;
 use crate::mesh::{NodeId, SubdivisionMesh};
 use crate::visible_set::shown_id;
 
 #[derive(Debug, Default)]
 pub struct Display {
-    /// Shown triangles and the radiance last sent for each.
-    shown: HashMap<TriangleId, [[f32; 3]; 3]>,
+    /// Shown triangles and the radiance last sent for each (ids made by this process: the fast
+    /// hasher; a sync walks every visible leaf several times a second).
+    shown: HashMap<TriangleId, [[f32; 3]; 3], FastHash>,
     /// Δins and Δrem since the last epoch.
     pub inserted: u64,
     pub removed: u64,
@@ -38,7 +40,8 @@ impl Display {
         cache: &ShadingCache,
         eye: Vec3,
     ) -> Vec<SmaToViewer> {
-        let wanted: HashSet<TriangleId> = targets.iter().map(|&(n, s)| shown_id(n, s)).collect();
+        let wanted: HashSet<TriangleId, FastHash> =
+            targets.iter().map(|&(n, s)| shown_id(n, s)).collect();
         let removed: Vec<TriangleId> = self
             .shown
             .keys()

@@ -48,7 +48,7 @@ use crate::criteria::{CriterionKind, CriterionSettings, make_criterion};
 use crate::mesh::SubdivisionMesh;
 use crate::pool::{Lane, PoolEvent, PoolHandle};
 use crate::viewer_link::{ViewerEvent, ViewerId};
-use crate::visibility::{Gpu, LuminancePass, Visibility};
+use crate::visibility::{Gpu, LuminancePass, Visibility, carry_over};
 use coarsening::Coarsening;
 use costs::{Pace, Work, WorkCosts};
 use pending::PendingRefinement;
@@ -424,15 +424,25 @@ impl Schedule {
         let start = Instant::now();
         self.frame += 1;
         self.coarsen_stale();
+        let mut drew = false;
         for viewer in self.viewers.values_mut().filter(|v| v.wait.needs_pass()) {
             viewer.wait.pass_done();
             let Some(camera) = &viewer.camera else {
                 continue;
             };
-            let view = self
-                .visibility
-                .leaf_view(&self.mesh, camera)
-                .context("visibility pass")?;
+            // The camera unchanged, only the leaves did (a round, coarsening) or samples came:
+            // the view is carried over, exact without drawing (`visibility::carry_over`).
+            let view = match &viewer.view {
+                Some(view) if view.camera.as_ref() == Some(camera) => {
+                    carry_over(view, &self.mesh, camera)
+                }
+                _ => {
+                    drew = true;
+                    self.visibility
+                        .leaf_view(&self.mesh, camera)
+                        .context("visibility pass")?
+                }
+            };
             viewer.view = Some(view);
         }
         // Every viewer's view counts as seen now, not only those just re-run: while one viewer
@@ -445,7 +455,8 @@ impl Schedule {
         self.samples_since_pass = 0;
         self.cache.evict(self.frame, &|_| false);
         self.owed.views_changed();
-        self.costs.add(Work::Pass, start.elapsed());
+        let work = if drew { Work::Pass } else { Work::CarryOver };
+        self.costs.add(work, start.elapsed());
         Ok(())
     }
 

@@ -1,7 +1,7 @@
 //! From one viewer's visible set to what it should be shown and what must be shaded
 //! (DESIGN.md §3 steps 4–6, §5, §7).
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 
 use glam::Vec3;
 use protocol::Side;
@@ -10,7 +10,9 @@ use protocol::renderer_link::{Quality, SampleKey, ShadePoint};
 use super::pending::PendingRefinement;
 use super::requests::{Need, Urgency};
 use crate::cache::ShadingCache;
+use crate::mesh::fast_hash::FastHash;
 use crate::mesh::{NodeId, SubdivisionMesh};
+use crate::sample::DisplayMap;
 use crate::visibility::{LeafView, side_facing};
 
 /// The nodes to show for a visible set: each visible leaf, except that a new leaf of a pending
@@ -167,10 +169,16 @@ pub struct NeedsInput<'a> {
     pub more_paths: Option<MorePaths>,
 }
 
+/// Every visible sample's needs. A vertex is met once per leaf around it (about six on a
+/// closed mesh), and the re-plan keeps, per sample and quality, the need first in queue order,
+/// that is the largest priority; so the leaves are gathered per sample first (largest priority,
+/// largest leaf, whether a refining leaf and a settled one hold it), and each sample's needs
+/// are made once.
 pub fn needs(input: &NeedsInput) -> Vec<Need> {
     let visible = &input.view.visible;
     let (w, h) = (visible.width as f32, visible.height as f32);
-    let mut out = Vec::new();
+    let mut order: Vec<SampleKey> = Vec::new();
+    let mut gathered: HashMap<SampleKey, Gathered, FastHash> = HashMap::default();
     for (v, &(cx, cy)) in visible.leaves.iter().zip(&input.view.centroids) {
         // On-screen size, weighted toward the centre (1 at the centre, 1/3 in a corner).
         let (dx, dy) = ((cx - 0.5 * w) / (0.5 * w), (cy - 0.5 * h) / (0.5 * h));
@@ -181,13 +189,51 @@ pub fn needs(input: &NeedsInput) -> Vec<Need> {
                 vertex,
                 side: v.side,
             };
-            need_key(input, key, refining, priority, &mut out);
-            if let Some(more) = &input.more_paths {
-                more_paths(input, more, key, v.pixels, &mut out);
+            gathered
+                .entry(key)
+                .or_insert_with(|| {
+                    order.push(key);
+                    Gathered::default()
+                })
+                .add(priority, v.pixels, refining);
+        }
+    }
+    let display = input.more_paths.map(|m| DisplayMap::new(m.l_white));
+    let mut out = Vec::with_capacity(order.len());
+    for key in order {
+        let g = gathered[&key];
+        for (refining, priority) in [(false, g.settled), (true, g.refining)] {
+            if let Some(priority) = priority {
+                need_key(input, key, refining, priority, &mut out);
             }
+        }
+        if let (Some(more), Some(display)) = (&input.more_paths, &display) {
+            more_paths(input, more, display, key, g.pixels, &mut out);
         }
     }
     out
+}
+
+/// What the visible leaves around one sample ask of it.
+#[derive(Clone, Copy, Debug, Default)]
+struct Gathered {
+    /// The largest priority among leaves not being refined, and among those being refined.
+    settled: Option<f32>,
+    refining: Option<f32>,
+    /// The largest leaf's pixels.
+    pixels: u32,
+}
+
+impl Gathered {
+    fn add(&mut self, priority: f32, pixels: u32, refining: bool) {
+        let slot = if refining {
+            &mut self.refining
+        } else {
+            &mut self.settled
+        };
+        *slot = Some(slot.map_or(priority, |p| p.max(priority)));
+        self.pixels = self.pixels.max(pixels);
+    }
 }
 
 fn need_key(
@@ -254,6 +300,7 @@ fn need_key(
 fn more_paths(
     input: &NeedsInput,
     more: &MorePaths,
+    display: &DisplayMap,
     key: SampleKey,
     pixels: u32,
     out: &mut Vec<Need>,
@@ -261,7 +308,7 @@ fn more_paths(
     let Some(sample) = input.cache.get_seen_from(key, Some(input.eye)) else {
         return;
     };
-    let error = sample.estimate().display_standard_error(more.l_white);
+    let error = sample.estimate().displayed(display).standard_error;
     // Below the scene's quality (an early-rung sample) it gets its paths whatever its noise
     // shows: a variance read from a quarter of the paths may miss what is rare.
     let below_scene_quality = sample.quality.rank() < input.qualities.full.rank();
@@ -359,6 +406,58 @@ mod tests {
             aging: Aging { max_angle_rad: 0.1 },
             more_paths: more,
         })
+    }
+
+    /// A vertex shared by several leaves gets one need per quality, as the largest leaf
+    /// around it asks (the re-plan would keep no other), whatever order the leaves come in.
+    #[test]
+    fn a_shared_vertex_gets_one_need_per_quality_with_its_largest_leafs_priority() {
+        let mesh = SubdivisionMesh::new(&crate::mesh::grid_mesh(3), Default::default());
+        let leaves: Vec<VisibleLeaf> = (0..mesh.base_count() as NodeId)
+            .map(|leaf| VisibleLeaf {
+                leaf,
+                side: Side::Front,
+                pixels: 10 + 7 * ((leaf * 5) % 11),
+            })
+            .collect();
+        let view = LeafView {
+            centroids: vec![(32.0, 32.0); leaves.len()],
+            visible: VisibleSet {
+                leaves: leaves.clone(),
+                width: 64,
+                height: 64,
+            },
+            ..Default::default()
+        };
+        let cache = ShadingCache::new(1 << 20);
+        let needs = needs(&NeedsInput {
+            view: &view,
+            eye: Vec3::new(1.5, 1.5, 4.0),
+            pending: &PendingRefinement::default(),
+            mesh: &mesh,
+            cache: &cache,
+            view_dependent: &vec![false; mesh.base_count()],
+            qualities: Qualities::new(Quality::INTERACTIVE, 1024, true),
+            aging: Aging { max_angle_rad: 0.1 },
+            more_paths: None,
+        });
+        let mut seen = HashSet::new();
+        for need in &needs {
+            assert!(
+                seen.insert((need.point.key, need.target.rank())),
+                "one need per sample and quality: {need:?}"
+            );
+            // Centred leaves: the priority is the pixels.
+            let largest = leaves
+                .iter()
+                .filter(|l| mesh.node(l.leaf).vertices.contains(&need.point.key.vertex))
+                .map(|l| l.pixels)
+                .max()
+                .expect("the vertex is on a visible leaf");
+            assert_eq!(need.priority, largest as f32, "{need:?}");
+        }
+        // 16 vertices, each missing: a direct-light sample and an early-rung one.
+        assert_eq!(needs.len(), 2 * 16);
     }
 
     #[test]

@@ -21,6 +21,9 @@ pub struct LeafView {
     pub centroids: Vec<(f32, f32)>,
     /// The leaf seen at each pixel, row-major from the top-left; `None` for background.
     pub pixel_leaves: Vec<Option<NodeId>>,
+    /// The camera it was seen from: the view can be carried over to a changed mesh
+    /// (`carry_over`) only for that camera.
+    pub camera: Option<Camera>,
     /// Base triangles visible at level 1, and leaves submitted at level 2 (for benchmarks).
     pub visible_bases: usize,
     pub submitted_leaves: usize,
@@ -114,6 +117,7 @@ impl Visibility {
             },
             centroids,
             pixel_leaves,
+            camera: Some(camera.clone()),
             visible_bases: bases.len(),
             submitted_leaves: submitted.len(),
         })
