@@ -2,7 +2,7 @@
 //! `Remove` for what left, `Insert` for what came in with all three samples cached, `Update` for
 //! a shown triangle whose samples got better. The caller closes the batch with an `Epoch`.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
 
 use glam::Vec3;
 use protocol::Side;
@@ -15,14 +15,23 @@ use crate::visible_set::shown_id;
 
 #[derive(Debug, Default)]
 pub struct Display {
-    /// Shown triangles and the radiance last sent for each (ids made by this process: the fast
-    /// hasher; a sync walks every visible leaf several times a second).
-    shown: HashMap<TriangleId, [[f32; 3]; 3], FastHash>,
+    /// Shown triangles, the radiance last sent for each, and the sync that last wanted it (ids
+    /// made by this process: the fast hasher; a sync walks every visible leaf several times a
+    /// second).
+    shown: HashMap<TriangleId, Shown, FastHash>,
+    /// Syncs so far: what a sync does not stamp with its own count has left the view.
+    syncs: u64,
     /// Δins and Δrem since the last epoch.
     pub inserted: u64,
     pub removed: u64,
     /// Wanted triangles not shown yet for lack of samples, after the last sync.
     pub unshown: usize,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Shown {
+    radiance: [[f32; 3]; 3],
+    wanted_at: u64,
 }
 
 impl Display {
@@ -40,35 +49,46 @@ impl Display {
         cache: &ShadingCache,
         eye: Vec3,
     ) -> Vec<SmaToViewer> {
-        let wanted: HashSet<TriangleId, FastHash> =
-            targets.iter().map(|&(n, s)| shown_id(n, s)).collect();
-        let removed: Vec<TriangleId> = self
-            .shown
-            .keys()
-            .filter(|id| !wanted.contains(id))
-            .copied()
-            .collect();
-        for id in &removed {
-            self.shown.remove(id);
-        }
+        self.syncs += 1;
+        let sync = self.syncs;
         let (mut inserts, mut updates) = (Vec::new(), Vec::new());
         self.unshown = 0;
         for &(node, side) in targets {
             let id = shown_id(node, side);
-            let Some(radiance) = cache.leaf_radiance_from(mesh, node, side, eye) else {
-                self.unshown += usize::from(!self.shown.contains_key(&id));
-                continue;
-            };
-            match self.shown.insert(id, radiance) {
-                None => inserts.push(ShownTriangle {
-                    id,
-                    positions: mesh.leaf_positions(node).map(|p| p.to_array()),
-                    radiance,
-                }),
-                Some(old) if old != radiance => updates.push(Recolour { id, radiance }),
-                Some(_) => {}
+            let radiance = cache.leaf_radiance_from(mesh, node, side, eye);
+            match (self.shown.get_mut(&id), radiance) {
+                (Some(shown), radiance) => {
+                    shown.wanted_at = sync;
+                    if let Some(radiance) = radiance.filter(|&r| r != shown.radiance) {
+                        shown.radiance = radiance;
+                        updates.push(Recolour { id, radiance });
+                    }
+                }
+                (None, Some(radiance)) => {
+                    self.shown.insert(
+                        id,
+                        Shown {
+                            radiance,
+                            wanted_at: sync,
+                        },
+                    );
+                    inserts.push(ShownTriangle {
+                        id,
+                        positions: mesh.leaf_positions(node).map(|p| p.to_array()),
+                        radiance,
+                    });
+                }
+                (None, None) => self.unshown += 1,
             }
         }
+        let mut removed = Vec::new();
+        self.shown.retain(|&id, shown| {
+            let wanted = shown.wanted_at == sync;
+            if !wanted {
+                removed.push(id);
+            }
+            wanted
+        });
         self.inserted += inserts.len() as u64;
         self.removed += removed.len() as u64;
         let mut messages = Vec::new();
@@ -89,6 +109,78 @@ impl Display {
     pub fn shown_triangles(&self) -> impl Iterator<Item = (NodeId, [[f32; 3]; 3])> + '_ {
         self.shown
             .iter()
-            .map(|(&id, &rgb)| (crate::visible_set::split_shown_id(id).0, rgb))
+            .map(|(&id, shown)| (crate::visible_set::split_shown_id(id).0, shown.radiance))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use protocol::renderer_link::{Quality, SampleKey};
+
+    use super::*;
+    use crate::cache::CachedSample;
+    use crate::mesh::grid_mesh;
+
+    fn cache_all(mesh: &SubdivisionMesh, cache: &mut ShadingCache, value: f32) {
+        for vertex in 0..mesh.vertex_count() as u32 {
+            cache.insert(
+                SampleKey {
+                    vertex,
+                    side: Side::Front,
+                },
+                CachedSample {
+                    rgb: [value; 3],
+                    luminance_variance: 0.0,
+                    quality: Quality::INTERACTIVE,
+                    view_dependent: false,
+                    eye: None,
+                    last_seen: 0,
+                },
+            );
+        }
+    }
+
+    fn kinds(messages: &[SmaToViewer]) -> Vec<(&'static str, usize)> {
+        messages
+            .iter()
+            .map(|m| match m {
+                SmaToViewer::Remove { ids } => ("remove", ids.len()),
+                SmaToViewer::Insert { triangles } => ("insert", triangles.len()),
+                SmaToViewer::Update { triangles } => ("update", triangles.len()),
+                _ => ("other", 0),
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_sync_removes_what_left_inserts_what_came_and_updates_what_changed() {
+        let mesh = SubdivisionMesh::new(&grid_mesh(2), Default::default());
+        let mut cache = ShadingCache::new(1 << 20);
+        let eye = Vec3::new(1.0, 1.0, 3.0);
+        let mut display = Display::default();
+        let front = |nodes: &[NodeId]| -> Vec<(NodeId, Side)> {
+            nodes.iter().map(|&n| (n, Side::Front)).collect()
+        };
+        let none = display.sync(&front(&[0, 1, 2]), &mesh, &cache, eye);
+        assert!(
+            none.is_empty() && display.unshown == 3,
+            "nothing cached yet"
+        );
+        cache_all(&mesh, &mut cache, 0.5);
+        let first = display.sync(&front(&[0, 1, 2]), &mesh, &cache, eye);
+        assert_eq!(kinds(&first), [("insert", 3)]);
+        assert_eq!((display.shown(), display.unshown), (3, 0));
+        assert!(
+            display
+                .sync(&front(&[0, 1, 2]), &mesh, &cache, eye)
+                .is_empty()
+        );
+        let moved = display.sync(&front(&[1, 2, 3, 4]), &mesh, &cache, eye);
+        assert_eq!(kinds(&moved), [("remove", 1), ("insert", 2)]);
+        let mut brighter = ShadingCache::new(1 << 20);
+        cache_all(&mesh, &mut brighter, 0.9);
+        let changed = display.sync(&front(&[1, 2, 3, 4]), &mesh, &brighter, eye);
+        assert_eq!(kinds(&changed), [("update", 4)]);
+        assert_eq!((display.inserted, display.removed), (5, 1));
     }
 }

@@ -1,7 +1,7 @@
 //! From one viewer's visible set to what it should be shown and what must be shaded
 //! (DESIGN.md §3 steps 4–6, §5, §7).
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashSet;
 
 use glam::Vec3;
 use protocol::Side;
@@ -10,7 +10,6 @@ use protocol::renderer_link::{Quality, SampleKey, ShadePoint};
 use super::pending::PendingRefinement;
 use super::requests::{Need, Urgency};
 use crate::cache::ShadingCache;
-use crate::mesh::fast_hash::FastHash;
 use crate::mesh::{NodeId, SubdivisionMesh};
 use crate::sample::DisplayMap;
 use crate::visibility::{LeafView, side_facing};
@@ -177,8 +176,9 @@ pub struct NeedsInput<'a> {
 pub fn needs(input: &NeedsInput) -> Vec<Need> {
     let visible = &input.view.visible;
     let (w, h) = (visible.width as f32, visible.height as f32);
-    let mut order: Vec<SampleKey> = Vec::new();
-    let mut gathered: HashMap<SampleKey, Gathered, FastHash> = HashMap::default();
+    // Per sample, its place in `gathered`, by vertex and side: dense, as vertex ids are.
+    let mut place = vec![u32::MAX; 2 * input.mesh.vertex_count()];
+    let mut gathered: Vec<(SampleKey, Gathered)> = Vec::new();
     for (v, &(cx, cy)) in visible.leaves.iter().zip(&input.view.centroids) {
         // On-screen size, weighted toward the centre (1 at the centre, 1/3 in a corner).
         let (dx, dy) = ((cx - 0.5 * w) / (0.5 * w), (cy - 0.5 * h) / (0.5 * h));
@@ -189,19 +189,17 @@ pub fn needs(input: &NeedsInput) -> Vec<Need> {
                 vertex,
                 side: v.side,
             };
-            gathered
-                .entry(key)
-                .or_insert_with(|| {
-                    order.push(key);
-                    Gathered::default()
-                })
-                .add(priority, v.pixels, refining);
+            let at = &mut place[2 * vertex as usize + usize::from(v.side == Side::Back)];
+            if *at == u32::MAX {
+                *at = gathered.len() as u32;
+                gathered.push((key, Gathered::default()));
+            }
+            gathered[*at as usize].1.add(priority, v.pixels, refining);
         }
     }
     let display = input.more_paths.map(|m| DisplayMap::new(m.l_white));
-    let mut out = Vec::with_capacity(order.len());
-    for key in order {
-        let g = gathered[&key];
+    let mut out = Vec::with_capacity(gathered.len());
+    for (key, g) in gathered {
         for (refining, priority) in [(false, g.settled), (true, g.refining)] {
             if let Some(priority) = priority {
                 need_key(input, key, refining, priority, &mut out);
