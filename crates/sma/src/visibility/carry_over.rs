@@ -24,33 +24,55 @@ use crate::mesh::fast_hash::FastHash;
 use crate::mesh::{NodeId, SubdivisionMesh};
 use crate::visible_set::{VisibleLeaf, VisibleSet};
 
+/// At most this share of the image's pixels may have lost their leaf for a carry-over to
+/// be worth it: re-assigning one costs about a tenth of a microsecond, and a pass that follows
+/// the first rounds over a coarse mesh (leaves of thousands of pixels) is cheaper drawn.
+const MOST_PIXELS_CARRIED: f64 = 0.125;
+
 /// `view`, seen from `camera` through `mesh` before it changed, brought to the mesh's current
-/// leaves. Leaves still live keep their entries; the pixels of the others go to the leaves that
-/// now hold them, which get entries after the kept ones, in pixel order.
-pub fn carry_over(view: &LeafView, mesh: &SubdivisionMesh, camera: &Camera) -> LeafView {
-    let pinhole = camera.pinhole();
-    let width = camera.width.max(1) as usize;
-    let mut pixel_leaves = view.pixel_leaves.clone();
+/// leaves; `None` when so many pixels lost their leaf that a pass is cheaper. Leaves still live
+/// keep their entries; the pixels of the others go to the leaves that now hold them, which get
+/// entries after the kept ones, in pixel order.
+pub fn carry_over(view: LeafView, mesh: &SubdivisionMesh, camera: &Camera) -> Option<LeafView> {
+    let stale: Vec<u32> = view
+        .pixel_leaves
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.is_some_and(|leaf| !mesh.is_leaf(leaf)))
+        .map(|(i, _)| i as u32)
+        .collect();
+    if stale.len() as f64 > MOST_PIXELS_CARRIED * view.pixel_leaves.len() as f64 {
+        return None;
+    }
+    let LeafView {
+        visible,
+        centroids: old_centroids,
+        mut pixel_leaves,
+        camera: view_camera,
+        visible_bases,
+        submitted_leaves,
+    } = view;
+    let width = camera.width.max(1);
+    let rays = Rays::new(&camera.pinhole());
+    let mut walk = Walk::new(mesh, camera.eye_vec().as_dvec3());
     let mut gained: HashMap<NodeId, Coverage, FastHash> = HashMap::default();
     let mut gained_order = Vec::new();
-    for (i, slot) in pixel_leaves.iter_mut().enumerate() {
-        let Some(old) = *slot else { continue };
-        if mesh.is_leaf(old) {
-            continue;
-        }
+    for i in stale {
+        let slot = &mut pixel_leaves[i as usize];
         let (x, y) = (i % width, i / width);
-        let leaf = locate(mesh, old, &pinhole, (x as f32 + 0.5, y as f32 + 0.5));
+        let old = slot.expect("a stale pixel has a leaf");
+        let leaf = walk.locate(old, rays.through(x, y));
         *slot = Some(leaf);
         let c = gained.entry(leaf).or_insert_with(|| {
             gained_order.push(leaf);
             Coverage::default()
         });
         c.pixels += 1;
-        c.sum_x += x as u64;
-        c.sum_y += y as u64;
+        c.sum_x += u64::from(x);
+        c.sum_y += u64::from(y);
     }
     let (mut leaves, mut centroids) = (Vec::new(), Vec::new());
-    for (v, &centroid) in view.visible.leaves.iter().zip(&view.centroids) {
+    for (v, &centroid) in visible.leaves.iter().zip(&old_centroids) {
         if !mesh.is_leaf(v.leaf) {
             continue;
         }
@@ -75,67 +97,103 @@ pub fn carry_over(view: &LeafView, mesh: &SubdivisionMesh, camera: &Camera) -> L
         });
         centroids.push(c.centroid());
     }
-    LeafView {
-        visible: VisibleSet {
-            leaves,
-            width: view.visible.width,
-            height: view.visible.height,
-        },
+    Some(LeafView {
+        visible: VisibleSet { leaves, ..visible },
         centroids,
         pixel_leaves,
-        camera: view.camera.clone(),
-        visible_bases: view.visible_bases,
+        camera: view_camera,
+        visible_bases,
         // Nothing was drawn: the figure stays that of the pass the view comes from.
-        submitted_leaves: view.submitted_leaves,
-    }
+        submitted_leaves,
+    })
 }
 
-/// The current leaf whose triangle the ray through image point `(x, y)` passes through, below
-/// the nearest live ancestor of `node` (base triangles never die).
-fn locate(
-    mesh: &SubdivisionMesh,
-    mut node: NodeId,
-    camera: &Pinhole,
-    (x, y): (f32, f32),
-) -> NodeId {
-    while !mesh.node(node).is_alive() {
-        node = mesh
-            .node(node)
-            .parent()
-            .expect("a removed node has a parent: base triangles are never removed");
-    }
-    let eye = camera.eye.as_dvec3();
-    let ray = camera.ray_direction(x, y);
-    loop {
-        let children = mesh.node(node).children();
-        if children.is_empty() {
-            return node;
+/// The direction through each pixel centre, unnormalised (only signs are read): linear in the
+/// pixel's coordinates, as `Pinhole::ray_direction` without its normalisation.
+struct Rays {
+    corner: Vec3,
+    per_x: Vec3,
+    per_y: Vec3,
+}
+
+impl Rays {
+    fn new(camera: &Pinhole) -> Rays {
+        let t = (0.5 * camera.fov_y_deg.to_radians()).tan();
+        let (w, h) = (camera.width.max(1) as f32, camera.height.max(1) as f32);
+        let r = camera.rotation;
+        Rays {
+            corner: r * Vec3::new(-t * camera.aspect(), t, -1.0),
+            per_x: r * Vec3::new(2.0 * t * camera.aspect() / w, 0.0, 0.0),
+            per_y: r * Vec3::new(0.0, -2.0 * t / h, 0.0),
         }
-        node = children
-            .max_by(|&a, &b| {
-                let (sa, sb) = (inside(mesh, a, eye, ray), inside(mesh, b, eye, ray));
-                sa.total_cmp(&sb)
-            })
-            .expect("a split node has children");
+    }
+
+    fn through(&self, x: u32, y: u32) -> Vec3 {
+        self.corner + (x as f32 + 0.5) * self.per_x + (y as f32 + 0.5) * self.per_y
     }
 }
 
-/// How far inside triangle `node` the ray from `eye` along `ray` passes: the smallest of the
-/// three signed volumes its edges make with the ray, oriented so that all three are positive
-/// inside. Non-negative for the one child the ray crosses, negative for its siblings.
-fn inside(mesh: &SubdivisionMesh, node: NodeId, eye: DVec3, ray: Vec3) -> f32 {
+/// The walk down the hierarchy, with each split node's children's edge planes (through the
+/// eye) kept: the pixels of one split leaf all walk the same few nodes.
+struct Walk<'a> {
+    mesh: &'a SubdivisionMesh,
+    eye: DVec3,
+    planes: HashMap<NodeId, Vec<(NodeId, [Vec3; 3])>, FastHash>,
+}
+
+impl<'a> Walk<'a> {
+    fn new(mesh: &'a SubdivisionMesh, eye: DVec3) -> Self {
+        Walk {
+            mesh,
+            eye,
+            planes: HashMap::default(),
+        }
+    }
+
+    /// The current leaf whose triangle `ray` passes through, below the nearest live ancestor of
+    /// `node` (base triangles are never removed).
+    fn locate(&mut self, mut node: NodeId, ray: Vec3) -> NodeId {
+        let mesh = self.mesh;
+        while !mesh.node(node).is_alive() {
+            node = mesh
+                .node(node)
+                .parent()
+                .expect("a removed node has a parent: base triangles are never removed");
+        }
+        while !mesh.node(node).children().is_empty() {
+            let eye = self.eye;
+            let children = self.planes.entry(node).or_insert_with(|| {
+                mesh.node(node)
+                    .children()
+                    .map(|c| (c, edge_planes(mesh, c, eye)))
+                    .collect()
+            });
+            node = children
+                .iter()
+                .map(|&(c, planes)| {
+                    (
+                        c,
+                        planes
+                            .map(|n| n.dot(ray))
+                            .into_iter()
+                            .fold(f32::INFINITY, f32::min),
+                    )
+                })
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+                .expect("a split node has children")
+                .0;
+        }
+        node
+    }
+}
+
+/// The planes through the eye and each edge of triangle `node`, oriented so that a ray from the
+/// eye through the triangle's inside is on the positive side of all three: the one child a ray
+/// crosses has no negative dot product, each sibling has one.
+fn edge_planes(mesh: &SubdivisionMesh, node: NodeId, eye: DVec3) -> [Vec3; 3] {
     let [a, b, c] = mesh.leaf_positions(node).map(|p| relative_to(p, eye));
-    let s = [
-        ray.dot(a.cross(b)),
-        ray.dot(b.cross(c)),
-        ray.dot(c.cross(a)),
-    ];
-    let orientation = if s.iter().sum::<f32>() >= 0.0 {
-        1.0
-    } else {
-        -1.0
-    };
-    s.into_iter()
-        .map(|v| v * orientation)
-        .fold(f32::INFINITY, f32::min)
+    let planes = [a.cross(b), b.cross(c), c.cross(a)];
+    // The triangle's orientation as seen from the eye: the sign of the volume it spans with it.
+    let orientation = if a.dot(planes[1]) >= 0.0 { 1.0 } else { -1.0 };
+    planes.map(|n| n * orientation)
 }
