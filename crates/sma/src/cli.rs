@@ -35,6 +35,18 @@ fn criterion_parser() -> impl TypedValueParser<Value = CriterionKind> {
         .map(|name| CriterionKind::from_name(&name).expect("a possible value"))
 }
 
+/// A share of time: above 0, at most 1.
+fn share(text: &str) -> Result<f64, String> {
+    let value: f64 = text.parse().map_err(|e| format!("{text:?}: {e}"))?;
+    if value > 0.0 && value <= 1.0 {
+        Ok(value)
+    } else {
+        Err(format!(
+            "{value} is not a share of time (above 0, at most 1)"
+        ))
+    }
+}
+
 #[derive(Parser, Debug, Clone)]
 #[command(
     name = "sma",
@@ -147,6 +159,17 @@ pub struct Cli {
     /// A camera rests (refinement may start) once unchanged this many milliseconds.
     #[arg(long, default_value_t = defaults().schedule.rest.as_millis() as u64)]
     pub rest_ms: u64,
+    /// Refinement rounds are spaced so that each takes at most this share of the time until the
+    /// next (0..1; 1: a round whenever its samples are in).
+    // Why the default: a round, and the carry-over, re-plan and viewer sync it sets off, each
+    // walk every visible leaf; unspaced, Sponza S3 had six rounds a second at 130-200 k leaves
+    // and the renderer traced 0.73 M paths/s against 1.1 M without refinement. Three 12-s runs
+    // each (`nld-px`, medians), time to mean FLIP 0.1 on S3 / bracara VT: 5.0 / 0.55 s unspaced
+    // (share 1), 4.0 / 0.52 s at 0.1, 3.3 / 0.43 s at 0.05, 4.0 / 0.64 s at 0.02 (too little
+    // refinement); a fixed 300 ms between rounds gave 3.9 / 2.0 s (early rounds, cheap and
+    // decisive, held back). At 0.05 VT's FLIP at 8 s is 0.036 against 0.035 unspaced.
+    #[arg(long, default_value_t = defaults().schedule.round_share, value_parser = share)]
+    pub round_share: f64,
     /// A view-dependent sample is retaken once the eye has moved by this angle, seen from it.
     #[arg(long, default_value_t = defaults().schedule.view_angle_deg)]
     pub view_angle_deg: f32,
@@ -290,6 +313,7 @@ impl Cli {
             renderer_backlog: Duration::from_millis(self.renderer_backlog_ms),
             queue_low: self.queue_low,
             rest: Duration::from_millis(self.rest_ms),
+            round_share: self.round_share,
             view_angle_deg: self.view_angle_deg,
             stats_every: Duration::from_secs_f32(self.stats_secs.max(0.1)),
             cache_budget_bytes: self.cache_mib << 20,
@@ -372,5 +396,15 @@ mod tests {
         let cli = Cli::try_parse_from(["sma", "--renderer", "r:1", "--criterion", "rnd"]).unwrap();
         assert_eq!(cli.criterion, CriterionKind::Rnd);
         assert!(Cli::try_parse_from(["sma", "--renderer", "r:1", "--criterion", "x"]).is_err());
+    }
+
+    #[test]
+    fn a_round_share_outside_zero_to_one_is_refused() {
+        let with =
+            |share: &str| Cli::try_parse_from(["sma", "--renderer", "r:1", "--round-share", share]);
+        assert_eq!(with("0.25").unwrap().config().schedule.round_share, 0.25);
+        for bad in ["0", "-0.1", "1.5", "NaN", "x"] {
+            assert!(with(bad).is_err(), "{bad} accepted");
+        }
     }
 }

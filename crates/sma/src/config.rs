@@ -99,6 +99,11 @@ pub struct ScheduleConfig {
     pub queue_low: usize,
     /// A camera rests once unchanged this long.
     pub rest: Duration,
+    /// Refinement rounds are spaced so that each takes at most this share of the time until
+    /// the next (0..1]: a round walks every visible leaf, and so do the carry-over, re-plan and
+    /// viewer sync it sets off, so on a large view the rounds' cycle, not the renderers, took
+    /// the cores. A camera move lifts the spacing (`schedule::costs::Pace`).
+    pub round_share: f64,
     /// A view-dependent sample is retaken once the eye has moved by this angle, seen from it.
     pub view_angle_deg: f32,
     /// Time between stats lines.
@@ -146,6 +151,8 @@ impl Default for ScheduleConfig {
             // Overlaps a round with the shading of the last one's upgrades (see `cli.rs`).
             queue_low: 4096,
             rest: Duration::from_millis(100),
+            // As `Cli::round_share`, with the figures that chose it.
+            round_share: 0.05,
             view_angle_deg: 2.0,
             stats_every: Duration::from_secs(2),
             cache_budget_bytes: 1024 << 20,

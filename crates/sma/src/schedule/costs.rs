@@ -94,6 +94,11 @@ impl Pace {
         now >= self.next_at
     }
 
+    /// The task may run at once again (what made it costly is gone).
+    pub fn restart(&mut self, now: Instant) {
+        self.next_at = now;
+    }
+
     /// The task ran from `started` for `spent`.
     pub fn ran(&mut self, started: Instant, spent: Duration) {
         let by_cost = spent.mul_f64(1.0 / self.share);

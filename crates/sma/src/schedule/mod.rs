@@ -114,6 +114,8 @@ pub struct Schedule {
     samples_since_input: u64,
     sync_pace: Pace,
     replan_pace: Pace,
+    /// Spaces out refinement rounds (`ScheduleConfig::round_share`).
+    round_pace: Pace,
     /// Where the thread's time went since the last `Stats`.
     costs: WorkCosts,
     /// `samples` and `paths` at the previous `Stats`.
@@ -135,6 +137,7 @@ impl Schedule {
             .map(|t| scene.material_of(t).is_view_dependent())
             .collect();
         let quality = scene.settings.quality;
+        let round_pace = Pace::new(Duration::ZERO, config.round_share, Instant::now());
         let qualities = Qualities::new(
             Quality {
                 paths: quality.paths,
@@ -174,6 +177,7 @@ impl Schedule {
             samples_since_input: 0,
             sync_pace: Pace::new(SYNC_INTERVAL, SYNC_SHARE, Instant::now()),
             replan_pace: Pace::new(REPLAN_INTERVAL, REPLAN_SHARE, Instant::now()),
+            round_pace,
             costs: WorkCosts::default(),
             counted_at_last_stats: (0, 0),
             last_stats: Instant::now(),
@@ -259,7 +263,12 @@ impl Schedule {
         };
         let viewer = self.viewers.get_mut(&id).expect("looked up above");
         match message {
-            ViewerToSma::Camera(camera) => viewer.camera_moved(camera),
+            ViewerToSma::Camera(camera) => {
+                viewer.camera_moved(camera);
+                // A new view is refined as soon as it rests, whatever the last view's rounds
+                // cost.
+                self.round_pace.restart(Instant::now());
+            }
             ViewerToSma::SetCriterion { .. } => {
                 if let Some(criterion) = criterion {
                     viewer.criterion = criterion;
@@ -389,7 +398,9 @@ impl Schedule {
         if let Some(id) = self.refinement_candidate() {
             let start = Instant::now();
             self.refine_round(id)?;
-            self.costs.add(Work::Round, start.elapsed());
+            let spent = start.elapsed();
+            self.round_pace.ran(start, spent);
+            self.costs.add(Work::Round, spent);
         }
         self.note_convergence();
         Ok(())
@@ -580,6 +591,7 @@ impl Schedule {
             outstanding: self.requests.outstanding_before_paths(),
             queue_low: self.config.queue_low,
             rest: self.config.rest,
+            next_round_at: Some(self.round_pace.next_at()),
         }
     }
 

@@ -31,11 +31,14 @@ pub struct RefineGate {
     pub queue_low: usize,
     /// How long a camera must be unchanged to rest.
     pub rest: Duration,
+    /// No round before this: the rounds' pace (`ScheduleConfig::round_share`).
+    pub next_round_at: Option<Instant>,
 }
 
 /// The viewer whose turn it is to refine at `now`, if refinement may run: never while a pass is
-/// owed to anyone (a camera change interrupts refinement at once), while groups wait, or while
-/// the queue is long; then the resting viewers take turns (`round` counts the rounds so far).
+/// owed to anyone (a camera change interrupts refinement at once), while groups wait, while
+/// the queue is long, or before the rounds' pace allows; then the resting viewers take turns
+/// (`round` counts the rounds so far).
 pub fn refinement_candidate(
     gate: &RefineGate,
     viewers: &[TurnView],
@@ -46,6 +49,7 @@ pub fn refinement_candidate(
         || gate.groups_pending
         || gate.outstanding >= gate.queue_low
         || viewers.iter().any(|v| v.wait.needs_pass())
+        || gate.next_round_at.is_some_and(|at| now < at)
     {
         return None;
     }
@@ -62,7 +66,8 @@ pub fn refinement_candidate(
     (!ready.is_empty()).then(|| ready[round % ready.len()])
 }
 
-/// When the next viewer's camera comes to rest after `now`, if refinement waits only for that.
+/// When the next viewer's camera comes to rest after `now`, or the rounds' pace allows the next
+/// round, whichever is later, if refinement waits only for those.
 pub fn next_rest(gate: &RefineGate, viewers: &[TurnView], now: Instant) -> Option<Instant> {
     if !gate.refine {
         return None;
@@ -70,7 +75,7 @@ pub fn next_rest(gate: &RefineGate, viewers: &[TurnView], now: Instant) -> Optio
     viewers
         .iter()
         .filter(|v| v.has_view && !v.paused && !v.wait.is_exhausted())
-        .map(|v| v.camera_at + gate.rest)
+        .map(|v| (v.camera_at + gate.rest).max(gate.next_round_at.unwrap_or(now)))
         .filter(|&t| t > now)
         .min()
 }
@@ -136,6 +141,7 @@ mod tests {
             outstanding: 0,
             queue_low: 256,
             rest: Duration::from_millis(100),
+            next_round_at: None,
         }
     }
 
@@ -171,6 +177,29 @@ mod tests {
             None,
             "already resting"
         );
+    }
+
+    #[test]
+    fn rounds_wait_for_their_pace_and_the_loop_wakes_for_it() {
+        let mut clock = FakeClock(Instant::now());
+        let viewers = [resting(1, clock.now())];
+        clock.advance(1000);
+        let paced = RefineGate {
+            next_round_at: Some(clock.now() + Duration::from_millis(400)),
+            ..gate()
+        };
+        assert_eq!(refinement_candidate(&paced, &viewers, 0, clock.now()), None);
+        assert_eq!(
+            next_rest(&paced, &viewers, clock.now()),
+            paced.next_round_at,
+            "the loop wakes when the pace allows, not only when a camera rests"
+        );
+        clock.advance(400);
+        assert_eq!(
+            refinement_candidate(&paced, &viewers, 0, clock.now()),
+            Some(1)
+        );
+        assert_eq!(next_rest(&paced, &viewers, clock.now()), None);
     }
 
     #[test]
