@@ -159,8 +159,9 @@ pub struct Cli {
     /// A camera rests (refinement may start) once unchanged this many milliseconds.
     #[arg(long, default_value_t = defaults().schedule.rest.as_millis() as u64)]
     pub rest_ms: u64,
-    /// Refinement rounds are spaced so that each takes at most this share of the time until the
-    /// next (0..1; 1: a round whenever its samples are in).
+    /// While work is queued for the renderers, refinement rounds are spaced so that each takes
+    /// at most this share of the time until the next (0..1; 1: a round whenever its samples are
+    /// in).
     // Why the default: a round, and the carry-over, re-plan and viewer sync it sets off, each
     // walk every visible leaf; unspaced, Sponza S3 had six rounds a second at 130-200 k leaves
     // and the renderer traced 0.73 M paths/s against 1.1 M without refinement. Three 12-s runs

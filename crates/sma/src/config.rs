@@ -102,7 +102,8 @@ pub struct ScheduleConfig {
     /// Refinement rounds are spaced so that each takes at most this share of the time until
     /// the next (0..1]: a round walks every visible leaf, and so do the carry-over, re-plan and
     /// viewer sync it sets off, so on a large view the rounds' cycle, not the renderers, took
-    /// the cores. A camera move lifts the spacing (`schedule::costs::Pace`).
+    /// the cores. Only while work is queued for the renderers; a camera move lifts the spacing
+    /// (`schedule::costs::Pace`).
     pub round_share: f64,
     /// A view-dependent sample is retaken once the eye has moved by this angle, seen from it.
     pub view_angle_deg: f32,

@@ -591,7 +591,10 @@ impl Schedule {
             outstanding: self.requests.outstanding_before_paths(),
             queue_low: self.config.queue_low,
             rest: self.config.rest,
-            next_round_at: Some(self.round_pace.next_at()),
+            // Spacing the rounds gives their time to the renderers only while the queue holds
+            // work for them; with nothing queued, rounds are what gives them work (a view's
+            // last refinements), and held back they left the renderers idle.
+            next_round_at: (self.requests.queued() > 0).then(|| self.round_pace.next_at()),
         }
     }
 
