@@ -407,7 +407,8 @@ pub fn section(out: &Path) -> anyhow::Result<String> {
          (options: `--views`, `--criteria`, `--seconds`, `--width/--height`, `--gt-spp`; `--report-only` redraws this \
          section and the plots from the CSVs). For each view and criterion a fresh renderer + SMA + headless viewer run \
          on loopback, as separate processes, from an empty cache (t = 0 at the viewer's first camera), with snapshots \
-         every second and when the sample count passes 1 000, 1 500, 2 000, 3 000, 4 000, … (half steps of a doubling); samples climb the quality ladder \
+         every second and when the sample count passes each of `--at-samples` (by default quarter steps of a doubling from 1 000 to 8 000, \
+         eighth steps to 64 000, where the views cross FLIP 0.1, quarter steps to 256 000); samples climb the quality ladder \
          (direct light, the scene's 64 paths × 2 bounces, then ×4 paths up to the SMA's `--max-paths`, DESIGN.md §5). \
          Δvis = triangles shown, Δins / Δrem = triangles inserted / removed since t = 0 (as in the thesis's tables \
          5.2–5.4), samples = vertex samples computed, paths = paths traced for them (the cost at which runs are \
