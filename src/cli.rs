@@ -189,20 +189,9 @@ pub struct ConvergenceArgs {
     /// Length of each run; snapshots every second.
     #[arg(long, default_value_t = 60.0)]
     pub seconds: f64,
-    /// Fixed sample counts at which snapshots are also taken: quarter steps of a doubling up to
-    /// 8000 samples, eighth steps up to 64000, quarter steps after. A time to reach an error is
-    /// read at the first snapshot at or below it, so the grid bounds how finely it is read: the
-    /// views cross mean FLIP 0.1 between 8000 and 64000 samples, in their first seconds, when the
-    /// error falls fastest.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "1000,1250,1500,1750,2000,2500,3000,3500,4000,5000,6000,7000,8000,\
-                         9000,10000,11000,12000,13000,14000,15000,16000,\
-                         18000,20000,22000,24000,26000,28000,30000,32000,\
-                         36000,40000,44000,48000,52000,56000,60000,64000,\
-                         80000,96000,112000,128000,160000,192000,224000,256000"
-    )]
+    /// Fixed sample counts at which snapshots are also taken; by default quarter steps of a
+    /// doubling up to 8000 samples, sixteenth steps up to 128000, quarter steps up to 256000.
+    #[arg(long, value_delimiter = ',', default_values_t = snapshot_sample_grid())]
     pub at_samples: Vec<u64>,
     #[command(flatten)]
     pub images: ImageArgs,
@@ -366,5 +355,45 @@ impl AccuracyArgs {
             direct: self.direct,
             no_report: self.no_report,
         }
+    }
+}
+
+/// The sample counts at which `bench convergence` takes snapshots besides one a second: quarter
+/// steps of a doubling from 1 000 to 8 000, sixteenth steps to 128 000, quarter steps to 256 000.
+/// A time to reach an error is read at the first snapshot at or below it, so the grid bounds how
+/// finely it is read: the views cross mean FLIP 0.1 between 8 000 and 128 000 samples, in their
+/// first seconds, when the error falls fastest. Snapshots are copies until the run ends
+/// (`viewer::snapshot_files`), so a fine grid costs the system measured next to nothing.
+fn snapshot_sample_grid() -> Vec<u64> {
+    let mut counts = Vec::new();
+    for (from, to, steps) in [
+        (1_000, 8_000, 4),
+        (8_000, 128_000, 16),
+        (128_000, 256_000, 4),
+    ] {
+        let mut doubling = from;
+        while doubling < to {
+            counts.extend((0..steps).map(|k| doubling + k * doubling / steps));
+            doubling *= 2;
+        }
+    }
+    counts.push(256_000);
+    counts
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_snapshot_grid_rises_in_finer_steps_where_the_views_cross_flip_0_1() {
+        let grid = snapshot_sample_grid();
+        assert!(grid.windows(2).all(|w| w[0] < w[1]), "{grid:?}");
+        assert_eq!((grid[0], grid[grid.len() - 1]), (1_000, 256_000));
+        for (count, next) in [(1_750, 2_000), (8_000, 8_500), (124_000, 128_000)] {
+            let at = grid.iter().position(|&c| c == count).unwrap();
+            assert_eq!(grid[at + 1], next);
+        }
+        assert_eq!(grid.len(), 4 * 3 + 16 * 4 + 4 + 1);
     }
 }

@@ -196,7 +196,12 @@ fn viewer_args(c: &ViewerConfig, sma: SocketAddr, out: &Path) -> Vec<String> {
         "--height",
         &c.height.to_string(),
     ]));
-    args.extend(strings(&["--out", &out.to_string_lossy()]));
+    // A measured run: its snapshots are drawn after it, not beside the system it measures.
+    args.extend(strings(&[
+        "--out",
+        &out.to_string_lossy(),
+        "--hold-snapshots",
+    ]));
     if let Some(seconds) = c.seconds {
         args.extend(strings(&["--seconds", &seconds.to_string()]));
     }

@@ -68,6 +68,11 @@ pub struct Cli {
     /// Headless: where snapshots and snapshots.csv go.
     #[arg(long, default_value = "snapshots")]
     pub out: PathBuf,
+    /// Headless: draw and write the snapshots only after the run (or once their copies fill
+    /// 512 MiB), so that drawing them takes nothing from the system measured; otherwise each is
+    /// drawn as it comes, at idle priority.
+    #[arg(long)]
+    pub hold_snapshots: bool,
     /// Headless: a scripted walk (see `camera_path` for the format); t = 0 at the first camera.
     #[arg(long)]
     pub camera_path: Option<PathBuf>,
@@ -119,6 +124,7 @@ impl Cli {
             snapshot_every: self.snapshot_every,
             snapshot_at_samples: self.snapshot_at_samples,
             snapshot_when_idle: self.snapshot_when_idle,
+            hold_snapshots: self.hold_snapshots,
             seconds: self.seconds,
             out: self.out,
             camera_path: self.camera_path,

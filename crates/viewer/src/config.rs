@@ -25,6 +25,10 @@ pub struct ViewerConfig {
     pub seconds: Option<f64>,
     /// Headless: where snapshots and snapshots.csv go.
     pub out: PathBuf,
+    /// Headless: draw and write the snapshots only after the run, or once their copies fill
+    /// half their memory budget, so that drawing them takes nothing from the system measured
+    /// (`snapshot_files`); otherwise each is drawn as it comes, at idle priority.
+    pub hold_snapshots: bool,
     /// Headless: a scripted walk (see `camera_path` for the format); t = 0 at the first camera.
     pub camera_path: Option<PathBuf>,
     pub tone_map: ToneMap,

@@ -118,7 +118,7 @@ pub fn run(config: &ViewerConfig) -> anyhow::Result<()> {
         height: config.height,
         overlay: config.overlay,
     };
-    let (writer, adapter) = SnapshotWriter::create(&config.out, canvas)?;
+    let (writer, adapter) = SnapshotWriter::create(&config.out, canvas, config.hold_snapshots)?;
     tracing::debug!(%adapter, "headless viewer");
     tracing::info!("snapshots go to {}", config.out.display());
     let (tx, events) = mpsc::channel();

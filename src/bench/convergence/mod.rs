@@ -408,7 +408,7 @@ pub fn section(out: &Path) -> anyhow::Result<String> {
          section and the plots from the CSVs). For each view and criterion a fresh renderer + SMA + headless viewer run \
          on loopback, as separate processes, from an empty cache (t = 0 at the viewer's first camera), with snapshots \
          every second and when the sample count passes each of `--at-samples` (by default quarter steps of a doubling from 1 000 to 8 000, \
-         eighth steps to 64 000, where the views cross FLIP 0.1, quarter steps to 256 000); samples climb the quality ladder \
+         sixteenth steps to 128 000, where the views cross FLIP 0.1, quarter steps to 256 000); samples climb the quality ladder \
          (direct light, the scene's 64 paths × 2 bounces, then ×4 paths up to the SMA's `--max-paths`, DESIGN.md §5). \
          Δvis = triangles shown, Δins / Δrem = triangles inserted / removed since t = 0 (as in the thesis's tables \
          5.2–5.4), samples = vertex samples computed, paths = paths traced for them (the cost at which runs are \
@@ -456,8 +456,8 @@ pub fn section(out: &Path) -> anyhow::Result<String> {
         if !shares.is_empty() {
             md.push_str(
                 "\nWhere the CPU went over each run (share of all cores, until the viewer's run \
-                 ended; the viewer's share includes drawing and encoding its snapshots at idle \
-                 priority, on cores nothing else wanted):\n\n",
+                 ended; the viewer's share includes the snapshots it drew and encoded during \
+                 the run, at idle priority, on cores nothing else wanted):\n\n",
             );
             md.push_str(&cpu::table(&shares));
         }
