@@ -12,9 +12,9 @@
 //! without; on Sponza S3, mean FLIP 0.1 read at 3.7 s against 3.25 s). So the writer holds the
 //! frames, when asked to (`ViewerConfig::hold_snapshots`, as the benchmarks do), and draws only
 //! once they hold [`HELD_BEFORE_DRAWING`] bytes: in a benchmark's first seconds, when the error
-//! falls fastest, nothing is drawn at all. Once the run ends, the
-//! viewer's own thread draws and writes what is left, at its normal priority. The record's time
-//! is the snapshot's, not the file's.
+//! falls fastest, nothing is drawn at all. Once the run ends, the viewer's own thread draws and
+//! writes what is left, at its normal priority. The record's time is the snapshot's, not the
+//! file's.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -375,19 +375,17 @@ mod tests {
     /// However far the idle thread got, `finish` leaves every queued snapshot on disk, in order.
     #[test]
     fn finish_writes_every_queued_snapshot_in_order() {
-        finish_writes_every_queued_snapshot(false);
+        finish_writes_every_queued_snapshot("finish_writes_every_queued_snapshot_in_order", false);
     }
 
     /// The same when the writer held every frame until the run was over.
     #[test]
     fn finish_writes_every_held_snapshot_in_order() {
-        finish_writes_every_queued_snapshot(true);
+        finish_writes_every_queued_snapshot("finish_writes_every_held_snapshot_in_order", true);
     }
 
-    fn finish_writes_every_queued_snapshot(hold: bool) {
-        let Some(_) =
-            crate::gpu::headless_or_skip("finish_writes_every_queued_snapshot_in_order").unwrap()
-        else {
+    fn finish_writes_every_queued_snapshot(test: &str, hold: bool) {
+        let Some(_) = crate::gpu::headless_or_skip(test).unwrap() else {
             return;
         };
         let dir = tempfile::tempdir().unwrap();
