@@ -97,7 +97,8 @@ pub struct ScheduleConfig {
     /// Refinement waits until fewer samples than this, of those a picture or a refinement step
     /// waits for (`Requests::outstanding_before_paths`), are queued or in flight.
     pub queue_low: usize,
-    /// A camera rests once unchanged this long.
+    /// A camera that replaced another rests once unchanged this long (a viewer's first camera
+    /// rests at once: `schedule::turns::TurnView::camera_replaced`).
     pub rest: Duration,
     /// Refinement rounds are spaced so that each takes at most this share of the time until
     /// the next (0..1]: a round walks every visible leaf, and so do the carry-over, re-plan and

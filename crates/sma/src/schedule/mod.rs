@@ -580,6 +580,7 @@ impl Schedule {
                 paused: v.paused,
                 wait: v.wait,
                 camera_at: v.camera_at,
+                camera_replaced: v.camera_replaced,
             })
             .collect()
     }

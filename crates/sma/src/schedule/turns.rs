@@ -17,6 +17,21 @@ pub struct TurnView {
     pub paused: bool,
     pub wait: ViewWait,
     pub camera_at: Instant,
+    /// Its camera replaced an earlier one: the viewer may be walking, so refinement waits for
+    /// the camera to rest. A viewer's first camera rests at once: nothing says it moves, and a
+    /// person who has just opened a view is looking at it.
+    pub camera_replaced: bool,
+}
+
+impl TurnView {
+    /// When its camera counts as resting.
+    fn rests_at(&self, rest: Duration) -> Instant {
+        if self.camera_replaced {
+            self.camera_at + rest
+        } else {
+            self.camera_at
+        }
+    }
 }
 
 /// What refinement as a whole waits for, before any viewer is asked.
@@ -29,7 +44,7 @@ pub struct RefineGate {
     /// Samples queued or in flight, and the level below which refinement may add more.
     pub outstanding: usize,
     pub queue_low: usize,
-    /// How long a camera must be unchanged to rest.
+    /// How long a camera that replaced another must be unchanged to rest.
     pub rest: Duration,
     /// No round before this: the rounds' pace (`ScheduleConfig::round_share`).
     pub next_round_at: Option<Instant>,
@@ -56,10 +71,7 @@ pub fn refinement_candidate(
     let ready: Vec<ViewerId> = viewers
         .iter()
         .filter(|v| {
-            v.has_view
-                && !v.paused
-                && !v.wait.is_exhausted()
-                && now.saturating_duration_since(v.camera_at) >= gate.rest
+            v.has_view && !v.paused && !v.wait.is_exhausted() && now >= v.rests_at(gate.rest)
         })
         .map(|v| v.id)
         .collect();
@@ -75,7 +87,7 @@ pub fn next_rest(gate: &RefineGate, viewers: &[TurnView], now: Instant) -> Optio
     viewers
         .iter()
         .filter(|v| v.has_view && !v.paused && !v.wait.is_exhausted())
-        .map(|v| (v.camera_at + gate.rest).max(gate.next_round_at.unwrap_or(now)))
+        .map(|v| v.rests_at(gate.rest).max(gate.next_round_at.unwrap_or(now)))
         .filter(|&t| t > now)
         .min()
 }
@@ -152,6 +164,7 @@ mod tests {
             paused: false,
             wait: ViewWait::Rest,
             camera_at,
+            camera_replaced: true,
         }
     }
 
@@ -177,6 +190,20 @@ mod tests {
             None,
             "already resting"
         );
+    }
+
+    #[test]
+    fn a_first_camera_rests_at_once() {
+        let clock = FakeClock(Instant::now());
+        let first = TurnView {
+            camera_replaced: false,
+            ..resting(1, clock.now())
+        };
+        assert_eq!(
+            refinement_candidate(&gate(), &[first], 0, clock.now()),
+            Some(1)
+        );
+        assert_eq!(next_rest(&gate(), &[first], clock.now()), None);
     }
 
     #[test]

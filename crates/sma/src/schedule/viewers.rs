@@ -22,6 +22,8 @@ pub struct Viewer {
     pub camera: Option<Camera>,
     /// When the camera last changed (refinement waits for it to rest).
     pub camera_at: Instant,
+    /// The camera replaced an earlier one (`turns::TurnView::camera_replaced`).
+    pub camera_replaced: bool,
     pub wait: ViewWait,
     /// The camera seq whose epoch is still owed.
     answer_pending: Option<u64>,
@@ -55,6 +57,7 @@ impl Viewer {
             outbox,
             camera: None,
             camera_at: Instant::now(),
+            camera_replaced: false,
             wait: ViewWait::Camera,
             answer_pending: None,
             view: None,
@@ -76,6 +79,7 @@ impl Viewer {
     /// A new camera: its epoch is owed, a pass comes first, the criterion starts over.
     pub fn camera_moved(&mut self, camera: Camera) {
         self.answer_pending = Some(camera.seq);
+        self.camera_replaced = self.camera.is_some();
         self.camera = Some(camera);
         self.camera_at = Instant::now();
         self.wait.camera_moved();
