@@ -456,8 +456,8 @@ pub fn section(out: &Path) -> anyhow::Result<String> {
         if !shares.is_empty() {
             md.push_str(
                 "\nWhere the CPU went over each run (share of all cores, until the viewer's run \
-                 ended; the viewer's share includes the snapshots it drew and encoded during \
-                 the run, at idle priority, on cores nothing else wanted):\n\n",
+                 ended; the viewer holds its snapshots and draws them after the run, or during \
+                 it at idle priority once they fill half its memory budget):\n\n",
             );
             md.push_str(&cpu::table(&shares));
         }
