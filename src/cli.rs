@@ -362,8 +362,9 @@ impl AccuracyArgs {
 /// steps of a doubling from 1 000 to 8 000, sixteenth steps to 128 000, quarter steps to 256 000.
 /// A time to reach an error is read at the first snapshot at or below it, so the grid bounds how
 /// finely it is read: the views cross mean FLIP 0.1 between 8 000 and 128 000 samples, in their
-/// first seconds, when the error falls fastest. Snapshots are copies until the run ends
-/// (`viewer::snapshot_files`), so a fine grid costs the system measured next to nothing.
+/// first seconds, when the error falls fastest. The harness's viewer holds its snapshots as
+/// copies until the run ends (`--hold-snapshots`, `viewer::snapshot_files`), so a fine grid
+/// costs the system measured next to nothing.
 fn snapshot_sample_grid() -> Vec<u64> {
     let mut counts = Vec::new();
     for (from, to, steps) in [
