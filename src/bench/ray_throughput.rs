@@ -228,17 +228,18 @@ pub(super) fn ray_throughput(
     view: &str,
     cfg: &Config,
 ) -> anyhow::Result<String> {
-    let ours_world = World::with_preset(scene.clone(), BuildPreset::Slow);
+    let ours_world = World::new(scene.clone());
     let best = VectorLevel::detected();
-    let ours = |traversal, level| {
-        let mut bvh = SceneBvh::build(&scene.mesh, BuildPreset::Slow);
+    let ours = |preset, traversal, level| {
+        let mut bvh = SceneBvh::build(&scene.mesh, preset);
         bvh.set_traversal(traversal);
         bvh.set_vector_level(level);
         bvh
     };
-    let compressed = ours(Traversal::Compressed, best);
-    let portable = ours(Traversal::Wide, VectorLevel::Baseline);
-    let fastest = ours(Traversal::Wide, best);
+    // The compressed traversal on the tree it ran on before the wide one came.
+    let compressed = ours(BuildPreset::Slow, Traversal::Compressed, best);
+    let portable = ours(World::PRESET, Traversal::Wide, VectorLevel::Baseline);
+    let fastest = ours(World::PRESET, Traversal::Wide, best);
     let naive = NaiveBvh::build(&scene.mesh);
     let (primary, bounce, shadow) = view_rays(&ours_world, view, cfg)?;
     // The rays are in the world's local frame, and so must the grid be.
@@ -272,7 +273,7 @@ pub(super) fn ray_throughput(
     let best = best.name();
     writeln!(
         md,
-        "obvhs: one ray at a time, default (medium) preset, triangles through `primitive_indices`, closest hit for every ray, baseline instructions. Ours: slow preset (spatial splits), triangles stored in BVH order, early-exit shadow query. \"compressed\": obvhs's traversal of its compressed nodes inside our entry points at {best} (the renderer's traversal before the wide one). \"wide\" (the renderer's): the same tree decoded into full-precision eight-wide nodes, nearest child first, leaves tested with obvhs's triangle test, at the baseline vector level (SSE) and at the best one this CPU runs ({best}, AVX2), chosen at run time by the same binary; \"ordered\" first regroups the rays by direction octant and the Morton order of their origin's cell on a 16³ grid (`RayOrder`: a counting sort, one thread; {sort_ms:.0} ms for all bounce and shadow rays), its time included, then traces them in that order (primary rays are already in 8×8 pixel tiles). \"packets\": the wide nodes walked by eight consecutive rays at once (a row of a primary tile, eight shadow rays in the order they come; a packet whose rays are not all of one direction octant, as most bounce rays' are not, is traced one ray at a time), eight rays per vector step, each ray getting its one-ray answer. All are timed in turn within each run; ratios are medians of the per-run ratios.\n"
+        "obvhs: one ray at a time, default (medium) preset, triangles through `primitive_indices`, closest hit for every ray, baseline instructions. Ours: triangles stored in BVH order, early-exit shadow query. \"compressed\": obvhs's traversal of its compressed nodes inside our entry points at {best}, on a slow-preset tree (spatial splits): the renderer's traversal and tree before the wide one. \"wide\" (the renderer's): a very-slow-preset tree (spatial splits, then reinsertion over every node) decoded into full-precision eight-wide nodes, nearest child first, a node's leaf children tested as soon as it is visited (before its inner children are taken up) with obvhs's triangle test, at the baseline vector level (SSE) and at the best one this CPU runs ({best}, AVX2), chosen at run time by the same binary; \"ordered\" first regroups the rays by direction octant and the Morton order of their origin's cell on a 16³ grid (`RayOrder`: a counting sort, one thread; {sort_ms:.0} ms for all bounce and shadow rays), its time included, then traces them in that order (primary rays are already in 8×8 pixel tiles). \"packets\": the wide nodes walked by eight consecutive rays at once (a row of a primary tile, eight shadow rays in the order they come; a packet whose rays are not all of one direction octant, as most bounce rays' are not, is traced one ray at a time), eight rays per vector step, each ray getting its one-ray answer. All are timed in turn within each run; ratios are medians of the per-run ratios.\n"
     )?;
     writeln!(
         md,

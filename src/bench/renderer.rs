@@ -111,13 +111,13 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
         md += &hidden_vertices(sponza, cfg)?;
     }
     let bracara = World::new(scene::load("bracara").context("loading bracara")?);
-    let mut scenes: Vec<(World, &str)> = sponza.into_iter().map(|s| (s, "S1")).collect();
-    scenes.push((bracara, "VR"));
+    let mut scenes: Vec<Subject> = sponza.into_iter().map(|s| Subject::new(s, "S1")).collect();
+    scenes.push(Subject::new(bracara, "VR"));
     md += &samples_per_second(&mut scenes, cfg)?;
     md += &reference_times(&mut scenes, cfg)?;
     md += &cornell_agreement(cfg)?;
-    for (world, view) in &scenes {
-        md += &error_and_time(world, view, cfg)?;
+    for subject in &scenes {
+        md += &error_and_time(&subject.world, subject.view, cfg)?;
     }
     Ok(md)
 }
@@ -140,7 +140,8 @@ fn bvh_build_times(scene: &scene::Scene, cfg: &Config) -> String {
     for (name, preset) in [
         ("fast", BuildPreset::Fast),
         ("medium", BuildPreset::Medium),
-        ("slow (used)", BuildPreset::Slow),
+        ("slow (the renderer before)", BuildPreset::Slow),
+        ("very slow (used)", BuildPreset::VerySlow),
     ] {
         let mut refs = 0;
         let ms = median(
@@ -184,12 +185,12 @@ fn visible_points(world: &World, view: &str, n: usize) -> anyhow::Result<Vec<Sha
     Ok(points.into_iter().step_by(step).take(n).collect())
 }
 
-/// Samples per second of the full estimator, one path at a time and as ray streams, with the ray
-/// queries at the baseline and at the best vector level: all four timed in turn within each run;
-/// medians, and the medians of the per-run ratios.
-/// One way the renderer may trace: estimator, traversal, vector level, first-bounce sampling.
+/// One way the renderer may trace: tree, estimator, traversal, vector level, first-bounce
+/// sampling.
 #[derive(Clone, Copy)]
 struct Variant {
+    /// The build preset of the tree it traces.
+    preset: BuildPreset,
     estimator: Estimator,
     traversal: Traversal,
     level: VectorLevel,
@@ -199,10 +200,12 @@ struct Variant {
 }
 
 impl Variant {
-    /// The renderer before its own wide traversal and stratified first bounces: one path at a
-    /// time, each sampled independently, over obvhs's compressed nodes, at the best vector level.
+    /// The renderer before its own wide traversal, stratified first bounces and very slow
+    /// preset: one path at a time, each sampled independently, over obvhs's compressed nodes of
+    /// a slow-preset tree, at the best vector level.
     fn old() -> Variant {
         Variant {
+            preset: BuildPreset::Slow,
             estimator: Estimator::Path,
             traversal: Traversal::Compressed,
             level: VectorLevel::detected(),
@@ -213,6 +216,7 @@ impl Variant {
 
     fn wide(estimator: Estimator, level: VectorLevel) -> Variant {
         Variant {
+            preset: World::PRESET,
             estimator,
             traversal: Traversal::Wide,
             level,
@@ -228,26 +232,52 @@ impl Variant {
             ..self
         }
     }
+}
 
-    fn apply(self, world: &mut World) {
-        world.estimator = self.estimator;
-        world.first_bounce = self.first_bounce;
-        world.packets = self.packets;
-        world.bvh.set_traversal(self.traversal);
-        world.bvh.set_vector_level(self.level);
+/// A scene's world and the view measured, with the tree of the other preset kept aside, so that
+/// each variant traces on its own renderer's tree.
+struct Subject<'v> {
+    world: World,
+    view: &'v str,
+    /// The tree not in `world.bvh` now: the old renderer's while today's is in place.
+    spare: SceneBvh,
+}
+
+impl<'v> Subject<'v> {
+    fn new(world: World, view: &'v str) -> Subject<'v> {
+        // The world's mesh is already in its local frame, where trees are built.
+        let spare = SceneBvh::build(&world.scene.mesh, Variant::old().preset);
+        Subject { world, view, spare }
+    }
+
+    /// Sets the world up to trace as `variant` does.
+    fn apply(&mut self, variant: Variant) {
+        if self.world.bvh.preset() != variant.preset {
+            std::mem::swap(&mut self.world.bvh, &mut self.spare);
+        }
+        let world = &mut self.world;
+        assert_eq!(world.bvh.preset(), variant.preset, "a tree per preset");
+        world.estimator = variant.estimator;
+        world.first_bounce = variant.first_bounce;
+        world.packets = variant.packets;
+        world.bvh.set_traversal(variant.traversal);
+        world.bvh.set_vector_level(variant.level);
+    }
+
+    /// Puts the renderer's defaults back after a comparison.
+    fn restore_defaults(&mut self) {
+        self.apply(Variant::wide(Estimator::default(), VectorLevel::detected()));
     }
 }
 
-/// Puts the renderer's defaults back after a comparison.
-fn restore_defaults(world: &mut World) {
-    Variant::wide(Estimator::default(), VectorLevel::detected()).apply(world);
-}
-
-fn samples_per_second(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Result<String> {
+/// Samples per second of the full estimator, the old renderer's and today's, one path at a time
+/// and as ray streams, with the ray queries at the baseline and at the best vector level: all
+/// timed in turn within each run; medians, and the medians of the per-run ratios.
+fn samples_per_second(scenes: &mut [Subject], cfg: &Config) -> anyhow::Result<String> {
     let best = VectorLevel::detected();
     let name = best.name();
     let mut md = format!(
-        "### Shading samples per second (points of the view's visible surfaces)\n\n\"path\": one path at a time; \"wavefront\": up to 4096 paths (64 points of 64 paths) advance together, their shadow rays then their continuation rays traced as streams, a shadow ray trying the previous one's blocker first (DESIGN.md §7), the sun shadow rays of a point's paths traced eight at a time as packets (\"single rays\": without packets). \"old\": the renderer before its wide traversal and stratified first bounces (one path at a time over obvhs's compressed nodes, {name}, every path's first bounce drawn independently); the others run the wide traversal with stratified first bounces. Same points and seeds, same answers in distribution; each variant's figures include all of its work, and all are timed in turn within each run; ratios are medians of the per-run ratios.\n\n| scene | view | quality | points | old | path, baseline | path, {name} | wavefront, baseline | wavefront, {name} | wavefront, {name}, single rays | path {name} / old | {name} / baseline (path) | wavefront / path ({name}) | packets / single rays (wavefront, {name}) | rays/sample |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "### Shading samples per second (points of the view's visible surfaces)\n\n\"path\": one path at a time; \"wavefront\": up to 4096 paths (64 points of 64 paths) advance together, their shadow rays then their continuation rays traced as streams, a shadow ray trying the previous one's blocker first (DESIGN.md §7), the sun shadow rays of a point's paths traced eight at a time as packets (\"single rays\": without packets). \"old\": the renderer before its wide traversal, stratified first bounces and very slow tree preset (one path at a time over obvhs's compressed nodes, {name}, on a slow-preset tree, every path's first bounce drawn independently); the others run the wide traversal on a very-slow-preset tree (`World::PRESET`) with stratified first bounces. All share the rest of today's code (sampling, materials, lights). Same points and seeds, same answers in distribution; each variant's figures include all of its work, and all are timed in turn within each run; ratios are medians of the per-run ratios.\n\n| scene | view | quality | points | old | path, baseline | path, {name} | wavefront, baseline | wavefront, {name} | wavefront, {name}, single rays | path {name} / old | {name} / baseline (path) | wavefront / path ({name}) | packets / single rays (wavefront, {name}) | rays/sample |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     let variants = [
         Variant::old(),
@@ -257,8 +287,8 @@ fn samples_per_second(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Res
         Variant::wide(Estimator::Wavefront, best),
         Variant::wide(Estimator::Wavefront, best).single_rays(),
     ];
-    for (world, view) in scenes.iter_mut() {
-        let points = visible_points(world, view, cfg.points)?;
+    for subject in scenes.iter_mut() {
+        let points = visible_points(&subject.world, subject.view, cfg.points)?;
         for (label, quality) in [
             ("interactive (64 paths, 2 bounces)", Quality::INTERACTIVE),
             ("direct (16 paths, 0 bounces)", Quality::DIRECT),
@@ -273,22 +303,23 @@ fn samples_per_second(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Res
             let per_run: Vec<[f64; 6]> = (0..cfg.runs)
                 .map(|_| {
                     variants.map(|variant| {
-                        variant.apply(world);
+                        subject.apply(variant);
                         let start = Instant::now();
-                        rays = shade_batch(world, &batch).1.total();
+                        rays = shade_batch(&subject.world, &batch).1.total();
                         points.len() as f64 / start.elapsed().as_secs_f64()
                     })
                 })
                 .collect();
-            restore_defaults(world);
+            subject.restore_defaults();
             let rates: [f64; 6] =
                 std::array::from_fn(|k| median(per_run.iter().map(|r| r[k]).collect()));
             let ratio =
                 |k: usize, base: usize| median(per_run.iter().map(|r| r[k] / r[base]).collect());
             writeln!(
                 md,
-                "| {} | {view} | {label} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2}× | {:.2}× | {:.2}× | {:.2}× | {:.0} |",
-                world.scene.name,
+                "| {} | {} | {label} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2}× | {:.2}× | {:.2}× | {:.2}× | {:.0} |",
+                subject.world.scene.name,
+                subject.view,
                 points.len(),
                 rates[0],
                 rates[1],
@@ -313,7 +344,7 @@ fn samples_per_second(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Res
 /// Run `r` renders with seed `r`, so two runs of a variant are independent images: their
 /// difference gives the variant's noise, and the time at equal noise (time × noise², the inverse
 /// of a Monte Carlo estimator's efficiency) compares variants whose noise differs.
-fn reference_times(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Result<String> {
+fn reference_times(scenes: &mut [Subject], cfg: &Config) -> anyhow::Result<String> {
     let (width, height, spp) = cfg.image;
     let best = VectorLevel::detected();
     let variants = [
@@ -322,12 +353,12 @@ fn reference_times(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Result
         Variant::wide(Estimator::Wavefront, best),
     ];
     let mut md = format!(
-        "### Reference render time and noise ({width}×{height}, {spp} paths per pixel, 2 bounces; s, median of {})\n\n\"old\": one path at a time over obvhs's compressed nodes, every path's first bounce drawn independently; \"path\" and \"wavefront\": the estimators over the wide traversal, the first bounces of a pixel's paths stratified (`strata`), the wavefront one tracing each pixel's camera rays and each point's sun shadow rays as packets of eight; all at {}, timed in turn within each run. Run r uses seed r, so the runs of one variant are independent images. Noise: RMS of the luminance difference of the first two runs' images over √2, relative to the mean luminance. \"at equal noise\": old time × old noise² ÷ (time × noise²), the speed-up to the same noise (a Monte Carlo estimator's error falls as 1/√paths).\n\n| scene | view | old s | path s | wavefront s | old / path | old / wavefront | noise, old | path | wavefront | at equal noise, path | wavefront | mean luminance, old | path | wavefront |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "### Reference render time and noise ({width}×{height}, {spp} paths per pixel, 2 bounces; s, median of {})\n\n\"old\": one path at a time over obvhs's compressed nodes of a slow-preset tree, every path's first bounce drawn independently; \"path\" and \"wavefront\": the estimators over the wide traversal of a very-slow-preset tree, the first bounces of a pixel's paths stratified (`strata`), the wavefront one tracing each pixel's camera rays and each point's sun shadow rays as packets of eight; all at {}, timed in turn within each run. Run r uses seed r, so the runs of one variant are independent images. Noise: RMS of the luminance difference of the first two runs' images over √2, relative to the mean luminance. \"at equal noise\": old time × old noise² ÷ (time × noise²), the speed-up to the same noise (a Monte Carlo estimator's error falls as 1/√paths).\n\n| scene | view | old s | path s | wavefront s | old / path | old / wavefront | noise, old | path | wavefront | at equal noise, path | wavefront | mean luminance, old | path | wavefront |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
         cfg.image_runs,
         best.name()
     );
-    for (world, view) in scenes.iter_mut() {
-        let camera = camera_for(world, view, width, height)?;
+    for subject in scenes.iter_mut() {
+        let camera = camera_for(&subject.world, subject.view, width, height)?;
         let mut images: [Vec<Image>; 3] = Default::default();
         let per_run: Vec<[f64; 3]> = (0..cfg.image_runs)
             .map(|run| {
@@ -339,16 +370,16 @@ fn reference_times(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Result
                     seed: run as u64 + 1,
                 };
                 std::array::from_fn(|k| {
-                    variants[k].apply(world);
+                    subject.apply(variants[k]);
                     let start = Instant::now();
-                    let (image, _) = render(world, &camera, &settings, None);
+                    let (image, _) = render(&subject.world, &camera, &settings, None);
                     let secs = start.elapsed().as_secs_f64();
                     images[k].push(image);
                     secs
                 })
             })
             .collect();
-        restore_defaults(world);
+        subject.restore_defaults();
         let times = [0, 1, 2].map(|k| median(per_run.iter().map(|r| r[k]).collect()));
         let ratio = |k: usize| median(per_run.iter().map(|r| r[0] / r[k]).collect());
         let noise = images
@@ -358,8 +389,9 @@ fn reference_times(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Result
         let means = images.each_ref().map(|runs| mean_luminance(&runs[0]));
         writeln!(
             md,
-            "| {} | {view} | {:.2} | {:.2} | {:.2} | {:.2}× | {:.2}× | {:.3} | {:.3} | {:.3} | {:.2}× | {:.2}× | {:.4} | {:.4} | {:.4} |",
-            world.scene.name,
+            "| {} | {} | {:.2} | {:.2} | {:.2} | {:.2}× | {:.2}× | {:.3} | {:.3} | {:.3} | {:.2}× | {:.2}× | {:.4} | {:.4} | {:.4} |",
+            subject.world.scene.name,
+            subject.view,
             times[0],
             times[1],
             times[2],
@@ -384,8 +416,9 @@ fn reference_times(scenes: &mut [(World, &str)], cfg: &Config) -> anyhow::Result
 /// noise only where the answers agree).
 fn cornell_agreement(cfg: &Config) -> anyhow::Result<String> {
     let (width, height, spp) = cfg.cornell;
-    let mut world = World::new(scene::load("cornell").context("loading cornell")?);
-    let camera = camera_for(&world, "main", width, height)?;
+    let world = World::new(scene::load("cornell").context("loading cornell")?);
+    let mut subject = Subject::new(world, "main");
+    let camera = camera_for(&subject.world, subject.view, width, height)?;
     let settings = ReferenceSettings {
         width,
         height,
@@ -398,9 +431,9 @@ fn cornell_agreement(cfg: &Config) -> anyhow::Result<String> {
         Variant::wide(Estimator::default(), VectorLevel::detected()),
     ]
     .map(|variant| {
-        variant.apply(&mut world);
+        subject.apply(variant);
         let start = Instant::now();
-        let mean = mean_luminance(&render(&world, &camera, &settings, None).0);
+        let mean = mean_luminance(&render(&subject.world, &camera, &settings, None).0);
         (mean, start.elapsed().as_secs_f64())
     });
     let difference = (new.0 / old.0 - 1.0) * 100.0;

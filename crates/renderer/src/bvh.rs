@@ -2,8 +2,8 @@
 //! query (DESIGN.md §7). obvhs builds the tree, a compressed wide BVH (CWBVH); the queries run
 //! one of two traversals of it ([`Traversal`]):
 //! - **wide** (the default on x86-64): the tree decoded into full-precision eight-wide nodes
-//!   (`wide_bvh`), traversed nearest child first with eight boxes per vector step and four
-//!   triangles per leaf test (`wide_traversal`);
+//!   (`wide_bvh`), traversed nearest child first with eight boxes per vector step, a node's leaf
+//!   children tested as soon as it is visited (`wide_traversal`);
 //! - **compressed**: obvhs's own `traverse!` loop over the CWBVH nodes, the intersection passed
 //!   in as a closure, obvhs style (the only one elsewhere, and the comparison in benchmarks).
 //!
@@ -123,6 +123,7 @@ pub struct SceneBvh {
     #[cfg(target_arch = "x86_64")]
     wide: Option<WideBvh>,
     traversal: Traversal,
+    preset: BuildPreset,
     build_time: Duration,
     /// Only ever a level the CPU has (`set_vector_level` checks it).
     level: VectorLevel,
@@ -155,6 +156,7 @@ impl SceneBvh {
             #[cfg(target_arch = "x86_64")]
             wide,
             traversal,
+            preset,
             build_time: start.elapsed(),
             level: VectorLevel::selected(),
         }
@@ -192,6 +194,11 @@ impl SceneBvh {
     pub fn set_vector_level(&mut self, level: VectorLevel) {
         assert!(level.available(), "this CPU lacks {}", level.name());
         self.level = level;
+    }
+
+    /// The preset the tree was built with.
+    pub fn preset(&self) -> BuildPreset {
+        self.preset
     }
 
     /// Wall time of `build`, triangle conversion included.

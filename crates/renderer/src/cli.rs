@@ -238,6 +238,7 @@ fn load_world(spec: &str, estimator: Estimator, traversal: Traversal) -> anyhow:
         scene = %world.scene.name,
         triangles = world.triangle_count(),
         bvh_ms = world.bvh.build_time().as_secs_f64() * 1e3,
+        bvh_preset = ?world.bvh.preset(),
         total_ms = start.elapsed().as_secs_f64() * 1e3,
         effects = ?world.effects(),
         vector_level = world.bvh.vector_level().name(),

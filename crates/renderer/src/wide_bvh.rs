@@ -44,6 +44,9 @@ pub(crate) struct WideNode {
     pub(crate) bounds: [[f32; 8]; 6],
     /// Node index, or [`LEAF`] | leaf index; meaningless for an empty slot.
     pub(crate) child: [u32; 8],
+    /// A bit per slot whose child is a leaf, so a visit splits the children it enters into
+    /// leaves (tested at once) and inner nodes (stacked) with one mask.
+    pub(crate) leaves: u32,
 }
 
 /// The decoded tree. Node 0 is the root; no nodes means an empty scene. Leaves name ranges of
@@ -97,6 +100,7 @@ fn decode(node: &CwBvhNode) -> WideNode {
             [f32::NEG_INFINITY; 8],
         ],
         child: [0; 8],
+        leaves: 0,
     };
     // The quantisation grid: child planes are `p + 2^e · q` for byte q (a power of two times a
     // byte is exact; the sum is rounded once, and moved one step outward to stay conservative).
@@ -124,6 +128,7 @@ fn decode(node: &CwBvhNode) -> WideNode {
             // Low five bits: offset of the first primitive; high three: the count, in unary.
             let first = node.primitive_base_idx + u32::from(meta & 0x1f);
             let count = (meta >> 5).count_ones();
+            wide.leaves |= 1 << slot;
             LEAF | (count << LEAF_COUNT_SHIFT) | first
         };
     }
@@ -162,7 +167,11 @@ mod tests {
             for slot in 0..8 {
                 let lo = [0, 2, 4].map(|a| node.bounds[a][slot]);
                 let hi = [1, 3, 5].map(|a| node.bounds[a][slot]);
-                if lo[0] > hi[0] || node.child[slot] & LEAF == 0 {
+                let is_leaf = node.child[slot] & LEAF != 0;
+                if lo[0] <= hi[0] {
+                    assert_eq!(node.leaves & (1 << slot) != 0, is_leaf, "the leaf mask");
+                }
+                if lo[0] > hi[0] || !is_leaf {
                     continue;
                 }
                 for prim in leaf_range(node.child[slot]) {

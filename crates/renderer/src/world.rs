@@ -59,8 +59,12 @@ pub struct World {
 }
 
 impl World {
+    /// The tree [`World::new`] builds: obvhs's best (`BuildPreset::VerySlow`), on which the wide
+    /// traversal traces fastest, for a build of a fraction of a second once per scene.
+    pub const PRESET: BuildPreset = BuildPreset::VerySlow;
+
     pub fn new(scene: Scene) -> World {
-        World::with_preset(scene, BuildPreset::Slow)
+        World::with_preset(scene, World::PRESET)
     }
 
     pub fn with_preset(mut scene: Scene, preset: BuildPreset) -> World {

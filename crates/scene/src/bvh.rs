@@ -12,12 +12,16 @@ use obvhs::triangle::Triangle as BvhTriangle;
 use crate::model::Mesh;
 
 /// BVH build presets of obvhs. `Slow` splits large triangles (spatial pre-splits); on Sponza it
-/// traced fastest (DEPENDENCY-NOTES.md).
+/// traced fastest with obvhs's own traversal (DEPENDENCY-NOTES.md). `VerySlow` adds to the splits
+/// a reinsertion pass over every node (obvhs's best tree): on Sponza it builds in about 2.5× the
+/// time of `Slow` (160 against 65 ms, once per scene load) and the renderer's wide traversal
+/// runs its path tracing about 6 % faster on it (BENCHMARKS.md, "Renderer").
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BuildPreset {
     Fast,
     Medium,
     Slow,
+    VerySlow,
 }
 
 impl BuildPreset {
@@ -26,6 +30,7 @@ impl BuildPreset {
             BuildPreset::Fast => BvhBuildParams::fast_build(),
             BuildPreset::Medium => BvhBuildParams::medium_build(),
             BuildPreset::Slow => BvhBuildParams::slow_build(),
+            BuildPreset::VerySlow => BvhBuildParams::very_slow_build(),
         }
     }
 }

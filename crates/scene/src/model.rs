@@ -118,6 +118,8 @@ pub struct Mesh {
 }
 
 impl Mesh {
+    /// Inlined across crates: the renderer reads a hit triangle's corner at every path vertex.
+    #[inline]
     pub fn triangle_positions(&self, t: usize) -> [Vec3; 3] {
         let [a, b, c] = self.triangles[t].vertices;
         [

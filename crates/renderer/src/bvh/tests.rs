@@ -38,7 +38,12 @@ fn closest_hit_finds_the_nearer_plane_and_its_distance() {
             vertices: t.vertices.map(|v| v + base),
             material: 0,
         }));
-    for preset in [BuildPreset::Fast, BuildPreset::Medium, BuildPreset::Slow] {
+    for preset in [
+        BuildPreset::Fast,
+        BuildPreset::Medium,
+        BuildPreset::Slow,
+        BuildPreset::VerySlow,
+    ] {
         let bvh = SceneBvh::build(&mesh, preset);
         let hit = bvh
             .closest_hit(Vec3::new(0.3, 5.0, 0.2), Vec3::NEG_Y, f32::INFINITY)
@@ -123,7 +128,11 @@ fn both_traversals_give_the_same_answers_at_every_level() {
             (origin, dir, tmax)
         })
         .collect();
-    for preset in [BuildPreset::Medium, BuildPreset::Slow] {
+    for preset in [
+        BuildPreset::Medium,
+        BuildPreset::Slow,
+        BuildPreset::VerySlow,
+    ] {
         let mut bvh = SceneBvh::build(&mesh, preset);
         assert_eq!(bvh.traversal(), Traversal::Wide, "x86-64 runs the wide one");
         for level in [VectorLevel::Baseline, VectorLevel::V3] {
@@ -272,7 +281,7 @@ fn parallel_from_scattered_origins(n: usize, toward: Vec3) -> RaySet {
 
 #[test]
 fn packets_of_one_eye_give_each_ray_its_single_ray_answers() {
-    let mut bvh = SceneBvh::build(&crumpled_mesh(), BuildPreset::Slow);
+    let mut bvh = SceneBvh::build(&crumpled_mesh(), BuildPreset::VerySlow);
     for tmax in [f32::INFINITY, 3.0] {
         let rays = tiles_from_one_eye(40, tmax);
         let hits = assert_packets_match_single_rays(&mut bvh, &rays);
@@ -285,7 +294,7 @@ fn packets_of_one_eye_give_each_ray_its_single_ray_answers() {
 
 #[test]
 fn packets_of_parallel_rays_give_each_ray_its_single_ray_answers() {
-    let mut bvh = SceneBvh::build(&crumpled_mesh(), BuildPreset::Slow);
+    let mut bvh = SceneBvh::build(&crumpled_mesh(), BuildPreset::VerySlow);
     for toward in [
         Vec3::new(0.3, 1.0, 0.2),
         Vec3::new(-0.5, 0.4, 0.1),
@@ -302,7 +311,7 @@ fn packets_of_parallel_rays_give_each_ray_its_single_ray_answers() {
 
 #[test]
 fn rays_of_mixed_octants_get_their_single_ray_answers() {
-    let mut bvh = SceneBvh::build(&crumpled_mesh(), BuildPreset::Slow);
+    let mut bvh = SceneBvh::build(&crumpled_mesh(), BuildPreset::VerySlow);
     let mut rng = crate::sampling::stream(17, 0);
     let mut rays = parallel_from_scattered_origins(1000, Vec3::Y);
     for k in (0..rays.dir.len()).step_by(5) {
