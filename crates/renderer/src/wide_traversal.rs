@@ -12,6 +12,14 @@
 //! fitting in cache). A compact 48-byte triangle gained nothing, and prefetching a node's leaves
 //! was slower.
 //!
+//! Where a ray enters several inner children, they go onto the stack farthest first: by
+//! insertion at the baseline level; with AVX2 by a sorting network over eight keys in one
+//! register (the entry distance's bits with the slot in their low bits), whose results are
+//! written as eight stack entries at once. The network has no data-dependent branch, where
+//! insertion mispredicts; it made samples about 4 % faster. Used for one inner child as well
+//! (instead of descending into it directly) it was 6 % slower: its latency then lies on every
+//! step.
+//!
 //! Measured and rejected on the same scene: ordering an occlusion query's children nearest first
 //! (much slower: the sort costs more than the order saves), keeping only the nearest child on top
 //! of the stack instead of sorting them, and walking four rays in turns with prefetches (the
@@ -73,6 +81,27 @@ pub(crate) trait BoxTest {
     /// # Safety
     /// The CPU must have the implementation's instructions.
     unsafe fn hits(node: &WideNode, q: &Query, tmax: f32, entry: &mut [f32; 8]) -> u32;
+
+    /// Pushes the children of `node` in `slots` (a bit per slot, two or more), entered at
+    /// `entry`, onto `stack`, farthest deepest, so the nearest is on top. By insertion here; the
+    /// AVX2 test sorts them in registers.
+    ///
+    /// # Safety
+    /// As [`hits`](Self::hits).
+    #[inline(always)]
+    unsafe fn push_nearest_last(
+        node: &WideNode,
+        entry: &[f32; 8],
+        mut slots: u32,
+        stack: &mut Stack<Entered>,
+    ) {
+        let base = stack.len;
+        while slots != 0 {
+            let slot = slots.trailing_zeros() as usize;
+            slots &= slots - 1;
+            stack.insert_sorted(base, Entered::new(node.child[slot], entry[slot]));
+        }
+    }
 }
 
 /// Two four-wide SSE halves: every x86-64 has them.
@@ -143,7 +172,77 @@ unsafe fn slabs8(node: &WideNode, q: &Query, axis: usize) -> (__m256, __m256) {
     }
 }
 
+/// One layer of compare-exchanges of a descending sorting network: each lane meets lane
+/// `partner[lane]` and keeps the larger of the two where it is the lower lane of its pair, the
+/// smaller where it is the upper one (its bit set in `UPPER_IS_MIN`).
+#[inline(always)]
+unsafe fn exchange<const UPPER_IS_MIN: i32>(v: __m256i, partner: __m256i) -> __m256i {
+    // SAFETY: the caller runs with AVX2.
+    unsafe {
+        let p = _mm256_permutevar8x32_epi32(v, partner);
+        let (lo, hi) = (_mm256_min_epu32(v, p), _mm256_max_epu32(v, p));
+        _mm256_blend_epi32::<UPPER_IS_MIN>(hi, lo)
+    }
+}
+
 impl BoxTest for Avx2 {
+    #[inline(always)]
+    unsafe fn push_nearest_last(
+        node: &WideNode,
+        entry: &[f32; 8],
+        slots: u32,
+        stack: &mut Stack<Entered>,
+    ) {
+        // SAFETY: the caller runs with AVX2; `spare` has room for eight entries.
+        unsafe {
+            // Keys: the entry distance's bits (never negative nor NaN: `hits` clamps it at 0, so
+            // the bits order as integers) with the slot in the three low bits and the top bit
+            // set; 0 for a slot not pushed.
+            let lanes = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+            let pushed = _mm256_cmpeq_epi32(
+                _mm256_and_si256(_mm256_set1_epi32(slots as i32), lanes),
+                lanes,
+            );
+            let bits = _mm256_castps_si256(_mm256_loadu_ps(entry.as_ptr()));
+            let key = _mm256_or_si256(
+                _mm256_and_si256(bits, _mm256_set1_epi32(!7)),
+                _mm256_setr_epi32(
+                    i32::MIN,
+                    i32::MIN | 1,
+                    i32::MIN | 2,
+                    i32::MIN | 3,
+                    i32::MIN | 4,
+                    i32::MIN | 5,
+                    i32::MIN | 6,
+                    i32::MIN | 7,
+                ),
+            );
+            let mut k = _mm256_and_si256(key, pushed);
+            // Knuth's 19-comparator, depth-6 network for eight, descending: the farthest first,
+            // the lanes not pushed last.
+            k = exchange::<0b1100_1100>(k, _mm256_setr_epi32(2, 3, 0, 1, 6, 7, 4, 5));
+            k = exchange::<0b1111_0000>(k, _mm256_setr_epi32(4, 5, 6, 7, 0, 1, 2, 3));
+            k = exchange::<0b1010_1010>(k, _mm256_setr_epi32(1, 0, 3, 2, 5, 4, 7, 6));
+            k = exchange::<0b0011_0000>(k, _mm256_setr_epi32(0, 1, 4, 5, 2, 3, 6, 7));
+            k = exchange::<0b0101_0000>(k, _mm256_setr_epi32(0, 4, 2, 6, 1, 5, 3, 7));
+            k = exchange::<0b0101_0100>(k, _mm256_setr_epi32(0, 2, 1, 4, 3, 6, 5, 7));
+            let children = _mm256_permutevar8x32_epi32(
+                _mm256_loadu_si256(node.child.as_ptr() as *const __m256i),
+                _mm256_and_si256(k, _mm256_set1_epi32(7)),
+            );
+            // The distance without its slot bits: at most the true one, so no child is
+            // skipped that could hold a nearer hit.
+            let distances = _mm256_and_si256(k, _mm256_set1_epi32(0x7fff_fff8));
+            // (child, distance) pairs in stack order.
+            let low = _mm256_unpacklo_epi32(children, distances);
+            let high = _mm256_unpackhi_epi32(children, distances);
+            let spare = stack.spare() as *mut __m256i;
+            _mm256_storeu_si256(spare, _mm256_permute2x128_si256::<0x20>(low, high));
+            _mm256_storeu_si256(spare.add(1), _mm256_permute2x128_si256::<0x31>(low, high));
+            stack.len += slots.count_ones() as usize;
+        }
+    }
+
     #[inline(always)]
     unsafe fn hits(node: &WideNode, q: &Query, tmax: f32, entry: &mut [f32; 8]) -> u32 {
         // SAFETY: the caller runs with AVX enabled.
@@ -198,7 +297,8 @@ pub(crate) fn leaf_any(prims: &[RtTriangle], leaf: u32, ray: &Ray) -> Option<u32
 /// A traversal's stack: [`STACK`] entries left uninitialised, since clearing them would cost
 /// more than many node visits (a ray is traced in about a microsecond).
 pub(crate) struct Stack<T: Copy> {
-    items: [MaybeUninit<T>; STACK],
+    /// Eight spare entries above [`STACK`], which `spare` hands out whole.
+    items: [MaybeUninit<T>; STACK + 8],
     pub(crate) len: usize,
 }
 
@@ -206,15 +306,24 @@ impl<T: Copy> Stack<T> {
     #[inline(always)]
     pub(crate) fn new() -> Stack<T> {
         Stack {
-            items: [const { MaybeUninit::uninit() }; STACK],
+            items: [const { MaybeUninit::uninit() }; STACK + 8],
             len: 0,
         }
+    }
+
+    /// The eight entries above the top, for a caller that writes several at once and then
+    /// raises `len` by the number written. Panics past [`STACK`] entries.
+    #[inline(always)]
+    pub(crate) fn spare(&mut self) -> *mut T {
+        assert!(self.len <= STACK, "a tree deeper than the stack serves");
+        self.items[self.len..].as_mut_ptr() as *mut T
     }
 
     /// Panics past [`STACK`] entries, which a tree of at most `wide_bvh::MAX_DEPTH` levels
     /// never reaches.
     #[inline(always)]
     pub(crate) fn push(&mut self, item: T) {
+        assert!(self.len < STACK, "a tree deeper than the stack serves");
         self.items[self.len] = MaybeUninit::new(item);
         self.len += 1;
     }
@@ -222,7 +331,8 @@ impl<T: Copy> Stack<T> {
     #[inline(always)]
     pub(crate) fn pop(&mut self) -> Option<T> {
         self.len = self.len.checked_sub(1)?;
-        // SAFETY: every entry below `len` was written by `push` or `insert_sorted`.
+        // SAFETY: every entry below `len` was written by `push`, `insert_sorted` or through
+        // `spare`.
         Some(unsafe { self.items[self.len].assume_init() })
     }
 }
@@ -233,10 +343,26 @@ pub(crate) trait EntryDistance: Copy {
     fn entry_distance(&self) -> f32;
 }
 
-impl EntryDistance for (u32, f32) {
+/// A child on the closest-hit query's stack and the distance at which the ray enters it; laid
+/// out as two 32-bit words, which the AVX2 sort writes eight at a time.
+#[derive(Clone, Copy, Debug)]
+#[repr(C)]
+pub(crate) struct Entered {
+    child: u32,
+    distance: f32,
+}
+
+impl Entered {
+    #[inline(always)]
+    fn new(child: u32, distance: f32) -> Entered {
+        Entered { child, distance }
+    }
+}
+
+impl EntryDistance for Entered {
     #[inline(always)]
     fn entry_distance(&self) -> f32 {
-        self.1
+        self.distance
     }
 }
 
@@ -255,6 +381,7 @@ impl<T: EntryDistance> Stack<T> {
             self.items[at] = MaybeUninit::new(below);
             at -= 1;
         }
+        assert!(self.len < STACK, "a tree deeper than the stack serves");
         self.items[at] = MaybeUninit::new(item);
         self.len += 1;
     }
@@ -273,7 +400,7 @@ pub(crate) unsafe fn closest<B: BoxTest>(
     if bvh.nodes.is_empty() {
         return None;
     }
-    let mut stack = Stack::<(u32, f32)>::new();
+    let mut stack = Stack::<Entered>::new();
     let mut best = None;
     let mut best_t = q.ray.tmax;
     let mut entry = [0f32; 8];
@@ -304,23 +431,17 @@ pub(crate) unsafe fn closest<B: BoxTest>(
                     continue 'visit;
                 }
             } else {
-                // Several inner children: all onto the stack, farthest deepest, so the pop
-                // below takes the nearest.
-                let base = stack.len;
-                stack.insert_sorted(base, (node.child[first], entry[first]));
-                while inner != 0 {
-                    let slot = inner.trailing_zeros() as usize;
-                    inner &= inner - 1;
-                    stack.insert_sorted(base, (node.child[slot], entry[slot]));
-                }
+                // Several inner children: all onto the stack, nearest on top.
+                // SAFETY: the caller guarantees `B`'s instructions.
+                unsafe { B::push_nearest_last(node, &entry, inner | (1 << first), &mut stack) };
             }
         }
         // Next on the stack, skipping children entered only beyond the best hit.
         loop {
-            let Some((child, enter)) = stack.pop() else {
+            let Some(Entered { child, distance }) = stack.pop() else {
                 return best;
             };
-            if enter <= best_t {
+            if distance <= best_t {
                 current = child;
                 continue 'visit;
             }
@@ -362,5 +483,66 @@ pub(crate) unsafe fn any<B: BoxTest>(
             inner &= inner - 1;
         }
         current = stack.pop()?;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::{stream, uniform2};
+    use crate::vector_level::VectorLevel;
+
+    /// The children a push left on `stack`, nearest first, with their distances.
+    fn popped(stack: &mut Stack<Entered>) -> Vec<(u32, f32)> {
+        std::iter::from_fn(|| stack.pop().map(|e| (e.child, e.distance))).collect()
+    }
+
+    #[test]
+    fn children_are_stacked_nearest_on_top_by_both_sorts() {
+        let mut rng = stream(3, 0);
+        let node = WideNode {
+            bounds: [[0.0; 8]; 6],
+            child: [10, 11, 12, 13, 14, 15, 16, 17],
+            leaves: 0,
+        };
+        for _ in 0..2000 {
+            let [a, b] = uniform2(&mut rng);
+            let slots = ((a * 256.0) as u32).max(3) & 0xff;
+            if slots.count_ones() < 2 {
+                continue;
+            }
+            // Distinct distances, some of them 0 (a ray starting inside the box).
+            let entry: [f32; 8] =
+                std::array::from_fn(|k| ((k as f32 * 7.0 + b * 50.0) % 13.0).floor() * 1.5);
+            let mut expected: Vec<(u32, f32)> = (0..8)
+                .filter(|&k| slots & (1 << k) != 0)
+                .map(|k| (node.child[k], entry[k]))
+                .collect();
+            expected.sort_by(|x, y| x.1.total_cmp(&y.1));
+            let mut stack = Stack::new();
+            stack.push(Entered::new(99, 1e9));
+            // SAFETY: the baseline sort needs no instruction beyond x86-64.
+            unsafe { Sse::push_nearest_last(&node, &entry, slots, &mut stack) };
+            let by_insertion = popped(&mut stack);
+            assert_eq!(by_insertion[..expected.len()], expected[..], "{slots:b}");
+            assert_eq!(
+                by_insertion[expected.len()],
+                (99, 1e9),
+                "the entry below kept"
+            );
+            if !VectorLevel::V3.available() {
+                continue;
+            }
+            stack.push(Entered::new(99, 1e9));
+            // SAFETY: the CPU has AVX2 (checked above).
+            unsafe { Avx2::push_nearest_last(&node, &entry, slots, &mut stack) };
+            let by_network = popped(&mut stack);
+            assert_eq!(by_network.len(), expected.len() + 1);
+            for ((child, got), (want_child, want)) in by_network.iter().zip(&expected) {
+                assert_eq!(child, want_child, "{slots:b} {entry:?}");
+                // The slot bits cleared from the distance: never above the true one.
+                assert!(*got <= *want && *got >= want * (1.0 - 1e-6), "{got} {want}");
+            }
+        }
     }
 }
