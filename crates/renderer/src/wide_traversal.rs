@@ -6,11 +6,11 @@
 //! inner children go onto the stack: a hit found there narrows the closest-hit query before it
 //! descends (and ends an occlusion query), and a leaf never costs a push, a pop and a
 //! mispredicted "leaf or node?" branch. On Sponza this made the path estimator's samples about
-//! 4 % faster (BENCHMARKS.md, "Renderer"). A leaf's triangles (one to three) are tested one by one with
-//! obvhs's own test, from the primitive list in BVH order: a four-wide test of them needed a
-//! padded copy of every leaf, three times the memory, and measured slower (the leaves stop
-//! fitting in cache). A compact 48-byte triangle gained nothing, and prefetching a node's leaves
-//! was slower.
+//! 4 % faster (BENCHMARKS.md, "Renderer"). A leaf's triangles (one to three) are tested one by
+//! one with obvhs's own test, from the primitive list in BVH order: a four-wide test of them
+//! needed a padded copy of every leaf, three times the memory, and measured slower (the leaves
+//! stop fitting in cache). A compact 48-byte triangle gained nothing, and prefetching a node's
+//! leaves was slower.
 //!
 //! Where a ray enters several inner children, they go onto the stack farthest first: by
 //! insertion at the baseline level; with AVX2 by a sorting network over eight keys in one
