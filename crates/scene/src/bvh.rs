@@ -14,8 +14,9 @@ use crate::model::Mesh;
 /// BVH build presets of obvhs. `Slow` splits large triangles (spatial pre-splits); on Sponza it
 /// traced fastest with obvhs's own traversal (DEPENDENCY-NOTES.md). `VerySlow` adds to the splits
 /// a reinsertion pass over every node (obvhs's best tree): on Sponza it builds in about 2.5× the
-/// time of `Slow` (160 against 65 ms, once per scene load) and the renderer's wide traversal
-/// runs its path tracing about 6 % faster on it (BENCHMARKS.md, "Renderer").
+/// time of `Slow` (160 against 65 ms, once per scene load; BENCHMARKS.md, "Renderer") and the
+/// renderer's wide traversal ran its path tracing about 6 % faster on it (Sponza S1, the two
+/// trees timed in turn).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BuildPreset {
     Fast,
