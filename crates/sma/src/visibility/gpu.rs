@@ -288,7 +288,8 @@ impl OffscreenTarget {
 
     fn read_back<T: bytemuck::Pod>(&self, gpu: &Gpu) -> Result<Vec<T>, GpuError> {
         let slice = self.readback.slice(..);
-        let (tx, rx) = mpsc::channel();
+        // One message, the mapping's result: a channel of one slot.
+        let (tx, rx) = mpsc::sync_channel(1);
         slice.map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);
         });

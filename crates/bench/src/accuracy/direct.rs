@@ -11,9 +11,9 @@ use std::time::Instant;
 use anyhow::Context;
 
 use super::AccuracyConfig;
-use crate::bench::convergence::manifest::ViewRecord;
-use crate::bench::convergence::{GROUND_TRUTH_SEED, INTERACTIVE_BOUNCES};
-use crate::bench::metrics::Reference;
+use crate::convergence::manifest::ViewRecord;
+use crate::convergence::{GROUND_TRUTH_SEED, INTERACTIVE_BOUNCES};
+use crate::metrics::Reference;
 
 const FILE: &str = "direct.csv";
 const HEADER: &str = "stem,width,height,spp,seconds,flip,measured";
@@ -199,12 +199,12 @@ fn direct_render(exe: &Path, r: &ViewRecord, args: &AccuracyConfig) -> anyhow::R
     );
     let reference = Reference::read_exr(Path::new(&r.ground_truth))?;
     let flip = reference
-        .error_of(&crate::bench::metrics::LinearImage::read_exr(&out)?)?
+        .error_of(&crate::metrics::LinearImage::read_exr(&out)?)?
         .flip;
     Ok(Direct {
         seconds,
         flip,
-        measured: crate::bench::machine::measured_stamp(),
+        measured: crate::machine::measured_stamp(),
         recalled: false,
     })
 }

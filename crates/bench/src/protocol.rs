@@ -67,7 +67,7 @@ pub fn loopback_sink(listen: &str) -> anyhow::Result<()> {
 /// Triangles per second from this process to a sink process over loopback.
 fn loopback_rate(batches: usize) -> anyhow::Result<f64> {
     let exe = std::env::current_exe()?;
-    let args = strings(&["bench", "loopback-sink", "--listen", "127.0.0.1:0"]);
+    let args = strings(&["loopback-sink", "--listen", "127.0.0.1:0"]);
     let sink = start_server(&exe, "loopback sink", &args, None)?;
     let msgs: Vec<SmaToViewer> = (0..batches)
         .map(|b| insert_batch((b * BATCH) as u64))

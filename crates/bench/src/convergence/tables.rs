@@ -121,7 +121,7 @@ pub fn thousands(n: u64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench::convergence::record::test_measurement;
+    use crate::convergence::record::test_measurement;
 
     fn m(run: &str, time_s: f64, samples: u64, flip: f64) -> Measurement {
         Measurement {

@@ -20,7 +20,7 @@ use protocol::liveness::Liveness;
 use testkit::child::{Server, pin_thread, start_renderer, start_sma, strings};
 use testkit::probe::Probe;
 
-use crate::bench::stats::median;
+use crate::stats::median;
 
 /// The hung renderer's view: large enough that the view takes several times the silence limit.
 const HUNG_VIEW: (u32, u32) = (1024, 768);
@@ -31,14 +31,13 @@ const WAIT: Duration = Duration::from_secs(600);
 const STATS_SECS: &str = "0.5";
 
 pub fn section(quick: bool) -> anyhow::Result<String> {
-    let exe = std::env::current_exe()?;
-    if exe.file_stem().and_then(|s| s.to_str()) != Some("walkthrough") {
+    let Ok(exe) = crate::product::walkthrough_exe() else {
         return Ok(
-            "## Renderer farm\n\nRun through `walkthrough bench report` (it starts the \
+            "## Renderer farm\n\nRun after `cargo build --release --workspace` (it starts the \
                    renderer and SMA processes).\n\n"
                 .into(),
         );
-    }
+    };
     // Sponza when its files are there (DESIGN.md §11): a view long enough that a few seconds of
     // detection are a fair share of it; else the built-in town.
     let (scene, view) = if scene::load("scenes/sponza.toml").is_ok() {
@@ -62,7 +61,7 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
          {:?} of silence); medians of {runs} runs. Load average when the run started: {}.\n\n",
         Liveness::default().heartbeat,
         Liveness::default().silence,
-        crate::bench::machine::load_average()
+        crate::machine::load_average()
     );
     runtime.block_on(hung_renderer(&farm, runs, &mut md))?;
     runtime.block_on(uneven_renderers(&farm, runs, quick, &mut md))?;

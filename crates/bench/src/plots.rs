@@ -10,7 +10,7 @@ use plotters::coord::ranged1d::ValueFormatter;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
-use crate::bench::convergence::record::{Measurement, run_labels, run_rows};
+use crate::convergence::record::{Measurement, run_labels, run_rows};
 
 type Metric = (&'static str, fn(&Measurement) -> f64);
 type Axis = (&'static str, fn(&Measurement) -> f64);
@@ -127,7 +127,7 @@ fn plot_error(e: impl std::fmt::Display) -> anyhow::Error {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench::convergence::record::test_measurement;
+    use crate::convergence::record::test_measurement;
 
     #[test]
     fn writes_an_svg_with_every_run_in_the_legend() {

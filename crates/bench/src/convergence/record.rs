@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use crate::bench::metrics::ImageError;
+use crate::metrics::ImageError;
 
 /// The run label of the control run with refinement switched off.
 pub const NO_REFINE: &str = "no-refine";

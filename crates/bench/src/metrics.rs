@@ -9,9 +9,8 @@
 use std::path::Path;
 
 use anyhow::Context;
-
-/// Rec. 709 luminance weights (DESIGN.md §6: one set of weights everywhere).
-const REC709: [f32; 3] = [0.2126, 0.7152, 0.0722];
+use conventions::luminance::luminance;
+use conventions::tone_map::{ToneMap, srgb8};
 
 /// LDR-FLIP's default observer: 0.7 m from a 0.7 m wide 4K monitor (DESIGN.md §10).
 const FLIP_PIXELS_PER_DEGREE: f32 = 67.0;
@@ -20,10 +19,6 @@ const FLIP_PIXELS_PER_DEGREE: f32 = 67.0;
 /// few bright outliers even at 256 paths per pixel; letting one pixel set the white point would
 /// darken the whole tone-mapped pair and shrink every error.
 const L_WHITE_QUANTILE: f64 = 0.999;
-
-pub fn luminance(rgb: [f32; 3]) -> f32 {
-    rgb[0] * REC709[0] + rgb[1] * REC709[1] + rgb[2] * REC709[2]
-}
 
 /// A linear RGB image as the renderer's reference mode and the headless viewer write it (EXR).
 #[derive(Clone, Debug)]
@@ -74,16 +69,17 @@ impl LinearImage {
     }
 }
 
-/// Drago's logarithmic operator (DESIGN.md §9, eq. 4.2) applied to luminance with colour kept, as
-/// the viewer's shader does, followed by the sRGB transfer curve and 8-bit quantisation.
+/// The tone map every error is taken after: Drago's operator (DESIGN.md §9, eq. 4.2) as the
+/// viewer's shader applies it (`conventions::tone_map`), with the ground truth's white point, then
+/// sRGB and 8-bit quantisation.
 #[derive(Clone, Copy, Debug)]
-pub struct ToneMap {
+pub struct GroundTruthToneMap {
     pub l_white: f32,
 }
 
-impl ToneMap {
+impl GroundTruthToneMap {
     /// White point from the ground truth's covered pixels (see [`L_WHITE_QUANTILE`]).
-    pub fn of_ground_truth(gt: &LinearImage, covered: &[bool]) -> ToneMap {
+    pub fn of_ground_truth(gt: &LinearImage, covered: &[bool]) -> GroundTruthToneMap {
         let mut lum: Vec<f32> = gt
             .rgb
             .iter()
@@ -96,34 +92,19 @@ impl ToneMap {
         let at = ((lum.len() as f64 - 1.0) * L_WHITE_QUANTILE)
             .round()
             .max(0.0) as usize;
-        ToneMap {
+        GroundTruthToneMap {
             l_white: lum.get(at).copied().unwrap_or(1.0).max(1e-6),
         }
     }
 
     fn map(&self, rgb: [f32; 3]) -> [u8; 3] {
-        let l = luminance(rgb);
-        let scale = if l > 0.0 && l.is_finite() {
-            (1.0 + l).ln() / (1.0 + self.l_white).ln() / l
-        } else {
-            0.0
-        };
-        rgb.map(|c| srgb8((c * scale).clamp(0.0, 1.0)))
+        ToneMap::Drago.display_rgb(rgb, self.l_white).map(srgb8)
     }
 
     /// Interleaved 8-bit sRGB, row by row.
     pub fn srgb8(&self, image: &LinearImage) -> Vec<u8> {
         image.rgb.iter().flat_map(|p| self.map(*p)).collect()
     }
-}
-
-fn srgb8(linear: f32) -> u8 {
-    let v = if linear <= 0.003_130_8 {
-        12.92 * linear
-    } else {
-        1.055 * linear.powf(1.0 / 2.4) - 0.055
-    };
-    (v * 255.0).round().clamp(0.0, 255.0) as u8
 }
 
 /// Which pixels see geometry: the ground truth carries the renderer's coverage as alpha (0 where no
@@ -149,7 +130,7 @@ pub struct ImageError {
 pub struct Reference {
     pub image: LinearImage,
     pub covered: Vec<bool>,
-    pub tone_map: ToneMap,
+    pub tone_map: GroundTruthToneMap,
     /// Tone-mapped, with uncovered pixels black (see [`Reference::error_of`]).
     srgb: Vec<u8>,
 }
@@ -157,7 +138,7 @@ pub struct Reference {
 impl Reference {
     pub fn new(image: LinearImage) -> Reference {
         let covered = coverage(&image);
-        let tone_map = ToneMap::of_ground_truth(&image, &covered);
+        let tone_map = GroundTruthToneMap::of_ground_truth(&image, &covered);
         let srgb = masked(tone_map.srgb8(&image), &covered);
         Reference {
             image,
@@ -258,7 +239,7 @@ mod tests {
 
     #[test]
     fn drago_maps_white_to_one_and_keeps_colour() {
-        let tm = ToneMap { l_white: 4.0 };
+        let tm = GroundTruthToneMap { l_white: 4.0 };
         assert_eq!(tm.map([4.0, 4.0, 4.0]), [255, 255, 255]);
         assert_eq!(tm.map([0.0; 3]), [0, 0, 0]);
         let [r, g, b] = tm.map([0.2, 0.1, 0.05]);
@@ -310,7 +291,7 @@ mod tests {
     fn white_point_ignores_a_few_outliers() {
         let mut gt = flat(100, 100, [1.0, 1.0, 1.0]);
         gt.rgb[0] = [1000.0; 3];
-        let tm = ToneMap::of_ground_truth(&gt, &[true; 10_000]);
+        let tm = GroundTruthToneMap::of_ground_truth(&gt, &[true; 10_000]);
         assert!((tm.l_white - 1.0).abs() < 1e-4, "{}", tm.l_white);
     }
 

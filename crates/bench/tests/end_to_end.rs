@@ -17,20 +17,20 @@
 
 use std::collections::HashSet;
 use std::net::SocketAddr;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, mpsc};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
+use bench::convergence::record::Measurement;
+use bench::convergence::{GROUND_TRUTH_SEED, INTERACTIVE_BOUNCES, measure_snapshots};
+use bench::metrics::Reference;
 use protocol::viewer_link::{Camera, Epoch, SceneInfo, ViewerToSma};
 use testkit::ground_truth::GroundTruth;
 use testkit::loopback::{System, SystemConfig, ViewerConfig};
 use viewer::link::{Link, LinkEvent};
 use viewer::table::{ApplyCounts, TriangleTable};
-use walkthrough::bench::convergence::record::Measurement;
-use walkthrough::bench::convergence::{GROUND_TRUTH_SEED, INTERACTIVE_BOUNCES, measure_snapshots};
-use walkthrough::bench::metrics::Reference;
 
 const SCENE: &str = "bracara";
 const VIEW: &str = "VT";
@@ -222,7 +222,7 @@ fn run(
 ) -> Run {
     let dir = work.join(name);
     let config = SystemConfig {
-        exe: PathBuf::from(env!("CARGO_BIN_EXE_walkthrough")),
+        exe: bench::product::walkthrough_exe().expect("the walkthrough binary"),
         scene: SCENE.into(),
         criterion: criterion.into(),
         refine,

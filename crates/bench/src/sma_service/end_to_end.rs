@@ -14,21 +14,20 @@ use anyhow::Context;
 use testkit::child::{Process, start_renderer, start_sma, strings};
 use testkit::probe::Probe;
 
-use crate::bench::stats::median;
+use crate::stats::median;
 
 const WIDTH: u32 = 1024;
 const HEIGHT: u32 = 768;
 const WAIT: Duration = Duration::from_secs(600);
 
 pub fn section(quick: bool) -> anyhow::Result<String> {
-    let exe = std::env::current_exe()?;
-    if exe.file_stem().and_then(|s| s.to_str()) != Some("walkthrough") {
+    let Ok(exe) = crate::product::walkthrough_exe() else {
         return Ok(
-            "End-to-end figures: run through `walkthrough bench report` (it starts the \
+            "End-to-end figures: run after `cargo build --release --workspace` (it starts the \
                    renderer and SMA processes).\n\n"
                 .into(),
         );
-    }
+    };
     // Sponza when its files are there (DESIGN.md §11), else the built-in town.
     let (scene, view, other) = if scene::load("scenes/sponza.toml").is_ok() {
         ("scenes/sponza.toml", "S1", "S2")

@@ -6,11 +6,11 @@
 use std::fmt::Write as _;
 
 use super::{ViewResult, speedup};
-use crate::bench::convergence::record::{
+use crate::convergence::record::{
     Measurement, NO_REFINE, at_paths, by_time, repetitions, run_labels, run_rows, time_to_reach,
 };
-use crate::bench::convergence::tables::{PATH_LEVELS, millions};
-use crate::bench::convergence::{BEST_NOISE_AWARE, RIVALS};
+use crate::convergence::tables::{PATH_LEVELS, millions};
+use crate::convergence::{BEST_NOISE_AWARE, RIVALS};
 
 /// The speed-up to this mean FLIP…
 const TARGET_FLIP: f64 = 0.1;
@@ -266,7 +266,7 @@ impl RunFigures {
 /// The median of the values present (`None` when there is none).
 fn median_of(values: impl Iterator<Item = Option<f64>>) -> Option<f64> {
     let present: Vec<f64> = values.flatten().collect();
-    (!present.is_empty()).then(|| crate::bench::stats::median(present))
+    (!present.is_empty()).then(|| crate::stats::median(present))
 }
 
 /// Whether [`BEST_NOISE_AWARE`]'s FLIP is at most every rival's at the largest path count that it
@@ -308,8 +308,8 @@ fn equal_paths(rows: &[Measurement]) -> (bool, String) {
 mod tests {
     use super::super::Direct;
     use super::*;
-    use crate::bench::convergence::manifest::ViewRecord;
-    use crate::bench::convergence::record::test_measurement;
+    use crate::convergence::manifest::ViewRecord;
+    use crate::convergence::record::test_measurement;
     use testkit::loopback::CpuShares;
 
     /// A run of `criterion` with one snapshot a second: FLIP from `flip(t)`, busy `busy(t)`.
@@ -414,7 +414,7 @@ mod tests {
         // never and 4 s. Medians: busy 0.90; the slowest-counting median time 4 s, 10×.
         let mut rows = rows(2.0, 0.95);
         let repeat = |k, gain: f64, busy: f64| {
-            let label = crate::bench::convergence::record::repeat_label(BEST_NOISE_AWARE, k);
+            let label = crate::convergence::record::repeat_label(BEST_NOISE_AWARE, k);
             run(&label, 60, move |t| 0.5 / (1.0 + gain * t), move |_| busy)
         };
         rows.extend(repeat(2, 0.0, 0.5));
@@ -422,7 +422,7 @@ mod tests {
         let mut v = view("MC", 40.0, rows, 0.9);
         let cpu = v.cpu[0].1;
         for k in 2..=3 {
-            let label = crate::bench::convergence::record::repeat_label(BEST_NOISE_AWARE, k);
+            let label = crate::convergence::record::repeat_label(BEST_NOISE_AWARE, k);
             v.cpu.push((label, cpu));
         }
         let md = section(&[v]);

@@ -8,8 +8,8 @@ use std::path::Path;
 use anyhow::Context;
 use image::{RgbImage, imageops};
 
-use crate::bench::convergence::record::{Measurement, at_time, run_rows};
-use crate::bench::metrics::{LinearImage, Reference};
+use crate::convergence::record::{Measurement, at_time, run_rows};
+use crate::metrics::{LinearImage, Reference};
 
 /// The instants of appendix B.
 const STRIP_SECONDS: [f64; 5] = [1.0, 2.0, 3.0, 4.0, 5.0];
@@ -91,7 +91,7 @@ fn thumb(reference: &Reference, m: &Measurement, thumb_height: u32) -> anyhow::R
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench::convergence::record::test_measurement;
+    use crate::convergence::record::test_measurement;
 
     #[test]
     fn lays_out_appendix_b_rows() {

@@ -3,7 +3,7 @@
 
 #[test]
 fn quick_benchmark_section_reports_its_rows() {
-    let md = walkthrough::bench::viewer::section(true).expect("benchmark section");
+    let md = bench::viewer::section(true).expect("benchmark section");
     assert!(md.starts_with("## Viewer"), "{md}");
     assert!(md.contains("updates applied, table only"), "{md}");
     if md.contains("No graphics adapter") {

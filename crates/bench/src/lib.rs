@@ -1,5 +1,5 @@
 //! Benchmarks: every measurement of the system lives here, none in the product crates. Speed and
-//! memory targets are checked here, never by timed tests; `walkthrough bench report` regenerates
+//! memory targets are checked here, never by timed tests; `walkthrough-bench report` regenerates
 //! BENCHMARKS.md in one command, one section per part:
 //!
 //! - [`protocol`], [`scene`], [`renderer`], [`sma_core`], [`sma_service`], [`viewer`], [`farm`]:
@@ -8,15 +8,19 @@
 //! - [`convergence`], [`accuracy`] and [`cost`]: the end-to-end measurements of DESIGN.md §10,
 //!   with [`metrics`], [`plots`] and [`strips`];
 //! - [`ray_throughput`]: the ray-throughput table of the [`renderer`] section;
-//! - [`stats`] (medians, least squares) and [`machine`]: shared by all.
+//! - [`stats`] (medians, least squares) and [`machine`]: shared by all;
+//! - [`product`]: where the `walkthrough` binary the benchmarks start is;
+//! - [`cli`]: the command line of `walkthrough-bench`, the only module that knows clap.
 
 pub mod accuracy;
+pub mod cli;
 pub mod convergence;
 pub mod cost;
 pub mod farm;
 pub mod machine;
 pub mod metrics;
 pub mod plots;
+pub mod product;
 pub mod protocol;
 pub mod ray_throughput;
 pub mod renderer;

@@ -19,11 +19,12 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+use bench::convergence::snapshots::read_run;
+use bench::metrics::{LinearImage, Reference};
+use conventions::luminance::luminance;
 use glam::Vec3;
 use testkit::loopback::{System, SystemConfig, ViewerConfig};
 use testkit::moved_scene::moved;
-use walkthrough::bench::convergence::snapshots::read_run;
-use walkthrough::bench::metrics::{LinearImage, Reference, luminance};
 
 const SCENE: &str = "bracara";
 const OFFSET: Vec3 = Vec3::new(1.0e5, 0.0, 1.0e5);
@@ -186,7 +187,7 @@ fn snapshot(scene: &scene::Scene, dir: &Path) -> (LinearImage, PathBuf) {
     let scene_file =
         scene::export::write_obj_mtl_toml(scene, &dir.join("scene")).expect("exporting the scene");
     let config = SystemConfig {
-        exe: PathBuf::from(env!("CARGO_BIN_EXE_walkthrough")),
+        exe: bench::product::walkthrough_exe().expect("the walkthrough binary"),
         scene: scene_file.to_string_lossy().into_owned(),
         criterion: "nld-os".into(),
         refine: false,

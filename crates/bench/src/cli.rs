@@ -1,0 +1,292 @@
+//! The command line of `walkthrough-bench`, the only module of this package that knows clap:
+//! each flag set is turned into the plain configuration its benchmark takes.
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand};
+
+use crate::accuracy::{self, AccuracyConfig};
+use crate::convergence::{self, ConvergenceConfig};
+
+/// `walkthrough-bench <section>`: the benchmarks that regenerate BENCHMARKS.md (DESIGN.md §10).
+/// They start the product processes from the `walkthrough` binary beside this one.
+#[derive(Parser, Debug)]
+#[command(
+    name = "walkthrough-bench",
+    version,
+    about = "Benchmarks of the walkthrough system (BENCHMARKS.md)",
+    after_help = "Build both binaries first: cargo build --release --workspace"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: BenchCommand,
+}
+
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    run_bench(cli.command)
+}
+
+fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
+    match cmd {
+        BenchCommand::Report { quick, out, only } => crate::report::write(&out, quick, &only),
+        BenchCommand::Convergence(args) => convergence::run(args.config()),
+        BenchCommand::Accuracy(args) => accuracy::run(args.config()),
+        BenchCommand::Cost(args) => crate::cost::run(args.config()),
+        BenchCommand::LoopbackSink { listen } => crate::protocol::loopback_sink(&listen),
+    }
+}
+
+#[derive(Subcommand, Debug)]
+pub enum BenchCommand {
+    /// Runs every benchmark section and writes BENCHMARKS.md.
+    Report {
+        /// A few seconds per section instead of the full measurement (a smoke run).
+        #[arg(long)]
+        quick: bool,
+        #[arg(long, default_value = "BENCHMARKS.md")]
+        out: PathBuf,
+        /// Only the sections whose name contains one of these (protocol, scene, renderer, sma-core,
+        /// sma-service, viewer, convergence).
+        #[arg(long, value_delimiter = ',')]
+        only: Vec<String>,
+    },
+    /// Convergence per viewpoint against the ground truth, per criterion (DESIGN.md §10).
+    Convergence(ConvergenceArgs),
+    /// Time to reach error levels against a direct per-pixel render (DESIGN.md §10).
+    Accuracy(AccuracyArgs),
+    /// Error after 10 s and 60 s per ladder cap × bounce depth × criterion (DESIGN.md §10).
+    Cost(CostArgs),
+    /// The receiving end of the loopback protocol benchmark (started by `report` as a child).
+    #[command(hide = true)]
+    LoopbackSink {
+        #[arg(long)]
+        listen: String,
+    },
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct ConvergenceArgs {
+    /// One scene (a TOML file or a built-in name). Default: `bracara`, and Sponza when
+    /// ../shared/scenes is there.
+    #[arg(long)]
+    pub scene: Option<String>,
+    /// Views to measure. Default: MC, VR, VT of bracara and S1, S2, S3 of Sponza; with --scene, all
+    /// of that scene's views.
+    #[arg(long, value_delimiter = ',')]
+    pub views: Vec<String>,
+    /// Criteria to compare. Default: rnd, nld-is-thesis, nld-os-thesis and the best noise-aware
+    /// criterion (nld-px); a run without refinement is always added.
+    #[arg(long, value_delimiter = ',')]
+    pub criteria: Vec<String>,
+    /// Length of each run; snapshots every second.
+    #[arg(long, default_value_t = 60.0)]
+    pub seconds: f64,
+    /// Fixed sample counts at which snapshots are also taken; by default quarter steps of a
+    /// doubling up to 8000 samples, sixteenth steps up to 128000, quarter steps up to 256000.
+    #[arg(long, value_delimiter = ',', default_values_t = snapshot_sample_grid())]
+    pub at_samples: Vec<u64>,
+    #[command(flatten)]
+    pub images: ImageArgs,
+    /// Tables, plots, strips and CSVs (committed: keep it small).
+    #[arg(long, default_value = "docs/convergence")]
+    pub out: PathBuf,
+    /// Raw snapshots and process logs of every run (big: an ignored folder).
+    #[arg(long, default_value = "out/convergence")]
+    pub runs: PathBuf,
+    /// Renderer processes per run (the cores are shared among them).
+    #[arg(long, default_value_t = 1)]
+    pub renderers: usize,
+    /// Seed of the SMA's criteria and renderers.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Flags passed on to every `walkthrough sma` (to measure a setting against its default),
+    /// e.g. `--sma-flags=--max-selections,256`.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub sma_flags: Vec<String>,
+    /// Runs of the best noise-aware criterion per view: the end-to-end targets take medians
+    /// over them (DESIGN.md §10: medians of three).
+    #[arg(long, default_value_t = 3)]
+    pub repetitions: usize,
+    /// Keep the runs already in --out's CSVs and measure only those missing (e.g. repetitions
+    /// added to an earlier measurement).
+    #[arg(long)]
+    pub add_repetitions: bool,
+    /// Do not write docs/bench/convergence.md nor BENCHMARKS.md.
+    #[arg(long, conflicts_with = "report_only")]
+    pub no_report: bool,
+    /// Measure nothing: redraw the plots, the section and BENCHMARKS.md from the CSVs in --out.
+    #[arg(long)]
+    pub report_only: bool,
+    /// Render the views' missing ground truths (into --gt-cache) and stop: they may render while
+    /// the machine does other work, the timed runs may not.
+    #[arg(long, conflicts_with = "report_only")]
+    pub ground_truths_only: bool,
+}
+
+impl ConvergenceArgs {
+    fn config(self) -> ConvergenceConfig {
+        ConvergenceConfig {
+            scene: self.scene,
+            views: self.views,
+            criteria: self.criteria,
+            seconds: self.seconds,
+            at_samples: self.at_samples,
+            width: self.images.width,
+            height: self.images.height,
+            gt_spp: self.images.gt_spp,
+            out: self.out,
+            gt_cache: self.images.gt_cache,
+            runs: self.runs,
+            renderers: self.renderers,
+            seed: self.seed,
+            sma_flags: self.sma_flags,
+            repetitions: self.repetitions.max(1),
+            add_repetitions: self.add_repetitions,
+            no_report: self.no_report,
+            report_only: self.report_only,
+            ground_truths_only: self.ground_truths_only,
+        }
+    }
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct AccuracyArgs {
+    /// The output folder of `bench convergence`.
+    #[arg(long, default_value = "docs/convergence")]
+    pub convergence: PathBuf,
+    /// Mean FLIP levels to reach.
+    #[arg(long, value_delimiter = ',', default_value = "0.2,0.15,0.1,0.05")]
+    pub levels: Vec<f64>,
+    /// Paths per pixel of the direct render (the interactive preset: 64).
+    #[arg(long, default_value_t = 64)]
+    pub spp: u32,
+    /// The direct renders' images (an ignored folder).
+    #[arg(long, default_value = "out/direct")]
+    pub direct: PathBuf,
+    /// Do not write docs/bench/accuracy.md nor BENCHMARKS.md.
+    #[arg(long)]
+    pub no_report: bool,
+}
+
+/// The image size and ground truth shared by the end-to-end benchmarks.
+#[derive(Args, Debug, Clone)]
+pub struct ImageArgs {
+    /// Image size of the runs, the ground truth and the direct render: DESIGN.md §10's 1024×768
+    /// (a 1024-path ground truth then takes 4 to 12 minutes a view on 2 cores, once).
+    #[arg(long, default_value_t = 1024)]
+    pub width: u32,
+    #[arg(long, default_value_t = 768)]
+    pub height: u32,
+    /// Paths per pixel of the ground truth (DESIGN.md §10: at least 256; 1024 so that its own
+    /// noise does not set the error floor).
+    #[arg(long, default_value_t = 1024)]
+    pub gt_spp: u32,
+    /// Ground truth EXRs (big: an ignored folder).
+    #[arg(long, default_value = "out/gt")]
+    pub gt_cache: PathBuf,
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct CostArgs {
+    /// Views (of bracara and, when ../shared/scenes is there, Sponza).
+    #[arg(long, value_delimiter = ',', default_value = "VT,S1")]
+    pub views: Vec<String>,
+    /// Ladder caps (the SMA's `--max-paths`).
+    #[arg(long, value_delimiter = ',', default_value = "256,1024")]
+    pub caps: Vec<u32>,
+    /// Bounce depths (the SMA's `--bounces`), each with its own ground truth.
+    #[arg(long, value_delimiter = ',', default_value = "1,2")]
+    pub depths: Vec<u32>,
+    /// Criteria: the best noise-aware one and the thesis's object-space one.
+    #[arg(long, value_delimiter = ',', default_value = "nld-px,nld-os-thesis")]
+    pub criteria: Vec<String>,
+    /// Length of each run.
+    #[arg(long, default_value_t = 60.0)]
+    pub seconds: f64,
+    /// Times at which the error is read.
+    #[arg(long, value_delimiter = ',', default_value = "10,60")]
+    pub at: Vec<f64>,
+    #[command(flatten)]
+    pub images: ImageArgs,
+    /// Raw snapshots and process logs of every run (big: an ignored folder).
+    #[arg(long, default_value = "out/cost")]
+    pub runs: PathBuf,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Do not write docs/bench/cost.md nor BENCHMARKS.md.
+    #[arg(long)]
+    pub no_report: bool,
+}
+
+impl CostArgs {
+    fn config(self) -> crate::cost::CostConfig {
+        crate::cost::CostConfig {
+            views: self.views,
+            caps: self.caps,
+            depths: self.depths,
+            criteria: self.criteria,
+            seconds: self.seconds,
+            at: self.at,
+            width: self.images.width,
+            height: self.images.height,
+            gt_spp: self.images.gt_spp,
+            gt_cache: self.images.gt_cache,
+            runs: self.runs,
+            seed: self.seed,
+            no_report: self.no_report,
+        }
+    }
+}
+
+impl AccuracyArgs {
+    fn config(self) -> AccuracyConfig {
+        AccuracyConfig {
+            convergence: self.convergence,
+            levels: self.levels,
+            spp: self.spp,
+            direct: self.direct,
+            no_report: self.no_report,
+        }
+    }
+}
+
+/// The sample counts at which `bench convergence` takes snapshots besides one a second: quarter
+/// steps of a doubling from 1 000 to 8 000, sixteenth steps to 128 000, quarter steps to 256 000.
+/// A time to reach an error is read at the first snapshot at or below it, so the grid bounds how
+/// finely it is read: the views cross mean FLIP 0.1 between 8 000 and 128 000 samples, in their
+/// first seconds, when the error falls fastest. The harness's viewer holds its snapshots as
+/// copies until the run ends (`--hold-snapshots`, `viewer::snapshot_files`), so a fine grid
+/// costs the system measured next to nothing.
+fn snapshot_sample_grid() -> Vec<u64> {
+    let mut counts = Vec::new();
+    for (from, to, steps) in [
+        (1_000, 8_000, 4),
+        (8_000, 128_000, 16),
+        (128_000, 256_000, 4),
+    ] {
+        let mut doubling = from;
+        while doubling < to {
+            counts.extend((0..steps).map(|k| doubling + k * doubling / steps));
+            doubling *= 2;
+        }
+    }
+    counts.push(256_000);
+    counts
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_snapshot_grid_rises_in_finer_steps_where_the_views_cross_flip_0_1() {
+        let grid = snapshot_sample_grid();
+        assert!(grid.windows(2).all(|w| w[0] < w[1]), "{grid:?}");
+        assert_eq!((grid[0], grid[grid.len() - 1]), (1_000, 256_000));
+        for (count, next) in [(1_750, 2_000), (8_000, 8_500), (124_000, 128_000)] {
+            let at = grid.iter().position(|&c| c == count).unwrap();
+            assert_eq!(grid[at + 1], next);
+        }
+        assert_eq!(grid.len(), 4 * 3 + 16 * 4 + 4 + 1);
+    }
+}
