@@ -14,7 +14,7 @@ use protocol::liveness::Liveness;
 
 use crate::config::{ScheduleConfig, SmaConfig};
 use crate::criteria::{CriterionKind, CriterionSettings};
-use crate::mesh::MeshParams;
+use crate::mesh::{MeshParams, NeighbourRule};
 
 fn defaults() -> SmaConfig {
     SmaConfig::default()
@@ -33,6 +33,13 @@ fn criterion_parser() -> impl TypedValueParser<Value = CriterionKind> {
     let names: Vec<&str> = CriterionKind::ALL.iter().map(|k| k.name()).collect();
     PossibleValuesParser::new(names)
         .map(|name| CriterionKind::from_name(&name).expect("a possible value"))
+}
+
+/// `--neighbour-rule`: one of the rules' names, as a [`NeighbourRule`].
+fn neighbour_rule_parser() -> impl TypedValueParser<Value = NeighbourRule> {
+    let names: Vec<&str> = NeighbourRule::ALL.iter().map(|r| r.name()).collect();
+    PossibleValuesParser::new(names)
+        .map(|name| NeighbourRule::from_name(&name).expect("a possible value"))
 }
 
 /// A share of time: above 0, at most 1.
@@ -255,6 +262,11 @@ pub struct Cli {
     /// Weld tolerance for adjacency, fraction of the scene diagonal.
     #[arg(long, default_value_t = mesh_defaults().weld_tolerance_rel)]
     pub weld_tolerance: f32,
+    /// How a neighbour across a split edge is closed (§4.2, DESIGN.md §4): red-green bisects it;
+    /// thesis splits it 1:4 when the edge is shorter than its height on it (fig. 4.7), up to a
+    /// bound per refinement step (`mesh::NeighbourRule`), bisecting past it.
+    #[arg(long, default_value_t = mesh_defaults().neighbour_rule, value_parser = neighbour_rule_parser())]
+    pub neighbour_rule: NeighbourRule,
 }
 
 impl Cli {
@@ -285,6 +297,7 @@ impl Cli {
             mesh: MeshParams {
                 min_edge_length: self.min_edge_length,
                 weld_tolerance_rel: self.weld_tolerance,
+                neighbour_rule: self.neighbour_rule,
             },
             schedule: self.schedule_config(),
         }
@@ -402,6 +415,25 @@ mod tests {
         let cli = Cli::try_parse_from(["sma", "--renderer", "r:1", "--criterion", "rnd"]).unwrap();
         assert_eq!(cli.criterion, CriterionKind::Rnd);
         assert!(Cli::try_parse_from(["sma", "--renderer", "r:1", "--criterion", "x"]).is_err());
+        let cli =
+            Cli::try_parse_from(["sma", "--renderer", "r:1", "--criterion", "nld-mm"]).unwrap();
+        assert_eq!(cli.criterion, CriterionKind::NldMm);
+    }
+
+    #[test]
+    fn the_neighbour_rule_is_parsed_by_name() {
+        let with = |rule: &str| {
+            Cli::try_parse_from(["sma", "--renderer", "r:1", "--neighbour-rule", rule])
+                .map(|cli| cli.config().mesh.neighbour_rule)
+        };
+        assert_eq!(with("thesis").unwrap(), NeighbourRule::Thesis);
+        assert_eq!(with("red-green").unwrap(), NeighbourRule::RedGreen);
+        assert!(with("loop").is_err());
+        let default = Cli::try_parse_from(["sma", "--renderer", "r:1"]).unwrap();
+        assert_eq!(
+            default.config().mesh.neighbour_rule,
+            NeighbourRule::RedGreen
+        );
     }
 
     #[test]

@@ -39,6 +39,7 @@ pub struct SmaConfig {
     pub max_frame: usize,
     /// Viewers served at once on `listen`, and their handshake deadline.
     pub viewer_port: PortLimits,
+    /// The subdivision mesh: minimum edge, weld tolerance, neighbour rule (DESIGN.md §4).
     pub mesh: MeshParams,
     pub schedule: ScheduleConfig,
 }

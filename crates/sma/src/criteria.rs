@@ -6,6 +6,7 @@
 //! responsive, keeps its progress between calls, and is deterministic for a seed.
 
 mod nld_is;
+mod nld_mm;
 mod nld_os;
 mod nld_px;
 mod rnd;
@@ -18,6 +19,7 @@ use crate::sample::{DisplayMap, Displayed, Estimate};
 use crate::visible_set::VisibleSet;
 
 pub use nld_is::NldIs;
+pub use nld_mm::nld_mm;
 pub use nld_os::NldOs;
 pub use nld_px::NldPx;
 pub use rnd::Rnd;
@@ -76,16 +78,20 @@ pub enum CriterionKind {
     NldIsThesis,
     /// NLD_OS with the thesis's eq. 4.6 unchanged.
     NldOsThesis,
+    /// NLD_MM, §4.3.2: NLD_OS's passes with the Shading Cache's max–min metric, eq. 4.4, over
+    /// a leaf's three vertices (`nld_mm`), the thesis's yardstick for eq. 4.3.
+    NldMm,
 }
 
 impl CriterionKind {
-    pub const ALL: [CriterionKind; 6] = [
+    pub const ALL: [CriterionKind; 7] = [
         CriterionKind::Rnd,
         CriterionKind::NldIs,
         CriterionKind::NldOs,
         CriterionKind::NldPx,
         CriterionKind::NldIsThesis,
         CriterionKind::NldOsThesis,
+        CriterionKind::NldMm,
     ];
 
     pub fn name(self) -> &'static str {
@@ -96,6 +102,7 @@ impl CriterionKind {
             CriterionKind::NldPx => "nld-px",
             CriterionKind::NldIsThesis => "nld-is-thesis",
             CriterionKind::NldOsThesis => "nld-os-thesis",
+            CriterionKind::NldMm => "nld-mm",
         }
     }
 
@@ -206,6 +213,7 @@ pub fn make_criterion(
         CriterionKind::NldIsThesis => Box::new(NldIs::new(settings, Metric::Thesis)),
         CriterionKind::NldOsThesis => Box::new(NldOs::new(settings, Metric::Thesis)),
         CriterionKind::NldPx => Box::new(NldPx::new(settings)),
+        CriterionKind::NldMm => Box::new(NldOs::new(settings, Metric::MaxMin)),
     }
 }
 
@@ -223,6 +231,9 @@ pub enum Metric {
     /// `nld::noise_aware_nld` in displayed units: what the samples' standard errors explain is
     /// discounted (DESIGN.md §6, beyond the thesis).
     NoiseAware,
+    /// Eq. 4.4 (NLD_MM) on radiance luminance over L_max: eq. 4.3 over only the largest and the
+    /// smallest of the samples (`nld_mm`). Object space only: `NldIs` refuses it.
+    MaxMin,
 }
 
 impl CriterionSettings {
@@ -235,7 +246,7 @@ impl CriterionSettings {
     /// error of a view that had reached its stated end.
     pub(crate) fn significance_floor(&self, metric: Metric, thesis: f32) -> f32 {
         match metric {
-            Metric::Thesis => thesis,
+            Metric::Thesis | Metric::MaxMin => thesis,
             Metric::NoiseAware => self.display_error,
         }
     }
@@ -262,7 +273,7 @@ fn leaf_floor(
         .all(|(e, d)| e.paths >= settings.max_paths || d.standard_error <= settings.display_error);
     match metric {
         Metric::NoiseAware if settled => settings.display_error,
-        Metric::Thesis | Metric::NoiseAware => settings.s_min,
+        Metric::Thesis | Metric::MaxMin | Metric::NoiseAware => settings.s_min,
     }
 }
 
@@ -316,6 +327,10 @@ fn nld_of(
     match metric {
         Metric::Thesis => crate::nld::nld3(
             estimates.map(|e| conventions::luminance(e.rgb)),
+            input.l_white,
+        ),
+        Metric::MaxMin => nld_mm(
+            &estimates.map(|e| conventions::luminance(e.rgb)),
             input.l_white,
         ),
         Metric::NoiseAware => {

@@ -17,7 +17,7 @@ use std::collections::{HashMap, HashSet, VecDeque};
 
 use super::{
     Criterion, CriterionInput, CriterionKind, CriterionSettings, LuminanceImage, Metric,
-    leaf_display_error,
+    leaf_display_error, nld_mm,
 };
 use crate::mesh::NodeId;
 use crate::mesh::fast_hash::FastHash;
@@ -71,6 +71,10 @@ impl Quad {
                 let lum: Vec<f32> = corners.map(|i| image.luminance[i]).collect();
                 nld_metric(&lum, l_white)
             }
+            Metric::MaxMin => {
+                let lum: Vec<f32> = corners.map(|i| image.luminance[i]).collect();
+                nld_mm(&lum, l_white)
+            }
             Metric::NoiseAware => {
                 let values: Vec<(f32, f32)> = corners
                     .map(|i| (display(image.luminance[i], l_white), error(image.ids[i])))
@@ -103,7 +107,15 @@ pub struct NldIs {
 }
 
 impl NldIs {
+    /// # Panics
+    ///
+    /// With [`Metric::MaxMin`]: NLD_MM is the object-space criterion [`CriterionKind::NldMm`]
+    /// (eq. 4.4 over a leaf's vertices), and there is no image-space kind to report.
     pub fn new(settings: &CriterionSettings, metric: Metric) -> Self {
+        assert!(
+            metric != Metric::MaxMin,
+            "NLD_MM is an object-space criterion"
+        );
         NldIs {
             metric,
             floor: settings.significance_floor(metric, 0.0),
@@ -123,6 +135,7 @@ impl Criterion for NldIs {
         match self.metric {
             Metric::NoiseAware => CriterionKind::NldIs,
             Metric::Thesis => CriterionKind::NldIsThesis,
+            Metric::MaxMin => unreachable!("refused by NldIs::new"),
         }
     }
 

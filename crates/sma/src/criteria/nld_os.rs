@@ -10,6 +10,8 @@
 //! vertices. A leaf is offered once until `reset` (one the caller declined to split, being too
 //! small, would be declined again), and the level does not drop while the visible set still lists split
 //! leaves or leaves without all samples: their children or samples may be above S_ref.
+//! With eq. 4.4 in place of eq. 4.6 (`Metric::MaxMin`, floor `s_min` as eq. 4.6's) it is NLD_MM
+//! (`super::nld_mm`).
 
 use std::collections::HashSet;
 
@@ -89,6 +91,7 @@ impl Criterion for NldOs {
         match self.metric {
             Metric::NoiseAware => CriterionKind::NldOs,
             Metric::Thesis => CriterionKind::NldOsThesis,
+            Metric::MaxMin => CriterionKind::NldMm,
         }
     }
 

@@ -1,12 +1,13 @@
 //! Numerical hard cases of the subdivision mesh (DESIGN.md §4): needle and degenerate base
 //! triangles, refinement driven down to the minimum edge, and the same far from the origin.
-//! Each refines every leaf, round after round, until a round splits nothing.
+//! Each refines every leaf, round after round, until a round splits nothing, under both
+//! neighbour rules (`neighbour_rule`).
 
 use glam::{DVec3, Vec3};
 use scene::{Mesh, Triangle};
 
 use super::test_meshes::square;
-use super::{MeshParams, NodeId, NodeKind, SubdivisionMesh, min_angle};
+use super::{MeshParams, NeighbourRule, NodeId, NodeKind, SubdivisionMesh, min_angle};
 
 /// More rounds than any of these meshes needs to reach its minimum edge.
 const ROUNDS: usize = 16;
@@ -24,9 +25,10 @@ fn refine_to_a_stop(mesh: &mut SubdivisionMesh, each: &dyn Fn(&SubdivisionMesh))
     panic!("still splitting after {ROUNDS} rounds");
 }
 
-fn params(min_edge_length: f32) -> MeshParams {
+fn params(min_edge_length: f32, neighbour_rule: NeighbourRule) -> MeshParams {
     MeshParams {
         min_edge_length,
+        neighbour_rule,
         ..MeshParams::default()
     }
 }
@@ -76,8 +78,14 @@ fn needles_and_degenerates() -> Mesh {
 /// placed at a corner of their base triangle.
 #[test]
 fn needles_and_degenerate_bases_refine_to_a_stop_without_nan() {
+    for rule in NeighbourRule::ALL {
+        needles_and_degenerates_under(rule);
+    }
+}
+
+fn needles_and_degenerates_under(rule: NeighbourRule) {
     let scene = needles_and_degenerates();
-    let mut mesh = SubdivisionMesh::new(&scene, params(0.05));
+    let mut mesh = SubdivisionMesh::new(&scene, params(0.05, rule));
     let rounds = refine_to_a_stop(&mut mesh, &|_| {});
     assert!(rounds > 0, "nothing was refined");
     for v in 0..mesh.vertex_count() as u32 {
@@ -121,8 +129,14 @@ fn needles_and_degenerate_bases_refine_to_a_stop_without_nan() {
 /// below it, and every leaf that could still be split red without going below it has been.
 #[test]
 fn refinement_stops_at_the_minimum_edge() {
+    for rule in NeighbourRule::ALL {
+        stops_at_the_minimum_edge_under(rule);
+    }
+}
+
+fn stops_at_the_minimum_edge_under(rule: NeighbourRule) {
     let min_edge = 0.1;
-    let mut mesh = SubdivisionMesh::new(&square(), params(min_edge));
+    let mut mesh = SubdivisionMesh::new(&square(), params(min_edge, rule));
     let rounds = refine_to_a_stop(&mut mesh, &|_| {});
     // The square's triangles have longest edges of sqrt 2: 0.71, 0.35, 0.18, then no further.
     assert!(rounds >= 3, "{rounds} rounds");
@@ -152,15 +166,21 @@ fn far_from_the_origin_the_minimum_edge_follows_the_float_spacing() {
         *p = *p * 0.25 + offset;
     }
     let spacing = f32::from_bits(1.0e5f32.to_bits() + 1) - 1.0e5;
-    let mut mesh = SubdivisionMesh::new(&scene, MeshParams::default());
-    let rounds = refine_to_a_stop(&mut mesh, &|mesh| {
-        for leaf in mesh.leaves() {
-            let p = mesh.leaf_positions(leaf);
-            assert!(
-                edges(p).iter().all(|&e| e >= 2.0 * spacing),
-                "leaf {leaf} collapsed: {p:?}"
-            );
-        }
-    });
-    assert!(rounds > 0, "nothing was refined");
+    for neighbour_rule in NeighbourRule::ALL {
+        let params = MeshParams {
+            neighbour_rule,
+            ..MeshParams::default()
+        };
+        let mut mesh = SubdivisionMesh::new(&scene, params);
+        let rounds = refine_to_a_stop(&mut mesh, &|mesh| {
+            for leaf in mesh.leaves() {
+                let p = mesh.leaf_positions(leaf);
+                assert!(
+                    edges(p).iter().all(|&e| e >= 2.0 * spacing),
+                    "leaf {leaf} collapsed: {p:?}"
+                );
+            }
+        });
+        assert!(rounds > 0, "nothing was refined");
+    }
 }

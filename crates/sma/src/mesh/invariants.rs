@@ -1,5 +1,6 @@
 //! Property tests of the subdivision mesh on random meshes (seams, mixed winding, needles,
-//! non-manifold fins) under random refinement and coarsening (DESIGN.md §4).
+//! non-manifold fins) under random refinement and coarsening (DESIGN.md §4), each case under both
+//! neighbour rules (`neighbour_rule`): the thesis's keeps red–green's guarantees.
 
 use std::collections::{BTreeSet, HashMap};
 
@@ -8,7 +9,7 @@ use proptest::prelude::*;
 use scene::{Mesh, Triangle};
 
 use super::test_meshes::grid;
-use super::{NodeId, RefinementStep, Split, SubdivisionMesh, min_angle};
+use super::{MeshParams, NeighbourRule, NodeId, RefinementStep, Split, SubdivisionMesh, min_angle};
 
 /// A grid with uneven columns (needles where a column is thin), some triangles flipped, some
 /// given their own vertex copies (a seam), and fins standing on some interior edges (three faces
@@ -83,7 +84,7 @@ fn on_segment(a: Vec3, b: Vec3, p: Vec3, q: Vec3) -> bool {
 }
 
 /// Conforming triangulation, area per base, angle bound, leaf count.
-fn check(mesh: &SubdivisionMesh, scene: &Mesh) -> Result<(), TestCaseError> {
+pub(super) fn check(mesh: &SubdivisionMesh, scene: &Mesh) -> Result<(), TestCaseError> {
     let leaves: Vec<NodeId> = mesh.leaves().collect();
     prop_assert_eq!(leaves.len(), mesh.leaf_count());
     let mut edges: HashMap<_, (u32, Vec3, Vec3)> = HashMap::new();
@@ -144,7 +145,7 @@ fn check(mesh: &SubdivisionMesh, scene: &Mesh) -> Result<(), TestCaseError> {
 
 /// Coarsens everything, one level per call, checking that each step is a conforming unit that
 /// takes the leaves from before it to after it.
-fn coarsen_all(mesh: &mut SubdivisionMesh, scene: &Mesh) -> Result<(), TestCaseError> {
+pub(super) fn coarsen_all(mesh: &mut SubdivisionMesh, scene: &Mesh) -> Result<(), TestCaseError> {
     loop {
         let parents: Vec<NodeId> = (0..mesh.node_count() as NodeId)
             .filter(|&id| {
@@ -208,35 +209,10 @@ proptest! {
         rounds in prop::collection::vec((prop::collection::vec(any::<prop::sample::Index>(), 1..6), any::<prop::sample::Index>(), any::<bool>()), 1..8),
     ) {
         let scene = random_mesh(n, &widths, &flips, &seams, &fins);
-        let mut mesh = SubdivisionMesh::new(&scene, super::MeshParams { min_edge_length: 1e-3, weld_tolerance_rel: 1e-6 });
-        for (picks, coarse_pick, coarsen) in rounds {
-            let leaves: Vec<NodeId> = mesh.leaves().collect();
-            let selected: Vec<NodeId> = picks.iter().map(|i| leaves[i.index(leaves.len())]).collect();
-            // Applied in order, the steps take the leaves from before the call to after it.
-            let mut shown: BTreeSet<NodeId> = leaves.iter().copied().collect();
-            for step in mesh.refine(&selected, &|_| false) {
-                apply(&mut shown, &step, &mesh)?;
-            }
-            prop_assert_eq!(shown, mesh.leaves().collect::<BTreeSet<_>>());
-            check(&mesh, &scene)?;
-            if coarsen {
-                let inner: Vec<NodeId> = (0..mesh.node_count() as NodeId)
-                    .filter(|&id| mesh.node(id).is_alive() && matches!(mesh.node(id).split(), Split::Red { .. }))
-                    .collect();
-                if !inner.is_empty() {
-                    let parent = inner[coarse_pick.index(inner.len())];
-                    let vertices = mesh.node(parent).vertices;
-                    if mesh.coarsen(parent).is_some() {
-                        prop_assert_eq!(mesh.node(parent).vertices, vertices);
-                        let green = matches!(mesh.node(parent).split(), Split::Green { .. });
-                        prop_assert!(mesh.is_leaf(parent) || green);
-                    }
-                    check(&mesh, &scene)?;
-                }
-            }
+        for rule in NeighbourRule::ALL {
+            refine_and_coarsen(&scene, rule, &rounds)
+                .map_err(|e| TestCaseError::fail(format!("{rule}: {e}")))?;
         }
-        coarsen_all(&mut mesh, &scene)?;
-        prop_assert_eq!(mesh.leaves().collect::<BTreeSet<_>>(), base_leaves(&mesh));
     }
 
     /// One refinement step, closure included, is undone by coarsening.
@@ -249,10 +225,65 @@ proptest! {
         pick in any::<prop::sample::Index>(),
     ) {
         let scene = random_mesh(n, &widths, &flips, &[false], &fins);
-        let mut mesh = SubdivisionMesh::new(&scene, super::MeshParams { min_edge_length: 1e-3, weld_tolerance_rel: 1e-6 });
-        let leaf = pick.index(mesh.base_count()) as NodeId;
-        mesh.refine(&[leaf], &|_| false);
-        coarsen_all(&mut mesh, &scene)?;
-        prop_assert_eq!(mesh.leaves().collect::<BTreeSet<_>>(), base_leaves(&mesh));
+        for rule in NeighbourRule::ALL {
+            let mut mesh = SubdivisionMesh::new(&scene, params(rule));
+            let leaf = pick.index(mesh.base_count()) as NodeId;
+            mesh.refine(&[leaf], &|_| false);
+            check(&mesh, &scene)?;
+            coarsen_all(&mut mesh, &scene)?;
+            prop_assert_eq!(mesh.leaves().collect::<BTreeSet<_>>(), base_leaves(&mesh));
+        }
     }
+}
+
+fn params(neighbour_rule: NeighbourRule) -> MeshParams {
+    MeshParams {
+        min_edge_length: 1e-3,
+        weld_tolerance_rel: 1e-6,
+        neighbour_rule,
+    }
+}
+
+/// Rounds of refinement (leaves picked by index) and coarsening (one red parent, picked by index),
+/// checking the mesh after each, then coarsening everything back to the base mesh.
+fn refine_and_coarsen(
+    scene: &Mesh,
+    rule: NeighbourRule,
+    rounds: &[(Vec<prop::sample::Index>, prop::sample::Index, bool)],
+) -> Result<(), TestCaseError> {
+    let mut mesh = SubdivisionMesh::new(scene, params(rule));
+    for (picks, coarse_pick, coarsen) in rounds {
+        let leaves: Vec<NodeId> = mesh.leaves().collect();
+        let selected: Vec<NodeId> = picks
+            .iter()
+            .map(|i| leaves[i.index(leaves.len())])
+            .collect();
+        // Applied in order, the steps take the leaves from before the call to after it.
+        let mut shown: BTreeSet<NodeId> = leaves.iter().copied().collect();
+        for step in mesh.refine(&selected, &|_| false) {
+            apply(&mut shown, &step, &mesh)?;
+        }
+        prop_assert_eq!(shown, mesh.leaves().collect::<BTreeSet<_>>());
+        check(&mesh, scene)?;
+        if *coarsen {
+            let inner: Vec<NodeId> = (0..mesh.node_count() as NodeId)
+                .filter(|&id| {
+                    mesh.node(id).is_alive() && matches!(mesh.node(id).split(), Split::Red { .. })
+                })
+                .collect();
+            if !inner.is_empty() {
+                let parent = inner[coarse_pick.index(inner.len())];
+                let vertices = mesh.node(parent).vertices;
+                if mesh.coarsen(parent).is_some() {
+                    prop_assert_eq!(mesh.node(parent).vertices, vertices);
+                    let green = matches!(mesh.node(parent).split(), Split::Green { .. });
+                    prop_assert!(mesh.is_leaf(parent) || green);
+                }
+                check(&mesh, scene)?;
+            }
+        }
+    }
+    coarsen_all(&mut mesh, scene)?;
+    prop_assert_eq!(mesh.leaves().collect::<BTreeSet<_>>(), base_leaves(&mesh));
+    Ok(())
 }

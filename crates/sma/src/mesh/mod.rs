@@ -25,6 +25,10 @@
 //! finer along the parents' edges, re-greening or un-greening what closure then needs; parents
 //! that block each other (a uniformly refined patch) go together in one step, so coarsening
 //! everything, one level per call, gives back the base mesh.
+//!
+//! The thesis's own neighbour rule (§4.2: a neighbour is split 1:4 when the split edge is shorter
+//! than its height on it) is an option, [`NeighbourRule::Thesis`], applied inside this closure
+//! with a bound on its propagation (`neighbour_rule`); red–green is the default.
 
 mod adjacency;
 mod angles;
@@ -32,6 +36,7 @@ mod coarsen;
 pub(crate) mod fast_hash;
 #[cfg(any(test, feature = "testing"))]
 mod grid;
+mod neighbour_rule;
 mod refine;
 mod step;
 mod weld;
@@ -51,6 +56,7 @@ pub use angles::{angle_bound, min_angle};
 use fast_hash::FastHash;
 #[cfg(any(test, feature = "testing"))]
 pub use grid::grid_mesh;
+pub use neighbour_rule::{NeighbourRule, NeighbourStats};
 pub use step::RefinementStep;
 
 /// Any triangle of the hierarchy. Never reused: a removed node stays as a dead entry.
@@ -77,6 +83,9 @@ pub struct MeshParams {
     /// than this are one point for adjacency. 1e-6 is ten f32 ulps of a scene coordinate, so it
     /// only absorbs rounding in exported files, never merges distinct modelled corners.
     pub weld_tolerance_rel: f32,
+    /// How closure splits a neighbour with one split edge: red–green's bisection, or the
+    /// thesis's 1:4 split of a neighbour tall on that edge (§4.2, fig. 4.7; `neighbour_rule`).
+    pub neighbour_rule: NeighbourRule,
 }
 
 impl Default for MeshParams {
@@ -86,6 +95,9 @@ impl Default for MeshParams {
         MeshParams {
             min_edge_length: 1e-3,
             weld_tolerance_rel: 1e-6,
+            // Red–green bounds angles and propagation by itself (DESIGN.md §4); the thesis's
+            // rule is there to be measured beside it.
+            neighbour_rule: NeighbourRule::RedGreen,
         }
     }
 }
@@ -243,6 +255,8 @@ struct EdgeSplit {
 #[derive(Clone, Debug)]
 pub struct SubdivisionMesh {
     min_split_edge: f32,
+    neighbour_rule: NeighbourRule,
+    neighbour_stats: NeighbourStats,
     nodes: Vec<Node>,
     vertices: Vec<MeshVertex>,
     /// Welded point of each vertex, with [`SEAM_VERTEX`] set where the point may have other
@@ -329,6 +343,8 @@ impl SubdivisionMesh {
                     .min_edge_length
                     .max(MIN_EDGE_FRACTION_OF_EXTENT * extent)
                     .max(MIN_EDGE_ULPS * ulp(lo.abs().max(hi.abs()).max_element())),
+            neighbour_rule: params.neighbour_rule,
+            neighbour_stats: NeighbourStats::default(),
             leaf_count: nodes.len(),
             base_count: nodes.len(),
             nodes,

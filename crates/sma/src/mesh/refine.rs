@@ -2,6 +2,7 @@
 
 use glam::Vec3;
 
+use super::neighbour_rule::Cascade;
 use super::step::StepRecorder;
 use super::{
     EdgeSplit, MeshVertex, Node, NodeId, NodeKind, RefinementStep, SEAM_VERTEX, Split,
@@ -74,8 +75,10 @@ impl SubdivisionMesh {
     }
 
     /// Splits leaves with hanging vertices until none is left: one hanging edge gets a green
-    /// bisection, two or three a red split; a green leaf with any has its parent split red.
+    /// bisection (or, by the thesis's rule, a red split: `neighbour_rule`), two or three a red
+    /// split; a green leaf with any has its parent split red.
     fn close(&mut self, step: &mut StepRecorder, queue: &mut Vec<NodeId>) {
+        let mut cascade = Cascade::default();
         while let Some(id) = queue.pop() {
             if !self.is_leaf(id) || self.is_degenerate(id) {
                 continue;
@@ -89,9 +92,13 @@ impl SubdivisionMesh {
             match (node.kind(), node.parent()) {
                 (NodeKind::Green, Some(parent)) => self.red_split(parent, step, queue),
                 _ if more => self.red_split(id, step, queue),
+                _ if self.splits_neighbour_whole(id, first, &mut cascade) => {
+                    self.red_split(id, step, queue)
+                }
                 _ => self.green_split(id, first, step, queue),
             }
         }
+        cascade.finish(&mut self.neighbour_stats);
     }
 
     /// Red split of a leaf or of a green-split node (whose greens are removed first). Queues the
