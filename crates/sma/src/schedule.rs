@@ -43,6 +43,7 @@ use scene::Scene;
 use tokio::sync::{mpsc, watch};
 
 use crate::cache::{CachedSample, ShadingCache};
+use crate::clock::sleep_until;
 use crate::config::ScheduleConfig;
 use crate::criteria::{CriterionKind, CriterionSettings, make_criterion};
 use crate::mesh::SubdivisionMesh;
@@ -76,10 +77,6 @@ const SYNC_SHARE: f64 = 0.1;
 /// samples, and each committed refinement group asked for one.
 const REPLAN_INTERVAL: Duration = Duration::from_millis(50);
 const REPLAN_SHARE: f64 = 0.1;
-
-/// Batches per renderer the pool's backlog may hold, whatever their size: a bound on what a
-/// withdrawal hands back.
-const MAX_BACKLOG_BATCHES_PER_RENDERER: usize = 64;
 
 /// A criterion that found nothing is asked again once this many new samples have come, not after
 /// every batch: a round evaluates every visible leaf.
@@ -535,13 +532,14 @@ impl Schedule {
     }
 
     /// Keeps each renderer holding `batches_per_renderer` batches, and the pool's backlog
-    /// holding `renderer_backlog` of the renderers' measured capacity beyond them: the backlog
-    /// is sent while this thread is busy with a pass or a refinement round (DESIGN.md §3: rest
-    /// time goes to the renderers).
+    /// holding `renderer_backlog` of the renderers' measured capacity beyond them, within the
+    /// pool's bound in batches (`PoolHandle::most_batches`): the backlog is sent while this
+    /// thread is busy with a pass or a refinement round (DESIGN.md §3: rest time goes to the
+    /// renderers).
     fn submit_batches(&mut self) {
         let renderers = self.renderers.max(1);
         let held = self.config.batches_per_renderer.max(1) * renderers;
-        let most = held + MAX_BACKLOG_BATCHES_PER_RENDERER * renderers;
+        let most = self.pool.most_batches(self.renderers);
         let backlog = self.config.renderer_backlog.as_secs_f64();
         loop {
             let in_flight = self.requests.batches_in_flight();
@@ -680,12 +678,6 @@ impl Schedule {
         for viewer in self.viewers.values() {
             viewer.send(SmaToViewer::Stats(stats));
         }
-    }
-}
-
-async fn sleep_until(at: Option<Instant>) {
-    if let Some(at) = at {
-        tokio::time::sleep_until(at.into()).await;
     }
 }
 
