@@ -29,8 +29,8 @@ pub(crate) mod nld;
 pub(crate) mod sample;
 pub mod visible_set;
 
-pub(crate) mod clock;
 pub mod cli;
+pub(crate) mod clock;
 pub mod config;
 pub(crate) mod pool;
 pub(crate) mod schedule;
