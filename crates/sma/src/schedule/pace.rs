@@ -1,68 +1,31 @@
-//! Where the schedule thread's time goes, and the pacing of the work it may put off (DESIGN.md §3:
-//! rest time goes to the renderers). The thread shares the machine's cores with the renderers,
-//! so every millisecond it spends walking the visible leaves is a millisecond less of tracing.
-//! [`WorkCosts`] adds up each kind of work between two `Stats` (logged at debug level, beside
-//! the statistics); [`Pace`] spaces out a recurring task by its own measured cost.
+//! The pace of the work a turn may put off (DESIGN.md §3: rest time goes to the renderers), and
+//! the one place that decides, for each turn, which of it runs now. The schedule's thread shares
+//! the machine's cores with the renderers, so every millisecond it spends walking the visible
+//! leaves is a millisecond less of tracing: the viewers' syncs, the re-plans that only reorder
+//! the queue, and the refinement rounds are each spaced out by their own measured cost
+//! ([`Pace`]). [`Paces::allowed`] says what of the work owed may run at an instant, and what is
+//! deferred until when; the turn defers it explicitly, and nothing owed is cleared to put it off.
 
 use std::time::{Duration, Instant};
 
-/// The kinds of work of a turn that grow with the visible leaves.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Work {
-    /// Visibility passes (the software rasterizer's threads work inside them).
-    Pass,
-    /// Views carried over to a refined or coarsened mesh without a pass (`visibility::carry_over`).
-    CarryOver,
-    /// Rebuilding the request queue from the visible sets and the cache.
-    Replan,
-    /// Bringing the viewers up to date.
-    Sync,
-    /// A refinement round: the criterion, the luminance pass, the mesh's splits.
-    Round,
-}
+use super::counters::Work;
+use super::waits::Owed;
 
-impl Work {
-    const ALL: [Work; 5] = [
-        Work::Pass,
-        Work::CarryOver,
-        Work::Replan,
-        Work::Sync,
-        Work::Round,
-    ];
+/// Viewers are brought up to date at most this often while the camera rests (at once after a
+/// pass): each sync walks every visible leaf, and done after every answered batch it took the
+/// SMA's whole core and left the renderers waiting for work (DESIGN.md §3).
+const SYNC_INTERVAL: Duration = Duration::from_millis(50);
 
-    fn index(self) -> usize {
-        self as usize
-    }
-}
+/// At most this share of the schedule thread's time goes to syncs put off for the interval: with
+/// tens of thousands of visible leaves a sync takes milliseconds, and twenty of them a second
+/// were a fifth of the SMA's time on Sponza, taken from the renderers it shares the cores with.
+const SYNC_SHARE: f64 = 0.1;
 
-/// How many times each kind of work ran and how long it took, since the last `take`.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct WorkCosts {
-    runs: [u32; Work::ALL.len()],
-    spent: [Duration; Work::ALL.len()],
-}
-
-impl WorkCosts {
-    pub fn add(&mut self, work: Work, spent: Duration) {
-        self.runs[work.index()] += 1;
-        self.spent[work.index()] += spent;
-    }
-
-    /// The figures so far, as `kind: runs × mean ms`, and a fresh start.
-    pub fn take(&mut self) -> String {
-        let text = Work::ALL
-            .iter()
-            .map(|&w| {
-                let (runs, spent) = (self.runs[w.index()], self.spent[w.index()]);
-                let mean = spent.as_secs_f64() * 1e3 / f64::from(runs.max(1));
-                format!("{w:?}: {runs} × {mean:.1} ms")
-            })
-            .collect::<Vec<_>>()
-            .join(", ");
-        *self = WorkCosts::default();
-        text
-    }
-}
+/// A re-plan that may wait (see `Owed::replan_soon`) comes at most this often, and takes at most
+/// this share of the thread's time: on Sponza a re-plan walks over a hundred thousand visible
+/// samples, and each committed refinement group asked for one.
+const REPLAN_INTERVAL: Duration = Duration::from_millis(50);
+const REPLAN_SHARE: f64 = 0.1;
 
 /// Spaces out a recurring task that may wait: the next run comes no sooner than `min_interval`
 /// after the last one began, nor sooner than its cost allows for the task to take at most
@@ -106,6 +69,112 @@ impl Pace {
     }
 }
 
+/// Whether owed work that may wait runs this turn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Timing {
+    /// Nothing of the kind is owed.
+    NotOwed,
+    /// Owed, and its pace allows it now.
+    Now,
+    /// Owed, and deferred by its pace until then: it stays owed.
+    Deferred(Instant),
+}
+
+impl Timing {
+    fn of(owed: bool, pace: &Pace, at_once: bool, now: Instant) -> Timing {
+        if !owed {
+            Timing::NotOwed
+        } else if at_once || pace.due(now) {
+            Timing::Now
+        } else {
+            Timing::Deferred(pace.next_at())
+        }
+    }
+
+    pub fn now(self) -> bool {
+        self == Timing::Now
+    }
+
+    fn deferred_until(self) -> Option<Instant> {
+        match self {
+            Timing::Deferred(at) => Some(at),
+            Timing::NotOwed | Timing::Now => None,
+        }
+    }
+}
+
+/// What the paces allow, at one instant, of the work owed that may wait.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Allowed {
+    /// Bringing the viewers up to date (`Owed::resync`).
+    pub sync: Timing,
+    /// A re-plan that only reorders the queue (`Owed::replan_soon`). A re-plan owed at once (a
+    /// new view) is never paced.
+    pub replan_soon: Timing,
+}
+
+impl Allowed {
+    /// When the first deferred work becomes due, for the loop to wake then.
+    pub fn wake_at(&self) -> Option<Instant> {
+        let deferred = [self.sync, self.replan_soon].map(Timing::deferred_until);
+        deferred.into_iter().flatten().min()
+    }
+}
+
+/// The paces of the schedule's work that may wait.
+#[derive(Clone, Copy, Debug)]
+pub struct Paces {
+    sync: Pace,
+    replan: Pace,
+    /// Spaces out refinement rounds (`ScheduleConfig::round_share`).
+    round: Pace,
+}
+
+impl Paces {
+    pub fn new(round_share: f64, now: Instant) -> Paces {
+        Paces {
+            sync: Pace::new(SYNC_INTERVAL, SYNC_SHARE, now),
+            replan: Pace::new(REPLAN_INTERVAL, REPLAN_SHARE, now),
+            round: Pace::new(Duration::ZERO, round_share, now),
+        }
+    }
+
+    /// What of `owed` may run at `now`. A sync comes at once after a pass (`pass_ran`: the
+    /// viewers see a new view as soon as it is drawn), else at its pace ([`SYNC_INTERVAL`],
+    /// [`SYNC_SHARE`]); a re-plan that may wait at its own ([`REPLAN_INTERVAL`],
+    /// [`REPLAN_SHARE`]).
+    pub fn allowed(&self, owed: Owed, pass_ran: bool, now: Instant) -> Allowed {
+        Allowed {
+            sync: Timing::of(owed.resync(), &self.sync, pass_ran, now),
+            replan_soon: Timing::of(owed.replan_soon(), &self.replan, false, now),
+        }
+    }
+
+    /// No refinement round before this. Spacing the rounds gives their time to the renderers
+    /// only while the queue holds work for them (`work_queued`); with nothing queued, rounds are
+    /// what gives them work (a view's last refinements), and held back they left the renderers
+    /// idle.
+    pub fn next_round_at(&self, work_queued: bool) -> Option<Instant> {
+        work_queued.then(|| self.round.next_at())
+    }
+
+    /// A new view is refined as soon as it rests, whatever the last view's rounds cost.
+    pub fn camera_moved(&mut self, now: Instant) {
+        self.round.restart(now);
+    }
+
+    /// `work` ran from `started` for `spent`: paced work is spaced by it.
+    pub fn ran(&mut self, work: Work, started: Instant, spent: Duration) {
+        let pace = match work {
+            Work::Sync => &mut self.sync,
+            Work::Replan => &mut self.replan,
+            Work::Round => &mut self.round,
+            Work::Pass | Work::CarryOver => return,
+        };
+        pace.ran(started, spent);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -136,15 +205,51 @@ mod tests {
     }
 
     #[test]
-    fn costs_add_up_per_kind_and_start_over_when_taken() {
-        let mut costs = WorkCosts::default();
-        costs.add(Work::Sync, 4 * MS);
-        costs.add(Work::Sync, 6 * MS);
-        costs.add(Work::Replan, 7 * MS);
-        let text = costs.take();
-        assert!(text.contains("Sync: 2 × 5.0 ms"), "{text}");
-        assert!(text.contains("Replan: 1 ×"), "{text}");
-        assert!(text.contains("Pass: 0 × 0.0 ms"), "{text}");
-        assert!(costs.take().contains("Sync: 0 ×"));
+    fn a_sync_put_off_by_its_pace_is_deferred_not_forgotten_and_a_pass_brings_it_at_once() {
+        let t0 = Instant::now();
+        let mut paces = Paces::new(0.05, t0);
+        let mut owed = Owed::default();
+        owed.samples_arrived();
+        assert_eq!(paces.allowed(owed, false, t0).sync, Timing::Now);
+        paces.ran(Work::Sync, t0, MS);
+        let later = t0 + 10 * MS;
+        let allowed = paces.allowed(owed, false, later);
+        assert_eq!(allowed.sync, Timing::Deferred(t0 + SYNC_INTERVAL));
+        assert_eq!(allowed.wake_at(), Some(t0 + SYNC_INTERVAL));
+        assert!(owed.resync(), "still owed");
+        assert_eq!(paces.allowed(owed, true, later).sync, Timing::Now);
+        assert_eq!(
+            paces.allowed(Owed::default(), true, later).sync,
+            Timing::NotOwed
+        );
+    }
+
+    #[test]
+    fn only_a_replan_that_may_wait_is_paced() {
+        let t0 = Instant::now();
+        let mut paces = Paces::new(0.05, t0);
+        paces.ran(Work::Replan, t0, 20 * MS);
+        let mut owed = Owed::default();
+        owed.queue_changed();
+        let allowed = paces.allowed(owed, false, t0 + MS);
+        assert_eq!(allowed.replan_soon, Timing::Deferred(t0 + 200 * MS));
+        assert_eq!(allowed.sync, Timing::NotOwed);
+        owed.views_changed();
+        assert!(owed.replan(), "owed at once, whatever the pace");
+        assert_eq!(
+            paces.allowed(owed, false, t0 + 200 * MS).replan_soon,
+            Timing::Now
+        );
+    }
+
+    #[test]
+    fn rounds_are_spaced_only_while_work_is_queued_and_a_camera_move_lifts_the_spacing() {
+        let t0 = Instant::now();
+        let mut paces = Paces::new(0.05, t0);
+        paces.ran(Work::Round, t0, 10 * MS);
+        assert_eq!(paces.next_round_at(true), Some(t0 + 200 * MS));
+        assert_eq!(paces.next_round_at(false), None);
+        paces.camera_moved(t0 + MS);
+        assert_eq!(paces.next_round_at(true), Some(t0 + MS));
     }
 }
