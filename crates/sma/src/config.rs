@@ -105,7 +105,7 @@ pub struct ScheduleConfig {
     /// the next (0..1]: a round walks every visible leaf, and so do the carry-over, re-plan and
     /// viewer sync it sets off, so on a large view the rounds' cycle, not the renderers, took
     /// the cores. Only while work is queued for the renderers; a camera move lifts the spacing
-    /// (`schedule::costs::Pace`).
+    /// (`schedule::pace::Pace`).
     pub round_share: f64,
     /// A view-dependent sample is retaken once the eye has moved by this angle, seen from it.
     pub view_angle_deg: f32,
@@ -120,11 +120,11 @@ pub struct ScheduleConfig {
     /// The quality ladder's last rung: paths per sample (DESIGN.md §5).
     pub max_paths: u32,
     /// Whether the ladder has its early rung, a quarter of the scene's paths, for direct-light
-    /// upgrades and refinement samples (`schedule::plan::Qualities`); off, both get the scene's
+    /// upgrades and refinement samples (`schedule::ladder::Qualities`); off, both get the scene's
     /// quality at once, so that the two can be measured side by side.
     pub early_rung: bool,
     /// While refinement's samples are queued, the share of the paths traced that goes to
-    /// bringing early-rung samples up to the scene's quality (`schedule::requests::Urgency::
+    /// bringing early-rung samples up to the scene's quality (`schedule::need::Urgency::
     /// TopUp`); 0: only when refinement waits for nothing.
     pub top_up_share: f64,
     /// Bounces of every path, in place of the scene's quality preset's (None: the preset's):

@@ -22,6 +22,9 @@ use testkit::probe::Probe;
 const W: u32 = 200;
 const H: u32 = 150;
 const WAIT: Duration = Duration::from_secs(60);
+/// `Stats` intervals that must pass without work to show that a converged SMA asks for nothing
+/// (at a `stats_every` of 10 ms, half a second of its turns at least).
+const QUIET_INTERVALS: usize = 50;
 
 fn gpu_available() -> bool {
     gpu_or_skip(Gpu::new()).is_some()
@@ -559,9 +562,24 @@ async fn a_resting_viewer_gets_more_paths_until_converged_then_nothing() {
         requests.iter().all(|q| q.paths <= rung.paths),
         "a request went past the cap"
     );
-    // After the stated end the renderer is left alone.
+    // After the stated end the renderer is left alone: each `Stats` closes an interval of the
+    // schedule's turns, and the next ones all find it converged with nothing traced (a request
+    // would be outstanding, or answered, within its interval), while the renderer is asked for
+    // nothing.
     let settled = log.lock().unwrap().len();
-    tokio::time::sleep(Duration::from_millis(500)).await;
+    let (mut quiet, mut working) = (0, Vec::new());
+    probe
+        .until_stats(WAIT, |s| {
+            if s.converged && s.paths_per_sec == 0.0 {
+                quiet += 1;
+            } else {
+                working.push(*s);
+            }
+            quiet == QUIET_INTERVALS || !working.is_empty()
+        })
+        .await
+        .unwrap();
+    assert!(working.is_empty(), "work after convergence: {working:?}");
     assert_eq!(
         log.lock().unwrap().len(),
         settled,
