@@ -248,7 +248,7 @@ fn reference_files_are_written_and_read_back() {
         seed: 3,
     };
     let (img, _) = renderer::reference::render_to_files(&w, "main", &s, &out, None).unwrap();
-    let (width, height, pixels) = renderer::tonemap::read_exr(&out).unwrap();
+    let (width, height, pixels) = renderer::image_files::read_exr(&out).unwrap();
     assert_eq!((width, height), (24, 16));
     assert_eq!(pixels, img.pixels);
     let png = image::open(out.with_extension("png")).unwrap().to_rgb8();
