@@ -1,6 +1,7 @@
-//! Image files for reference images: linear EXR, and a PNG tone-mapped with Drago's operator
-//! (thesis eq. 4.2, DESIGN.md §9) then sRGB-encoded, by `conventions::tone_map`: the same mapping
-//! the viewer applies, so images compare.
+//! Image files: a reference image written as linear EXR, and as a PNG tone-mapped with Drago's
+//! operator (thesis eq. 4.2, DESIGN.md §9) then sRGB-encoded, by `conventions::tone_map`: the
+//! same mapping the viewer applies, so images compare. Also the one EXR reader ([`read_exr`]),
+//! for every linear image the system writes: references, ground truths, viewer snapshots.
 
 use std::path::Path;
 
@@ -49,20 +50,52 @@ pub fn write_exr(path: &Path, width: u32, height: u32, pixels: &[Vec3]) -> anyho
     .with_context(|| format!("writing {}", path.display()))
 }
 
-/// Reads a linear RGB EXR back (for tests and the convergence benchmark).
-pub fn read_exr(path: &Path) -> anyhow::Result<(u32, u32, Vec<Vec3>)> {
+/// A linear image read from an EXR file, row-major from the top-left pixel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExrImage {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<Vec3>,
+    /// The alpha channel, when the file has one: a reference image written by [`write_exr`] has
+    /// none; a ground truth's alpha is the renderer's coverage and a viewer snapshot's marks the
+    /// pixels that see geometry, which error metrics keep (DESIGN.md §10).
+    pub alpha: Option<Vec<f32>>,
+}
+
+/// Reads the first RGB(A) layer of an EXR file as linear f32 (tests, and the benchmarks' error
+/// metrics). A channel the file lacks reads as exr's default: 0 for colour, 1 for alpha, but
+/// [`ExrImage::alpha`] is `None` when the file has no alpha channel at all.
+pub fn read_exr(path: &Path) -> anyhow::Result<ExrImage> {
     use exr::prelude::*;
+    struct Pixels {
+        width: usize,
+        rgb: Vec<Vec3>,
+        alpha: Option<Vec<f32>>,
+    }
     let image = read_first_rgba_layer_from_file(
         path,
-        |res, _| (res.width(), vec![Vec3::ZERO; res.width() * res.height()]),
-        |(w, px): &mut (usize, Vec<Vec3>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            px[pos.y() * *w + pos.x()] = Vec3::new(r, g, b);
+        |size, channels: &RgbaChannels| Pixels {
+            width: size.width(),
+            rgb: vec![Vec3::ZERO; size.area()],
+            alpha: channels.3.as_ref().map(|_| vec![1.0; size.area()]),
+        },
+        |px: &mut Pixels, pos, (r, g, b, a): (f32, f32, f32, f32)| {
+            let i = pos.y() * px.width + pos.x();
+            px.rgb[i] = Vec3::new(r, g, b);
+            if let Some(alpha) = px.alpha.as_mut() {
+                alpha[i] = a;
+            }
         },
     )
     .with_context(|| format!("reading {}", path.display()))?;
     let size = image.layer_data.size;
-    let (_, pixels) = image.layer_data.channel_data.pixels;
-    Ok((size.width() as u32, size.height() as u32, pixels))
+    let Pixels { rgb, alpha, .. } = image.layer_data.channel_data.pixels;
+    Ok(ExrImage {
+        width: size.width() as u32,
+        height: size.height() as u32,
+        pixels: rgb,
+        alpha,
+    })
 }
 
 #[cfg(test)]
@@ -83,8 +116,36 @@ mod tests {
         let path = dir.path().join("t.exr");
         let px: Vec<Vec3> = (0..6).map(|i| Vec3::new(i as f32, 0.5, 1e3)).collect();
         write_exr(&path, 3, 2, &px).unwrap();
-        let (w, h, back) = read_exr(&path).unwrap();
-        assert_eq!((w, h), (3, 2));
-        assert_eq!(back, px);
+        let back = read_exr(&path).unwrap();
+        assert_eq!((back.width, back.height), (3, 2));
+        assert_eq!(back.pixels, px);
+        assert_eq!(back.alpha, None, "a reference image has no alpha");
+    }
+
+    /// A ground truth's or a snapshot's alpha comes back with its colour.
+    #[test]
+    fn exr_alpha_is_read_when_present() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("rgba.exr");
+        exr::prelude::write_rgba_file(&path, 2, 2, |x, y| {
+            (
+                x as f32,
+                y as f32,
+                0.25f32,
+                if x == y { 1.0f32 } else { 0.0 },
+            )
+        })
+        .unwrap();
+        let back = read_exr(&path).unwrap();
+        assert_eq!((back.width, back.height), (2, 2));
+        assert_eq!(back.pixels[1], Vec3::new(1.0, 0.0, 0.25));
+        assert_eq!(back.pixels[2], Vec3::new(0.0, 1.0, 0.25));
+        assert_eq!(back.alpha, Some(vec![1.0, 0.0, 0.0, 1.0]));
+    }
+
+    #[test]
+    fn a_missing_exr_is_an_error_naming_it() {
+        let e = read_exr(Path::new("no/such/image.exr")).unwrap_err();
+        assert!(format!("{e:#}").contains("no/such/image.exr"), "{e:#}");
     }
 }
