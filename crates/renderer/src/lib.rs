@@ -33,7 +33,7 @@ pub mod sampling;
 pub mod service;
 pub(crate) mod shade;
 pub(crate) mod strata;
-pub mod subnormals;
+pub(crate) mod subnormals;
 pub mod vector_level;
 pub(crate) mod wavefront;
 #[cfg(target_arch = "x86_64")]

@@ -42,7 +42,7 @@ const LOOK_RAD_PER_PIXEL: f32 = 0.003;
 const TURN_RAD_PER_S: f32 = 1.5;
 const SPEED_STEP: f32 = 1.5;
 
-pub fn run(config: &ViewerConfig) -> anyhow::Result<()> {
+pub(crate) fn run(config: &ViewerConfig) -> anyhow::Result<()> {
     let event_loop = EventLoop::<LinkEvent>::with_user_event().build()?;
     let proxy = event_loop.create_proxy();
     let link = Link::spawn(config.connect.clone(), move |event| {
