@@ -24,7 +24,7 @@ use crate::camera_sender::{CameraSender, DEFAULT_INTERVAL};
 use crate::config::ViewerConfig;
 use crate::draw::{DrawSettings, Drawer, Output, depth_range, depth_texture};
 use crate::gpu::Gpu;
-use crate::link::{Link, LinkEvent};
+use crate::link::{EventQueue, Link, event_queue};
 use crate::overlay::Overlay;
 use crate::panel::{Action, Facts};
 use crate::progress::ProgressPrinter;
@@ -43,16 +43,30 @@ const TURN_RAD_PER_S: f32 = 1.5;
 const SPEED_STEP: f32 = 1.5;
 
 pub(crate) fn run(config: &ViewerConfig) -> anyhow::Result<()> {
-    let event_loop = EventLoop::<LinkEvent>::with_user_event().build()?;
+    // winit's own queue of user events has no bound, so the link's events wait in a bounded one
+    // and winit carries only a wake-up, one at a time.
+    let event_loop = EventLoop::<LinkWoke>::with_user_event().build()?;
     let proxy = event_loop.create_proxy();
-    let link = Link::spawn(config.connect.clone(), move |event| {
-        let _ = proxy.send_event(event);
-    })?;
-    let mut app = App::new(config.clone(), link);
+    let (notify, events) = event_queue(move || {
+        let _ = proxy.send_event(LinkWoke);
+    });
+    let link = Link::spawn(config.connect.clone(), notify)?;
+    let mut app = App::new(config.clone(), link, events);
     event_loop.run_app(&mut app)?;
-    app.link.close();
-    app.failure.map_or(Ok(()), Err)
+    let App {
+        link,
+        events,
+        failure,
+        ..
+    } = app;
+    // Nothing takes the link's events any more: a link waiting for room stops waiting.
+    drop(events);
+    link.close();
+    failure.map_or(Ok(()), Err)
 }
+
+/// The link has queued events ([`event_queue`]).
+struct LinkWoke;
 
 /// The window and what draws into it.
 struct Display {
@@ -156,6 +170,7 @@ impl Keys {
 struct App {
     config: ViewerConfig,
     link: Link,
+    events: EventQueue,
     state: ViewState,
     display: Option<Display>,
     walk: Option<WalkCamera>,
@@ -178,7 +193,7 @@ struct App {
 }
 
 impl App {
-    fn new(config: ViewerConfig, link: Link) -> App {
+    fn new(config: ViewerConfig, link: Link, events: EventQueue) -> App {
         let now = Instant::now();
         App {
             settings: DrawSettings {
@@ -194,6 +209,7 @@ impl App {
             progress: ProgressPrinter::new(config.progress),
             config,
             link,
+            events,
             state: ViewState::default(),
             display: None,
             walk: None,
@@ -431,7 +447,7 @@ impl App {
     }
 }
 
-impl ApplicationHandler<LinkEvent> for App {
+impl ApplicationHandler<LinkWoke> for App {
     fn resumed(&mut self, event_loop: &ActiveEventLoop) {
         if self.display.is_some() {
             return;
@@ -448,10 +464,13 @@ impl ApplicationHandler<LinkEvent> for App {
         }
     }
 
-    fn user_event(&mut self, _: &ActiveEventLoop, event: LinkEvent) {
-        match self.state.handle(event) {
-            Reaction::Resend => self.restate(),
-            Reaction::Drawn(_) | Reaction::Nothing => {}
+    fn user_event(&mut self, _: &ActiveEventLoop, _: LinkWoke) {
+        self.events.woken();
+        while let Ok(event) = self.events.receiver.try_recv() {
+            match self.state.handle(event) {
+                Reaction::Resend => self.restate(),
+                Reaction::Drawn(_) | Reaction::Nothing => {}
+            }
         }
         self.redraw();
     }
