@@ -35,6 +35,10 @@ use crate::walk_camera::{WalkCamera, default_speed};
 
 /// Title prefix, also what the window test searches for.
 pub const TITLE: &str = "walkthrough viewer";
+/// What the window logs (at `debug`, with `panel` shown or not) once it has drawn and has
+/// nothing more to draw until an input or the SMA changes something: the window test waits for
+/// it before a click, which must then be drawn for on its own.
+pub const SETTLED: &str = "window settled";
 const TITLE_EVERY: Duration = Duration::from_millis(500);
 /// Longest step of one frame: a key tapped after a long idle moves a little, not far.
 const MAX_FRAME_S: f32 = 0.1;
@@ -189,6 +193,8 @@ struct App {
     last_frame: Instant,
     frames: u32,
     title_at: Instant,
+    /// A frame was drawn since the window last settled ([`SETTLED`]).
+    drawn: bool,
     failure: Option<anyhow::Error>,
 }
 
@@ -220,6 +226,7 @@ impl App {
             last_frame: now,
             frames: 0,
             title_at: now,
+            drawn: false,
             failure: None,
         }
     }
@@ -412,6 +419,7 @@ impl App {
         d.gpu.queue.submit([encoder.finish()]);
         d.gpu.queue.present(texture);
         self.frames += 1;
+        self.drawn = true;
         for action in actions {
             self.apply(action);
         }
@@ -555,6 +563,8 @@ impl ApplicationHandler<LinkWoke> for App {
                 .is_some_and(|d| d.overlay.wants_repaint());
         if self.keys.moving() || panel_busy {
             self.redraw();
+        } else if std::mem::take(&mut self.drawn) {
+            tracing::debug!(panel = self.panel, "{SETTLED}");
         }
         // A camera change held back by the rate limit goes out on one of these wake-ups.
         self.offer_camera();
