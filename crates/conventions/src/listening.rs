@@ -29,7 +29,8 @@ pub fn read_addr(
     mut rest: impl Write + Send + 'static,
     timeout: Duration,
 ) -> io::Result<SocketAddr> {
-    let (found, addr) = mpsc::channel();
+    // One address is sent, once: room for it.
+    let (found, addr) = mpsc::sync_channel(1);
     std::thread::spawn(move || {
         let mut found = Some(found);
         for line in BufReader::new(stdout).lines() {
