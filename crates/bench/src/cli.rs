@@ -33,6 +33,9 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Accuracy(args) => accuracy::run(args.config()),
         BenchCommand::Cost(args) => crate::cost::run(args.config()),
         BenchCommand::LoopbackSink { listen } => crate::protocol::loopback_sink(&listen),
+        BenchCommand::Reproduction { thesis, today } => {
+            crate::reproduction::run(crate::reproduction::ReproductionConfig { thesis, today })
+        }
     }
 }
 
@@ -56,6 +59,16 @@ pub enum BenchCommand {
     Accuracy(AccuracyArgs),
     /// Error after 10 s and 60 s per ladder cap × bounce depth × criterion (DESIGN.md §10).
     Cost(CostArgs),
+    /// The thesis's findings beside ours (thesis §5.2–5.3), from `convergence` runs on MC, VR and
+    /// VT with rnd, nld-is and nld-os: one with `--profile thesis`, one with today's defaults.
+    Reproduction {
+        /// The `--out` folder of the thesis-profile runs (and of `accuracy --convergence`).
+        #[arg(long, default_value = "docs/reproduction/thesis")]
+        thesis: PathBuf,
+        /// The `--out` folder of today's runs.
+        #[arg(long, default_value = "docs/reproduction/today")]
+        today: PathBuf,
+    },
     /// The receiving end of the loopback protocol benchmark (started by `report` as a child).
     #[command(hide = true)]
     LoopbackSink {

@@ -55,7 +55,22 @@ pub(crate) struct DirectRecord {
 
 impl DirectRecord {
     fn matches(&self, r: &ViewRecord, spp: u32) -> bool {
-        self.stem == r.stem() && self.width == r.width && self.height == r.height && self.spp == spp
+        self.describes(r) && self.spp == spp
+    }
+
+    /// Whether this is a render of `r`'s view at its size, at any paths per pixel.
+    pub(crate) fn describes(&self, r: &ViewRecord) -> bool {
+        self.stem == r.stem() && self.width == r.width && self.height == r.height
+    }
+
+    /// The render's wall time, scene load included.
+    pub(crate) fn seconds(&self) -> f64 {
+        self.direct.seconds
+    }
+
+    /// The render's mean FLIP against the view's ground truth.
+    pub(crate) fn flip(&self) -> f64 {
+        self.direct.flip
     }
 
     fn line(&self) -> String {

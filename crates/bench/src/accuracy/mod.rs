@@ -12,7 +12,7 @@ use crate::convergence::manifest::{self, ViewRecord};
 use crate::convergence::record::{self, Measurement, run_labels, run_rows, time_to_reach};
 use testkit::loopback::CpuShares;
 
-mod direct;
+pub(crate) mod direct;
 mod targets;
 
 use direct::Direct;
