@@ -3,7 +3,9 @@
 
 use std::path::PathBuf;
 
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
+use sma::config::Profile;
 
 use crate::accuracy::{self, AccuracyConfig};
 use crate::convergence::{self, ConvergenceConfig};
@@ -75,9 +77,15 @@ pub struct ConvergenceArgs {
     #[arg(long, value_delimiter = ',')]
     pub views: Vec<String>,
     /// Criteria to compare. Default: rnd, nld-is-thesis, nld-os-thesis and the best noise-aware
-    /// criterion (nld-px); a run without refinement is always added.
+    /// criterion (nld-px), or under --profile thesis the first three; a run without refinement
+    /// is always added.
     #[arg(long, value_delimiter = ',')]
     pub criteria: Vec<String>,
+    /// Which system every SMA runs: today's, or the thesis's as published (`walkthrough sma
+    /// --profile`). Tables, plots and CSVs say "today" or "thesis (2006)", and a view measured
+    /// under the thesis's profile has files of its own (`<scene>-<view>-thesis.*`).
+    #[arg(long, default_value_t = Profile::Today, value_parser = profile_parser())]
+    pub profile: Profile,
     /// Length of each run; snapshots every second.
     #[arg(long, default_value_t = 60.0)]
     pub seconds: f64,
@@ -129,6 +137,7 @@ impl ConvergenceArgs {
             scene: self.scene,
             views: self.views,
             criteria: self.criteria,
+            profile: self.profile,
             seconds: self.seconds,
             at_samples: self.at_samples,
             width: self.images.width,
@@ -248,6 +257,13 @@ impl AccuracyArgs {
             no_report: self.no_report,
         }
     }
+}
+
+/// `--profile`: one of the SMA's profiles, by name.
+fn profile_parser() -> impl TypedValueParser<Value = Profile> {
+    let names: Vec<&str> = Profile::ALL.iter().map(|p| p.name()).collect();
+    PossibleValuesParser::new(names)
+        .map(|name| Profile::from_name(&name).expect("a possible value"))
 }
 
 /// The sample counts at which `bench convergence` takes snapshots besides one a second: quarter
