@@ -103,7 +103,8 @@ impl Schedule {
         Schedule {
             refinement: Refinement::new(mesh.base_count(), &config),
             rules: PlanRules::new(&config, scene),
-            cache: ShadingCache::new(config.cache_budget_bytes),
+            cache: ShadingCache::new(config.cache_budget_bytes)
+                .with_l_white_outliers(config.l_white_outliers),
             requests: Requests::new(config.seed, config.top_up_share),
             criteria: Criteria::new(&config),
             paces: Paces::new(config.round_share, now),
@@ -353,7 +354,11 @@ impl Schedule {
     /// Every shown view gets more paths where its noise shows, below every other need: they
     /// keep the renderers busy between refinement rounds and passes (DESIGN.md §3, §5). While
     /// its criterion still refines, its quieter samples too, last of all (`Urgency::Polish`).
+    /// Without the quality ladder (the thesis's fixed-quality samples) none.
     fn more_paths_for(&self, viewer: &Viewer) -> Option<MorePaths> {
+        if !self.config.ladder {
+            return None;
+        }
         Some(MorePaths {
             l_white: viewer.last_l_white?,
             threshold: self.config.display_error,

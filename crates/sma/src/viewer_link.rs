@@ -13,6 +13,7 @@ use protocol::{Fingerprint, ProtocolError, Role, split_tcp};
 use tokio::net::TcpStream;
 use tokio::sync::{mpsc, oneshot, watch};
 
+use crate::config::Profile;
 use crate::criteria::CriterionKind;
 
 mod outbox;
@@ -293,11 +294,12 @@ pub fn camera_problem(camera: &Camera) -> Option<String> {
 }
 
 /// What a viewer learns of `scene` first (it has no scene of its own, DESIGN.md §2): its name,
-/// fingerprint, bounds, viewpoints, and the criteria, the one viewers start with first.
-pub fn scene_info(scene: &scene::Scene, active: CriterionKind) -> SceneInfo {
+/// fingerprint, bounds, viewpoints, and the criteria `profile` offers, the one viewers start
+/// with first.
+pub fn scene_info(scene: &scene::Scene, active: CriterionKind, profile: Profile) -> SceneInfo {
     let (lo, hi) = scene.mesh.bounds();
     let criteria = std::iter::once(active)
-        .chain(CriterionKind::ALL.into_iter().filter(|&k| k != active))
+        .chain(profile.criteria().into_iter().filter(|&k| k != active))
         .map(|k| k.name().to_string())
         .collect();
     SceneInfo {

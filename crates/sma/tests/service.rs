@@ -10,9 +10,9 @@ use std::time::Duration;
 use glam::Vec3;
 use protocol::Side;
 use protocol::renderer_link::{Quality, SampleKey};
-use protocol::viewer_link::{Camera, ViewerToSma};
+use protocol::viewer_link::{Camera, SmaToViewer, ViewerToSma};
 use scene::{Material, Scene, SceneBuilder, SceneSettings, ViewpointSetting};
-use sma::config::SmaConfig;
+use sma::config::{Profile, SmaConfig};
 use sma::server::Running;
 use sma::visibility::Gpu;
 use testkit::fake_renderer::{self, Fault, Log};
@@ -586,6 +586,113 @@ async fn a_resting_viewer_gets_more_paths_until_converged_then_nothing() {
         "requests after convergence"
     );
     sma.stop().await.unwrap();
+}
+
+/// The thesis as published, end to end: every request is at the scene's quality preset (no
+/// ladder: no direct-light first sample, no more paths for the noise the renderer reports), the
+/// viewer is offered the thesis's criteria only and refused `nld-px` without losing its link,
+/// L_white is the maximum of what it is shown, and the view still reaches its stated end, the
+/// shadow edge refined, and is then left alone.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_thesis_profile_refines_at_fixed_quality_to_its_stated_end() {
+    if !gpu_available() {
+        return;
+    }
+    let scene = diffuse_wall();
+    let (renderer, log) = fake_renderer(scene.clone(), Fault::Noisy).await;
+    let mut config = config(vec![renderer], true)
+        .with_profile(Profile::Thesis)
+        .unwrap();
+    config.schedule.stats_every = Duration::from_millis(10);
+    let (sma, mut probe) = start_with_probe(&config, &scene).await;
+    assert_eq!(
+        probe.scene.criteria,
+        ["nld-os-thesis", "rnd", "nld-is-thesis", "nld-mm"]
+    );
+    view_completely(&mut probe, "front").await;
+    let stats = probe.until_converged(WAIT).await.unwrap();
+    assert!(stats.converged);
+    let preset = Quality {
+        paths: scene.settings.quality.paths,
+        bounces: scene.settings.quality.bounces,
+    };
+    let requests: Vec<Quality> = log.lock().unwrap().iter().map(|r| r.1).collect();
+    assert!(!requests.is_empty());
+    assert!(
+        requests.iter().all(|q| *q == preset),
+        "a request off the preset {preset:?}: {:?}",
+        requests.iter().find(|q| **q != preset)
+    );
+    assert_eq!(repeated_requests(&log), vec![], "a sample shaded twice");
+    assert!(
+        stats.leaves > scene.mesh.triangles.len() as u64,
+        "the shadow edge at x = 0.3 was not refined: {} leaves",
+        stats.leaves
+    );
+    // L_white is the maximum luminance shown (the fake renderer's lit side, 1.0).
+    let shown_max = probe
+        .table
+        .values()
+        .flat_map(|t| t.radiance.iter().map(|rgb| conventions::luminance(*rgb)))
+        .fold(0.0, f32::max);
+    let l_white = probe.l_white.expect("a tone map");
+    assert!(
+        (l_white - shown_max).abs() <= 1e-6 * shown_max,
+        "{l_white} against {shown_max}"
+    );
+    // After the stated end nothing more is asked: no further paths for the reported noise.
+    let settled = log.lock().unwrap().len();
+    let mut quiet = 0;
+    probe
+        .until_stats(WAIT, |s| {
+            quiet += usize::from(s.converged && s.paths_per_sec == 0.0);
+            quiet == QUIET_INTERVALS || !s.converged
+        })
+        .await
+        .unwrap();
+    assert_eq!(quiet, QUIET_INTERVALS, "work after the stated end");
+    assert_eq!(log.lock().unwrap().len(), settled, "requests after the end");
+    // `nld-px` is refused with an error, and the link stays.
+    probe
+        .send(ViewerToSma::SetCriterion {
+            name: "nld-px".into(),
+        })
+        .await
+        .unwrap();
+    let refused = tokio::time::timeout(WAIT, async {
+        loop {
+            match probe.read().await.unwrap() {
+                SmaToViewer::Error { message } => return message,
+                _ => continue,
+            }
+        }
+    })
+    .await
+    .unwrap();
+    assert!(refused.contains("nld-px"), "{refused}");
+    assert_eq!(next_criterion(&mut probe).await, "nld-os-thesis", "kept");
+    // `nld-is` runs as the thesis has it.
+    probe
+        .send(ViewerToSma::SetCriterion {
+            name: "nld-is".into(),
+        })
+        .await
+        .unwrap();
+    assert_eq!(next_criterion(&mut probe).await, "nld-is-thesis");
+    sma.stop().await.unwrap();
+}
+
+/// The criterion the next `Refinement` reply names, read off the link.
+async fn next_criterion(probe: &mut Probe) -> String {
+    tokio::time::timeout(WAIT, async {
+        loop {
+            if let SmaToViewer::Refinement { criterion, .. } = probe.read().await.unwrap() {
+                return criterion;
+            }
+        }
+    })
+    .await
+    .unwrap()
 }
 
 /// A reply with one NaN point keeps its other points; that point is asked for again, a few

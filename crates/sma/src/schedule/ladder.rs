@@ -56,6 +56,18 @@ impl Qualities {
         }
     }
 
+    /// No ladder: every sample is traced once at `full` and never gets more paths, as the
+    /// thesis's renderer returned one fixed-quality value per vertex (the thesis profile,
+    /// `ScheduleConfig::ladder`).
+    pub fn fixed(full: Quality) -> Self {
+        Qualities {
+            first: full,
+            early: full,
+            full,
+            cap_paths: full.paths,
+        }
+    }
+
     /// What a shown sample below the scene's quality is upgraded with: (paths traced, total
     /// reached). One at the scene's depth gets the paths that make up the scene's quality; one
     /// at another depth (direct light) is replaced by an early-rung sample.
@@ -124,6 +136,21 @@ mod tests {
         let off = Qualities::new(Quality::INTERACTIVE, 1024, false);
         assert_eq!(off.early, off.full);
         assert_eq!(off.upgrade(at(16, Some(0))), (off.full, off.full));
+    }
+
+    #[test]
+    fn a_fixed_quality_has_one_rung_the_scenes() {
+        let q = Qualities::fixed(Quality::INTERACTIVE);
+        assert_eq!(
+            (q.first, q.early, q.full),
+            (
+                Quality::INTERACTIVE,
+                Quality::INTERACTIVE,
+                Quality::INTERACTIVE
+            )
+        );
+        assert_eq!(q.next_rung(Quality::INTERACTIVE), None, "no rung above it");
+        assert!(q.trusts(Quality::INTERACTIVE));
     }
 
     #[test]

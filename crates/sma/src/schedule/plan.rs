@@ -34,8 +34,13 @@ impl PlanRules {
             paths: quality.paths,
             bounces: config.bounces.or(quality.bounces),
         };
+        let qualities = if config.ladder {
+            Qualities::new(full, config.max_paths, config.early_rung)
+        } else {
+            Qualities::fixed(full)
+        };
         PlanRules {
-            qualities: Qualities::new(full, config.max_paths, config.early_rung),
+            qualities,
             aging: Aging {
                 max_angle_rad: config.view_angle_deg.to_radians(),
             },
@@ -188,7 +193,10 @@ fn need_key(
         None if refining => push(early, Urgency::Refinement, false),
         None => {
             push((qualities.first, qualities.first), Urgency::Missing, false);
-            push(early, Urgency::Better, false);
+            // Without a cheaper first sample (a fixed quality) the first is the upgrade.
+            if qualities.first != qualities.early {
+                push(early, Urgency::Better, false);
+            }
         }
         // An early-rung sample's paths up to the scene's quality come as a top-up
         // (`more_paths`), which refinement does not wait for: were they `Better`, every round's new
@@ -292,9 +300,25 @@ mod tests {
         luminance_variance: f32,
         more: Option<MorePaths>,
     ) -> Vec<Need> {
+        needs_of_one_leaf_with(&rules(2), Some(quality), luminance_variance, more)
+    }
+
+    /// As [`needs_of_one_leaf`], under `rules`, the samples at `quality` (None: not cached).
+    fn needs_of_one_leaf_with(
+        rules: &PlanRules,
+        quality: Option<Quality>,
+        luminance_variance: f32,
+        more: Option<MorePaths>,
+    ) -> Vec<Need> {
         let mesh = SubdivisionMesh::new(&crate::mesh::grid_mesh(1), Default::default());
         let mut cache = ShadingCache::new(1 << 20);
-        for vertex in mesh.node(0).vertices {
+        for vertex in mesh
+            .node(0)
+            .vertices
+            .into_iter()
+            .filter(|_| quality.is_some())
+        {
+            let quality = quality.expect("filtered");
             let key = SampleKey {
                 vertex,
                 side: Side::Front,
@@ -330,7 +354,7 @@ mod tests {
             pending: &PendingRefinement::default(),
             mesh: &mesh,
             cache: &cache,
-            rules: &rules(2),
+            rules,
             more_paths: more,
         })
     }
@@ -383,6 +407,40 @@ mod tests {
         }
         // 16 vertices, each missing: a direct-light sample and an early-rung one.
         assert_eq!(needs.len(), 2 * 16);
+    }
+
+    /// The thesis profile's fixed quality: a missing sample's one need is the scene's quality
+    /// preset, and a sample at it needs nothing more, however noisy.
+    #[test]
+    fn without_the_ladder_a_sample_gets_the_scene_quality_at_once_and_nothing_more() {
+        use crate::config::{Profile, SmaConfig};
+        let scene = scene::load("cornell").expect("the built-in Cornell box");
+        let config = SmaConfig::default().with_profile(Profile::Thesis).unwrap();
+        let rules = PlanRules::new(&config.schedule, &scene);
+        let preset = Quality {
+            paths: scene.settings.quality.paths,
+            bounces: scene.settings.quality.bounces,
+        };
+        let missing = needs_of_one_leaf_with(&rules, None, 0.0, None);
+        assert_eq!(missing.len(), 3, "one need per sample: {missing:?}");
+        assert!(
+            missing.iter().all(|n| n.urgency == Urgency::Missing
+                && n.quality == preset
+                && n.target == preset)
+        );
+        let noisy = MorePaths {
+            l_white: 1.0,
+            threshold: 1.0 / 255.0,
+            polish: true,
+        };
+        for more in [None, Some(noisy)] {
+            let needs = needs_of_one_leaf_with(&rules, Some(preset), 4.0, more);
+            assert!(needs.is_empty(), "{needs:?}");
+        }
+        // The ladder of today, for contrast: a direct-light sample first.
+        let today = PlanRules::new(&SmaConfig::default().schedule, &scene);
+        let first = needs_of_one_leaf_with(&today, None, 0.0, None);
+        assert!(first.iter().any(|n| n.quality == Quality::DIRECT));
     }
 
     #[test]

@@ -13,7 +13,7 @@ use super::targets::targets;
 use super::turns::TurnView;
 use super::waits::ViewWait;
 use crate::cache::ShadingCache;
-use crate::config::ScheduleConfig;
+use crate::config::{Profile, ScheduleConfig};
 use crate::criteria::{Criterion, CriterionKind, CriterionSettings, make_criterion};
 use crate::mesh::{NodeId, SubdivisionMesh};
 use crate::viewer_link::{Outbox, ViewerEvent, ViewerId};
@@ -140,6 +140,8 @@ pub struct Criteria {
     seed: u64,
     /// Refinement at all (off: every viewer is told it is paused).
     refine: bool,
+    /// Which criteria a viewer may ask for, and what runs for each (`Profile::criterion`).
+    profile: Profile,
 }
 
 impl Criteria {
@@ -156,6 +158,7 @@ impl Criteria {
             },
             seed: config.seed,
             refine: config.refine,
+            profile: config.profile,
         }
     }
 
@@ -275,17 +278,19 @@ impl Viewers {
                 Heard::CameraMoved
             }
             ViewerToSma::SetCriterion { name } => {
-                match CriterionKind::from_name(&name) {
-                    Some(kind) => {
+                // Under the thesis profile `nld-os` runs as `nld-os-thesis` (the `Refinement`
+                // reply names it) and `nld-px` is refused: the viewer keeps its criterion.
+                match criteria.profile.criterion_named(&name) {
+                    Ok(kind) => {
                         viewer.criterion = criteria.make(kind, id);
                         viewer.wait.new_input();
                     }
-                    None => viewer.send(SmaToViewer::Error {
-                        message: format!(
-                            "unknown criterion {name:?}; known: {}",
-                            CriterionKind::names()
-                        ),
-                    }),
+                    Err(refused) => {
+                        tracing::warn!(viewer = id, %name, %refused, "criterion refused");
+                        viewer.send(SmaToViewer::Error {
+                            message: refused.to_string(),
+                        });
+                    }
                 }
                 Heard::Nothing
             }
