@@ -115,6 +115,10 @@ pub struct ScheduleConfig {
     /// Visibility passes a base triangle must be out of every view before its subdivision is
     /// collapsed; 0: never.
     pub coarsen_after_passes: u64,
+    /// Coarsening by uniformity (thesis §6, DESIGN.md §4): a visible red parent whose midpoint
+    /// samples its own corners predict, within their noise or one display step, is merged back
+    /// (`schedule::uniformity`). Off until measured.
+    pub merge_uniform: bool,
     /// Seed of the criteria's random streams.
     pub seed: u64,
     /// The quality ladder's last rung: paths per sample (DESIGN.md §5).
@@ -160,6 +164,7 @@ impl Default for ScheduleConfig {
             stats_every: Duration::from_secs(2),
             cache_budget_bytes: 1024 << 20,
             coarsen_after_passes: 300,
+            merge_uniform: false,
             seed: 1,
             // 64 × 4 × 4: two rungs past the interactive preset, a quarter of its noise.
             max_paths: 1024,
