@@ -88,16 +88,17 @@ impl SmaConfig {
     /// - one pass of RND and of NLD_IS per camera, as §4.3.1 and §4.3.3 end them
     ///   (`Passes::One`); NLD_OS's passes, S_ref stepping down to S_min, are §4.3.4's own;
     /// - the thesis's neighbour rule (§4.2, fig. 4.7) in place of red–green's bisection;
-    /// - no coarsening: removing subdivision is future work in §6.
+    /// - no coarsening, by passes unseen or by uniformity (`merge_uniform`): removing
+    ///   subdivision is future work in §6.
     ///
     /// What the thesis never gave a value for keeps today's measured default: S_ref's start and
     /// step, S_min, R, K, the large-triangle fraction, RND's and NLD_IS's fractions, the other
     /// criteria's leaf minimum, and the bound on the neighbour rule's propagation
     /// (`mesh::neighbour_rule`'s 9 splits per step).
     ///
-    /// Every addition beyond the thesis (per-pixel direct light, an object-space filter,
-    /// textures, a cache file, merging by uniformity, coarsening by a memory budget) is to come
-    /// with a setting of its own, turned off here under `Profile::Thesis`.
+    /// Every addition beyond the thesis (merging by uniformity today; per-pixel direct light, an
+    /// object-space filter, textures, a cache file, coarsening by a memory budget to come) has a
+    /// setting of its own, turned off here under `Profile::Thesis`.
     pub fn with_profile(mut self, profile: Profile) -> Result<SmaConfig, CriterionRefused> {
         let schedule = &mut self.schedule;
         schedule.criterion = profile.criterion(schedule.criterion)?;
@@ -110,6 +111,7 @@ impl SmaConfig {
                 schedule.criterion_settings.nld_is_min_leaf_pixels = Some(THESIS_NLD_IS_MIN_PIXELS);
                 schedule.criterion_settings.passes = Passes::One;
                 schedule.coarsen_after_passes = 0;
+                schedule.merge_uniform = false;
                 self.mesh.neighbour_rule = NeighbourRule::Thesis;
             }
         }
@@ -283,6 +285,10 @@ pub struct ScheduleConfig {
     /// Visibility passes a base triangle must be out of every view before its subdivision is
     /// collapsed; 0: never.
     pub coarsen_after_passes: u64,
+    /// Coarsening by uniformity (thesis §6, DESIGN.md §4): a visible red parent whose midpoint
+    /// samples its own corners predict, within their noise or one display step, is merged back
+    /// (`schedule::uniformity`). Off until measured.
+    pub merge_uniform: bool,
     /// Seed of the criteria's random streams.
     pub seed: u64,
     /// Whether samples climb the quality ladder (DESIGN.md §5, `schedule::ladder`); off, every
@@ -336,6 +342,7 @@ impl Default for ScheduleConfig {
             l_white_outliers: L_WHITE_OUTLIERS,
             cache_budget_bytes: 1024 << 20,
             coarsen_after_passes: 300,
+            merge_uniform: false,
             seed: 1,
             // 64 × 4 × 4: two rungs past the interactive preset, a quarter of its noise.
             ladder: true,

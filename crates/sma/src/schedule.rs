@@ -10,8 +10,10 @@
 //! 4. each viewer is brought up to date (`Remove`/`Insert`/`Update`, `ToneMap`, `Epoch`), the
 //!    epoch counting what is truly outstanding after step 3;
 //! 5. only then, when no camera is waiting, the queue is short and a viewer's camera rests, one
-//!    refinement round of at most R selections runs; its passes come at the next turn, after any
-//!    camera that arrived meanwhile. A camera change so interrupts refinement at once.
+//!    refinement round of at most R selections runs (first, where it is on and samples or views
+//!    came since the last, a pass of coarsening by uniformity, [`uniformity`]); its passes come
+//!    at the next turn, after any camera that arrived meanwhile. A camera change so interrupts
+//!    refinement at once.
 //!
 //! It runs on its own thread: the visibility passes block for milliseconds (software
 //! rasterizer), and must not stall the tasks serving viewers and renderers.
@@ -20,10 +22,10 @@
 //! what of the work that may wait runs now, and this module carries both out. Its state is
 //! grouped in named parts: the viewers ([`viewers`]: per-viewer state, their messages, the epoch
 //! sync, and what each is shown, [`shown`] and [`targets`]), refinement ([`refinement`], with
-//! [`pending`] steps and [`coarsening`]), the request queue ([`plan`] makes each view's needs,
-//! [`need`], on the quality [`ladder`]; [`requests`] orders and batches them), the answers from
-//! the pool ([`answers`]), what the work owes and waits for ([`waits`]), the paces, and the
-//! counters behind `Stats` ([`counters`]).
+//! [`pending`] steps, [`coarsening`] and [`uniformity`]), the request queue ([`plan`] makes each
+//! view's needs, [`need`], on the quality [`ladder`]; [`requests`] orders and batches them), the
+//! answers from the pool ([`answers`]), what the work owes and waits for ([`waits`]), the paces,
+//! and the counters behind `Stats` ([`counters`]).
 
 mod answers;
 mod coarsening;
@@ -38,12 +40,14 @@ mod requests;
 mod shown;
 mod targets;
 mod turns;
+mod uniformity;
 mod viewers;
 mod waits;
 
 use std::time::Instant;
 
 use anyhow::Context;
+use protocol::renderer_link::Quality;
 use protocol::viewer_link::SmaToViewer;
 use scene::Scene;
 use tokio::sync::{mpsc, watch};
@@ -62,6 +66,7 @@ use plan::{MorePaths, NeedsInput, PlanRules};
 use refinement::{Refinement, Round};
 use requests::{BatchLimit, Requests};
 use turns::RefineGate;
+use uniformity::JudgedView;
 use viewers::{Criteria, Heard, SyncInput, Viewer, Viewers};
 use waits::Owed;
 
@@ -182,6 +187,9 @@ impl Schedule {
                     self.frame,
                     &mut self.cache,
                 );
+                if answered.points > 0 {
+                    self.refinement.merge_input();
+                }
                 if self.counters.answered(answered) {
                     self.viewers.new_input();
                 }
@@ -306,6 +314,7 @@ impl Schedule {
         }
         self.cache.evict(self.frame, &|_| false);
         self.owed.views_changed();
+        self.refinement.merge_input();
         let work = if drew { Work::Pass } else { Work::CarryOver };
         self.counters.costs.add(work, start.elapsed());
         Ok(())
@@ -426,6 +435,7 @@ impl Schedule {
             queue_low: self.config.queue_low,
             rest: self.config.rest,
             next_round_at: self.paces.next_round_at(self.requests.queued() > 0),
+            merge_due: self.config.refine && self.refinement.merge_due(),
         }
     }
 
@@ -436,9 +446,18 @@ impl Schedule {
     }
 
     /// One refinement round for viewer `id`: the viewers learn of its new leaves, the queue
-    /// that the criterion ran dry.
+    /// that the criterion ran dry. A due pass of coarsening by uniformity comes first; where it
+    /// merged, the round ends there: the views are owed a pass.
     fn refine_round(&mut self, id: ViewerId) -> anyhow::Result<()> {
+        if self.refinement.merge_due() && self.merge_uniform() {
+            self.viewers.leaves_changed();
+            return Ok(());
+        }
         let viewer = self.viewers.get(id).expect("candidate exists");
+        if viewer.wait.is_exhausted() {
+            // Its turn came for the merge pass only (`RefineGate::merge_due`).
+            return Ok(());
+        }
         let image =
             refinement::luminance_image(viewer, &self.mesh, &self.visibility, &mut self.luminance)?;
         let viewer = self.viewers.get_mut(id).expect("candidate exists");
@@ -451,6 +470,26 @@ impl Schedule {
             Round::Exhausted { newly_dry: false } | Round::TooSmall => {}
         }
         Ok(())
+    }
+
+    /// Coarsening by uniformity over every view shown with a tone map (thesis §6, DESIGN.md
+    /// §4): a sample has settled from the rung whose variance the ladder believes, at the
+    /// scene's depth. Returns whether the leaves changed.
+    fn merge_uniform(&mut self) -> bool {
+        let views: Vec<JudgedView> = self
+            .viewers
+            .iter()
+            .filter_map(|v| {
+                Some(JudgedView {
+                    visible: &v.view.as_ref()?.visible,
+                    l_white: v.last_l_white?,
+                })
+            })
+            .collect();
+        let qualities = self.rules.qualities;
+        let trusted = |q: Quality| q.bounces == qualities.full.bounces && qualities.trusts(q);
+        self.refinement
+            .merge_uniform(&views, &mut self.mesh, &self.cache, &trusted)
     }
 
     /// Whether a turn has work without any new event, and else when to wake: a camera coming to
@@ -479,6 +518,7 @@ impl Schedule {
             queued: self.requests.queued(),
             in_flight: self.requests.in_flight_keys(),
             pending_steps: self.refinement.pending.len(),
+            uniform_merges: self.refinement.uniform_merges(),
         };
         let stats = self.counters.report(gauges);
         for viewer in self.viewers.iter() {

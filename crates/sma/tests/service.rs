@@ -387,6 +387,88 @@ async fn subdivision_out_of_view_long_enough_is_coarsened_back_to_the_base_mesh(
     assert!(shown_after_looking_away(0).await >= 12);
 }
 
+/// Flat shading but for a darker back side: nothing to refine but what the large-triangle rule
+/// splits (§4.3.5).
+fn flat(_: Vec3, side: Side, _: Quality, _: Option<Vec3>) -> [f32; 3] {
+    [if side == Side::Back { 0.25 } else { 0.5 }; 3]
+}
+
+/// What a view showed at its stated end.
+struct StatedEnd {
+    /// The mesh's leaves.
+    leaves: u64,
+    /// Shown triangles across the fake renderer's shadow edge at x = 0.3.
+    across_the_edge: usize,
+}
+
+/// Refines the wall and the floor from the front, shaded by `shading`, until the view's stated
+/// end, with coarsening by uniformity (`--merge-uniform`) on or off, checking that the table is
+/// then conforming and covers the visible surface.
+async fn stated_end(shading: fake_renderer::Shading, merge_uniform: bool) -> StatedEnd {
+    let scene = diffuse_wall();
+    let (renderer, _) = fake_renderer::start(scene.clone(), shading, Fault::None).await;
+    let mut config = config(vec![renderer], true);
+    config.schedule.merge_uniform = merge_uniform;
+    config.schedule.max_paths = 4 * Quality::INTERACTIVE.paths;
+    config.schedule.stats_every = Duration::from_millis(10);
+    let (sma, mut probe) = start_with_probe(&config, &scene).await;
+    let camera = probe.view("front", W, H).await.unwrap();
+    let stats = probe.until_converged(WAIT).await.unwrap();
+    if let Some(problem) = probe.conformity_problem() {
+        panic!("not conforming at the stated end: {problem}");
+    }
+    let holes = differing(
+        &scene_coverage(&scene, &camera),
+        &shown_coverage(&scene, &probe, &camera),
+    );
+    assert!(
+        holes <= (W * H) as usize / 1000,
+        "{holes} pixels differ from the visible surface"
+    );
+    let across_the_edge = probe
+        .triangles()
+        .iter()
+        .filter(|t| t.iter().any(|p| p.x < 0.3) && t.iter().any(|p| p.x > 0.3))
+        .count();
+    sma.stop().await.unwrap();
+    StatedEnd {
+        leaves: stats.leaves,
+        across_the_edge,
+    }
+}
+
+/// The thesis's future work (§6): a split of a flat surface brings nothing, which is known only
+/// once it is made. On flat shading every split is the large-triangle rule's, and merging by
+/// uniformity takes most of them back; across a shadow edge (`radiance_at`) the splits that
+/// found it stay.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn splits_that_showed_nothing_are_merged_back_only_with_merging_by_uniformity() {
+    if !gpu_available() {
+        return;
+    }
+    let (off, on) = (stated_end(flat, false).await, stated_end(flat, true).await);
+    eprintln!(
+        "flat: {} leaves without merging, {} with it",
+        off.leaves, on.leaves
+    );
+    assert!(
+        on.leaves * 2 < off.leaves,
+        "{} leaves merging, {} without",
+        on.leaves,
+        off.leaves
+    );
+    let (off, on) = (
+        stated_end(radiance_at, false).await,
+        stated_end(radiance_at, true).await,
+    );
+    eprintln!(
+        "shadow edge: {} leaves ({} across it) without merging, {} ({}) with it",
+        off.leaves, off.across_the_edge, on.leaves, on.across_the_edge
+    );
+    assert!(on.leaves < off.leaves);
+    assert!(on.across_the_edge * 10 >= off.across_the_edge * 9);
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_renderer_killed_mid_batch_loses_no_request() {
     if !gpu_available() {

@@ -105,6 +105,9 @@ pub struct Gauges {
     pub queued: usize,
     pub in_flight: usize,
     pub pending_steps: usize,
+    /// Parents merged back by uniformity since the start (`uniformity`; the log only, so the
+    /// protocol's `Stats` is unchanged).
+    pub uniform_merges: u64,
 }
 
 impl Counters {
@@ -187,6 +190,7 @@ impl Counters {
             queued = gauges.queued,
             in_flight = gauges.in_flight,
             pending_steps = gauges.pending_steps,
+            merged_uniform = gauges.uniform_merges,
             converged = self.converged,
             rejected = self.rejected_points,
             renderers = gauges.renderers,

@@ -1,7 +1,8 @@
 //! Refinement rounds and the luminance image (DESIGN.md §3 step 6, §4, §6): a criterion's
 //! selections split into pending groups, groups committed once their visible leaves are shaded,
-//! coarsening of what no viewer has seen lately, and the Gouraud luminance image that image-space
-//! criteria read. Each step says what it changed; the schedule tells the viewers and the queue.
+//! coarsening of what no viewer has seen lately and of what a split showed to be uniform
+//! (`uniformity`), and the Gouraud luminance image that image-space criteria read. Each step
+//! says what it changed; the schedule tells the viewers and the queue.
 
 use std::collections::{HashMap, HashSet};
 
@@ -9,6 +10,7 @@ use anyhow::Context;
 
 use super::coarsening::Coarsening;
 use super::pending::PendingRefinement;
+use super::uniformity::{JudgedView, UniformMerge};
 use super::viewers::Viewer;
 use crate::cache::ShadingCache;
 use crate::config::ScheduleConfig;
@@ -16,6 +18,7 @@ use crate::criteria::{CriterionInput, LuminanceImage};
 use crate::mesh::{NodeId, SubdivisionMesh};
 use crate::viewer_link::ViewerId;
 use crate::visibility::{LeafView, LuminancePass, Visibility};
+use protocol::renderer_link::Quality;
 
 /// Empty criterion calls in a row after which a viewer's refinement counts as exhausted (enough
 /// for `nld-os` to step S_ref from its start down to S_min with the default settings).
@@ -28,6 +31,8 @@ pub struct Refinement {
     /// Refinement and coarsening steps waiting for their samples.
     pub pending: PendingRefinement,
     coarsening: Coarsening,
+    /// Coarsening by uniformity (thesis §6), when on.
+    uniform: UniformMerge,
     /// Rounds so far: the resting viewers take turns (`turns::refinement_candidate`).
     pub rounds: usize,
     /// R: selections per round (§4.3.5).
@@ -53,6 +58,7 @@ impl Refinement {
         Refinement {
             pending: PendingRefinement::default(),
             coarsening: Coarsening::new(base_count, config.coarsen_after_passes),
+            uniform: UniformMerge::new(config),
             rounds: 0,
             max_selections: config.max_selections,
             min_split_pixels: config.min_split_pixels,
@@ -81,6 +87,49 @@ impl Refinement {
             leaves = mesh.leaf_count(),
             refined_bases = self.coarsening.refined_bases(),
             "coarsened what no viewer has seen lately"
+        );
+        self.pending.add(steps);
+        true
+    }
+
+    /// Whether a pass of coarsening by uniformity is due (it is on, and samples or views came
+    /// since the last one).
+    pub fn merge_due(&self) -> bool {
+        self.uniform.is_due()
+    }
+
+    /// New samples or views: a parent undecided before may be decided now.
+    pub fn merge_input(&mut self) {
+        self.uniform.new_input();
+    }
+
+    /// Parents merged back by uniformity since the start.
+    pub fn uniform_merges(&self) -> u64 {
+        self.uniform.merges()
+    }
+
+    /// Merges back what the views show to be uniform (thesis §6, `uniformity`); the steps wait
+    /// in the pending groups like coarsening's. Not while refinement steps wait, whose leaves
+    /// they could remove. Returns whether the leaves changed.
+    pub fn merge_uniform(
+        &mut self,
+        views: &[JudgedView],
+        mesh: &mut SubdivisionMesh,
+        cache: &ShadingCache,
+        trusted: &dyn Fn(Quality) -> bool,
+    ) -> bool {
+        if !self.pending.is_empty() {
+            return false;
+        }
+        let steps = self.uniform.pass(views, mesh, cache, trusted);
+        if steps.is_empty() {
+            return false;
+        }
+        tracing::debug!(
+            steps = steps.len(),
+            leaves = mesh.leaf_count(),
+            merged_uniform = self.uniform.merges(),
+            "merged uniform subdivision back"
         );
         self.pending.add(steps);
         true
@@ -166,8 +215,12 @@ impl Refinement {
             .collect();
         let min_pixels = self.min_split_pixels;
         let too_small = |leaf: NodeId| pixels.get(&leaf).is_none_or(|&p| p < min_pixels);
-        // A resumable criterion may still hold a leaf that coarsening has removed since.
-        let selected: Vec<NodeId> = selected.into_iter().filter(|&l| mesh.is_leaf(l)).collect();
+        // A resumable criterion may still hold a leaf that coarsening has removed since; a
+        // parent merged by uniformity is not split again on the samples that merged it.
+        let selected: Vec<NodeId> = selected
+            .into_iter()
+            .filter(|&l| mesh.is_leaf(l) && self.uniform.allows(l, mesh, cache))
+            .collect();
         let steps = mesh.refine(&selected, &too_small);
         if steps.is_empty() {
             // Every selected leaf was too small; criteria offer a leaf once per view, so the

@@ -50,6 +50,9 @@ pub struct RefineGate {
     pub rest: Duration,
     /// No round before this: the rounds' pace (`ScheduleConfig::round_share`).
     pub next_round_at: Option<Instant>,
+    /// A pass of coarsening by uniformity is due (`uniformity`): it comes with a round, so a
+    /// viewer whose criterion found nothing more still takes its turn for it.
+    pub merge_due: bool,
 }
 
 /// The viewer whose turn it is to refine at `now`, if refinement may run: never while a pass is
@@ -73,7 +76,10 @@ pub fn refinement_candidate(
     let ready: Vec<ViewerId> = viewers
         .iter()
         .filter(|v| {
-            v.has_view && !v.paused && !v.wait.is_exhausted() && now >= v.rests_at(gate.rest)
+            v.has_view
+                && !v.paused
+                && (!v.wait.is_exhausted() || gate.merge_due)
+                && now >= v.rests_at(gate.rest)
         })
         .map(|v| v.id)
         .collect();
@@ -88,7 +94,7 @@ pub fn next_rest(gate: &RefineGate, viewers: &[TurnView], now: Instant) -> Optio
     }
     viewers
         .iter()
-        .filter(|v| v.has_view && !v.paused && !v.wait.is_exhausted())
+        .filter(|v| v.has_view && !v.paused && (!v.wait.is_exhausted() || gate.merge_due))
         .map(|v| v.rests_at(gate.rest).max(gate.next_round_at.unwrap_or(now)))
         .filter(|&t| t > now)
         .min()
@@ -158,6 +164,7 @@ mod tests {
             queue_low: 256,
             rest: Duration::from_millis(100),
             next_round_at: None,
+            merge_due: false,
         }
     }
 
@@ -300,6 +307,39 @@ mod tests {
             &viewers,
             None
         ));
+    }
+
+    #[test]
+    fn an_exhausted_viewer_takes_its_turn_for_a_due_merge_pass_and_only_at_rest() {
+        let mut clock = FakeClock(Instant::now());
+        let mut exhausted = resting(1, clock.now());
+        exhausted.wait = ViewWait::Input;
+        let due = RefineGate {
+            merge_due: true,
+            ..gate()
+        };
+        assert_eq!(
+            refinement_candidate(&gate(), &[exhausted], 0, clock.now()),
+            None
+        );
+        assert_eq!(
+            refinement_candidate(&due, &[exhausted], 0, clock.now()),
+            None
+        );
+        assert_eq!(
+            next_rest(&due, &[exhausted], clock.now()),
+            Some(clock.now() + Duration::from_millis(100))
+        );
+        clock.advance(100);
+        assert_eq!(
+            refinement_candidate(&due, &[exhausted], 0, clock.now()),
+            Some(1)
+        );
+        let paused = TurnView {
+            paused: true,
+            ..exhausted
+        };
+        assert_eq!(refinement_candidate(&due, &[paused], 0, clock.now()), None);
     }
 
     /// Nothing deferred: everything owed may run now.
