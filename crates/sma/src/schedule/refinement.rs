@@ -28,7 +28,7 @@ pub struct Refinement {
     /// Refinement and coarsening steps waiting for their samples.
     pub pending: PendingRefinement,
     coarsening: Coarsening,
-    /// Rounds so far: the resting viewers take turns (`turns::refinement_candidate`).
+    /// Rounds so far: the ready viewers take turns (`turns::refinement_candidate`).
     pub rounds: usize,
     /// R: selections per round (§4.3.5).
     max_selections: usize,
