@@ -49,6 +49,15 @@ fn profile_parser() -> impl TypedValueParser<Value = Profile> {
         .map(|name| Profile::from_name(&name).expect("a possible value"))
 }
 
+/// `on` or `off`, as a bool.
+fn on_off(text: &str) -> Result<bool, String> {
+    match text {
+        "on" => Ok(true),
+        "off" => Ok(false),
+        _ => Err(format!("{text:?}: on or off")),
+    }
+}
+
 /// A fraction: at least 0, below 1.
 fn fraction(text: &str) -> Result<f64, String> {
     let value: f64 = text.parse().map_err(|e| format!("{text:?}: {e}"))?;
@@ -57,16 +66,6 @@ fn fraction(text: &str) -> Result<f64, String> {
     } else {
         Err(format!("{value} is not a fraction (at least 0, below 1)"))
     }
-}
-
-/// A switch's value on the command line.
-fn on_off(value: bool) -> &'static str {
-    if value { "on" } else { "off" }
-}
-
-/// `on` or `off`, as a bool.
-fn on_off_parser() -> impl TypedValueParser<Value = bool> {
-    PossibleValuesParser::new(["on", "off"]).map(|value| value == "on")
 }
 
 /// A share of time: above 0, at most 1.
@@ -198,8 +197,9 @@ pub struct Cli {
     // 10-s runs each) 7.0 s at 256 and 6.0 s at 4096, FLIP at 8 s 0.089 and 0.088.
     #[arg(long, default_value_t = defaults().schedule.queue_low)]
     pub queue_low: usize,
-    /// A camera that replaced another rests (refinement may start) once unchanged this many
-    /// milliseconds; a viewer's first camera rests at once.
+    /// A camera that replaced another rests once unchanged this many milliseconds (refinement
+    /// waits for it without --work-while-walking; with it, a stop lifts the rounds' spacing); a
+    /// viewer's first camera rests at once.
     // Why a first camera does not wait: nothing says it moves, and the wait was the largest
     // delay before a view's first refinement. On bracara VT (`nld-px`, six 4-s runs each,
     // interleaved) the median time to mean FLIP 0.1 was 0.50 s when the first camera waited
@@ -218,6 +218,12 @@ pub struct Cli {
     // decisive, held back). At 0.05 VT's FLIP at 8 s is 0.036 against 0.035 unspaced.
     #[arg(long, default_value_t = defaults().schedule.round_share, value_parser = share)]
     pub round_share: f64,
+    /// Work while walking (on|off): while the camera keeps moving, refinement rounds and better
+    /// samples go on for what stays in view, ahead of the motion first, after a new view's
+    /// missing samples, and the moving camera's visibility passes are paced by their cost; off,
+    /// refinement waits for the camera to rest [default: on; off under --profile thesis].
+    #[arg(long, value_parser = on_off)]
+    pub work_while_walking: Option<bool>,
     /// A view-dependent sample is retaken once the eye has moved by this angle, seen from it.
     #[arg(long, default_value_t = defaults().schedule.view_angle_deg)]
     pub view_angle_deg: f32,
@@ -237,16 +243,11 @@ pub struct Cli {
     pub l_white_outliers: Option<f64>,
     /// Merge back a visible red split whose midpoint samples the parent's corners predict
     /// (linear interpolation), within their noise or one display step, once all are settled
-    /// (on|off).
+    /// (on|off) [default: off].
     // Off until measured: `walkthrough-bench convergence --sma-flags=--merge-uniform,on` against
     // three runs without it, the six default views at 60 s (leaves and bytes saved, FLIP).
-    #[arg(
-        long,
-        action = clap::ArgAction::Set,
-        default_value = on_off(defaults().schedule.merge_uniform),
-        value_parser = on_off_parser()
-    )]
-    pub merge_uniform: bool,
+    #[arg(long, value_parser = on_off)]
+    pub merge_uniform: Option<bool>,
     /// The quality ladder's last rung: samples get paths by fours past the scene's quality
     /// while the viewer rests, up to this many paths each.
     #[arg(long, default_value_t = defaults().schedule.max_paths)]
@@ -337,6 +338,12 @@ impl Cli {
         if let Some(passes) = self.coarsen_after_passes {
             config.schedule.coarsen_after_passes = passes;
         }
+        if let Some(on) = self.work_while_walking {
+            config.schedule.work_while_walking = on;
+        }
+        if let Some(on) = self.merge_uniform {
+            config.schedule.merge_uniform = on;
+        }
         Ok(config)
     }
 
@@ -405,12 +412,13 @@ impl Cli {
             queue_low: self.queue_low,
             rest: Duration::from_millis(self.rest_ms),
             round_share: self.round_share,
+            work_while_walking: defaults().schedule.work_while_walking,
             view_angle_deg: self.view_angle_deg,
             stats_every: Duration::from_secs_f32(self.stats_secs.max(0.1)),
             l_white_outliers: defaults().schedule.l_white_outliers,
             cache_budget_bytes: self.cache_mib << 20,
             coarsen_after_passes: defaults().schedule.coarsen_after_passes,
-            merge_uniform: self.merge_uniform,
+            merge_uniform: defaults().schedule.merge_uniform,
             seed: self.seed,
             ladder: defaults().schedule.ladder,
             max_paths: self.max_paths,
@@ -589,5 +597,19 @@ mod tests {
         assert_eq!(config.schedule.coarsen_after_passes, 5);
         assert!(!config.schedule.ladder, "the rest is the thesis's");
         assert!(thesis(&["--l-white-outliers", "1"]).is_err());
+    }
+
+    #[test]
+    fn work_while_walking_is_on_today_off_under_the_thesis_and_a_flag_sets_it() {
+        let flag = |v| ["sma", "--renderer", "r:1", "--work-while-walking", v];
+        let walks = |c: anyhow::Result<SmaConfig>| c.unwrap().schedule.work_while_walking;
+        assert!(walks(
+            Cli::try_parse_from(["sma", "--renderer", "r:1"])
+                .unwrap()
+                .config()
+        ));
+        assert!(!walks(Cli::try_parse_from(flag("off")).unwrap().config()));
+        assert!(Cli::try_parse_from(flag("yes")).is_err());
+        assert!(!walks(thesis(&[])) && walks(thesis(&["--work-while-walking", "on"])));
     }
 }

@@ -89,7 +89,9 @@ impl SmaConfig {
     ///   (`Passes::One`); NLD_OS's passes, S_ref stepping down to S_min, are §4.3.4's own;
     /// - the thesis's neighbour rule (§4.2, fig. 4.7) in place of red–green's bisection;
     /// - no coarsening, by passes unseen or by uniformity (`merge_uniform`): removing
-    ///   subdivision is future work in §6.
+    ///   subdivision is future work in §6;
+    /// - refinement only while the camera rests (DESIGN.md §3 step 6): no work while walking
+    ///   (step 9), and every camera's pass at once.
     ///
     /// What the thesis never gave a value for keeps today's measured default: S_ref's start and
     /// step, S_min, R, K, the large-triangle fraction, RND's and NLD_IS's fractions, the other
@@ -112,6 +114,7 @@ impl SmaConfig {
                 schedule.criterion_settings.passes = Passes::One;
                 schedule.coarsen_after_passes = 0;
                 schedule.merge_uniform = false;
+                schedule.work_while_walking = false;
                 self.mesh.neighbour_rule = NeighbourRule::Thesis;
             }
         }
@@ -266,14 +269,23 @@ pub struct ScheduleConfig {
     /// waits for (`Requests::outstanding_before_paths`), are queued or in flight.
     pub queue_low: usize,
     /// A camera that replaced another rests once unchanged this long (a viewer's first camera
-    /// rests at once: `schedule::turns::TurnView::camera_replaced`).
+    /// rests at once: `schedule::turns::TurnView::camera_replaced`). Without
+    /// `work_while_walking` refinement waits for it; with it, a camera coming to rest lifts the
+    /// rounds' spacing and the plan stops looking ahead of the motion.
     pub rest: Duration,
     /// Refinement rounds are spaced so that each takes at most this share of the time until
     /// the next (0..1]: a round walks every visible leaf, and so do the carry-over, re-plan and
     /// viewer sync it sets off, so on a large view the rounds' cycle, not the renderers, took
-    /// the cores. Only while work is queued for the renderers; a camera move lifts the spacing
-    /// (`schedule::pace::Pace`).
+    /// the cores. Only while work is queued for the renderers; a camera coming to rest lifts
+    /// the spacing (`schedule::pace::Pace`, `schedule::turns::TurnView::ready_at`).
     pub round_share: f64,
+    /// Work while walking (DESIGN.md §3 step 9): while a camera keeps moving, what stays in
+    /// view keeps getting refinement rounds (at their pace, for the current camera), and the
+    /// samples of the visible leaves are ordered by what the next steps will see; the
+    /// visibility passes of a moving camera are paced by their own cost. A new view's missing
+    /// samples still come first. Off: refinement waits for the camera to rest, as in the
+    /// thesis, and every camera gets its pass at once.
+    pub work_while_walking: bool,
     /// A view-dependent sample is retaken once the eye has moved by this angle, seen from it.
     pub view_angle_deg: f32,
     /// Time between stats lines.
@@ -336,6 +348,7 @@ impl Default for ScheduleConfig {
             rest: Duration::from_millis(100),
             // As `Cli::round_share`, with the figures that chose it.
             round_share: 0.05,
+            work_while_walking: true,
             view_angle_deg: 2.0,
             stats_every: Duration::from_secs(2),
             // One glint otherwise sets it for the whole view (see `ShadingCache::l_white`).
@@ -381,6 +394,10 @@ mod tests {
         assert_eq!(s.criterion_settings.nld_is_min_leaf_pixels, Some(6));
         assert_eq!(s.criterion_settings.passes, Passes::One);
         assert_eq!(s.coarsen_after_passes, 0, "no coarsening");
+        assert!(
+            !s.work_while_walking && today.schedule.work_while_walking,
+            "refinement only at rest"
+        );
         assert_eq!(thesis.mesh.neighbour_rule, NeighbourRule::Thesis);
         assert_eq!(s.criterion, CriterionKind::NldOsThesis);
         // What the thesis never gave a value for stays as today.

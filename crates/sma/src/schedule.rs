@@ -9,11 +9,16 @@
 //!    re-planned at once);
 //! 4. each viewer is brought up to date (`Remove`/`Insert`/`Update`, `ToneMap`, `Epoch`), the
 //!    epoch counting what is truly outstanding after step 3;
-//! 5. only then, when no camera is waiting, the queue is short and a viewer's camera rests, one
+//! 5. only then, when no pass is owed, the queue is short and a viewer is ready (its camera
+//!    rests, or with work while walking the rounds' pace allows, DESIGN.md §3 step 9), one
 //!    refinement round of at most R selections runs (first, where it is on and samples or views
-//!    came since the last, a pass of coarsening by uniformity, [`uniformity`]); its passes come
-//!    at the next turn, after any camera that arrived meanwhile. A camera change so interrupts
-//!    refinement at once.
+//!    came since the last, a pass of coarsening by uniformity at rest, [`uniformity`]); its
+//!    passes come at the next turn, after any camera that arrived meanwhile. A camera change so
+//!    interrupts refinement at once.
+//!
+//! A walking camera's passes (step 1) wait for their pace while its new views' cycles would take
+//! more than their share of the thread (`pace`); meanwhile the viewer keeps its last view, and
+//! is neither synced nor refined, nor are refinement groups committed against a stale view.
 //!
 //! It runs on its own thread: the visibility passes block for milliseconds (software
 //! rasterizer), and must not stall the tasks serving viewers and renderers.
@@ -27,6 +32,7 @@
 //! answers from the pool ([`answers`]), what the work owes and waits for ([`waits`]), the paces,
 //! and the counters behind `Stats` ([`counters`]).
 
+mod ahead;
 mod answers;
 mod coarsening;
 mod counters;
@@ -61,7 +67,7 @@ use crate::viewer_link::{ViewerEvent, ViewerId};
 use crate::visibility::{Gpu, LuminancePass, Visibility, carry_over};
 use answers::Answers;
 use counters::{Counters, Gauges, Work};
-use pace::{Allowed, Paces};
+use pace::{Allowed, Paces, PassesOwed};
 use plan::{MorePaths, NeedsInput, PlanRules};
 use refinement::{Refinement, Round};
 use requests::{BatchLimit, Requests};
@@ -172,7 +178,6 @@ impl Schedule {
         match self.viewers.on_event(event, &self.criteria) {
             Heard::Nothing => {}
             Heard::Left => self.owed.queue_changed(),
-            Heard::CameraMoved => self.paces.camera_moved(Instant::now()),
         }
     }
 
@@ -209,10 +214,17 @@ impl Schedule {
         if self.counters.since_pass >= self.config.revisit_samples {
             self.viewers.leaves_changed();
         }
-        let frame = self.frame;
-        self.run_passes()?;
-        self.commit_ready_groups();
-        let allowed = self.allowed(self.frame != frame);
+        let (frame, start) = (self.frame, Instant::now());
+        let passes = self.passes_owed();
+        if self.allowed(passes, false).pass.now() {
+            self.run_passes()?;
+        }
+        // Against the views of the current cameras only: a group committed for a stale view
+        // could show new leaves that the deferred view needs unshaded.
+        if !self.viewers.need_pass() {
+            self.commit_ready_groups();
+        }
+        let allowed = self.allowed(self.passes_owed(), self.frame != frame);
         let feed = turns::feed(self.owed, &allowed, self.requests.queued());
         if feed.replan {
             self.replan();
@@ -225,6 +237,9 @@ impl Schedule {
         if allowed.sync.now() {
             self.timed(Work::Sync, Self::sync_viewers);
         }
+        if passes == PassesOwed::Walking && self.frame != frame {
+            self.paces.walking_view_ran(start, start.elapsed());
+        }
         if let Some(id) = self.refinement_candidate(Instant::now()) {
             self.timed(Work::Round, |s| s.refine_round(id))?;
         }
@@ -232,9 +247,17 @@ impl Schedule {
         Ok(())
     }
 
-    /// What of the work owed its pace allows now (`pass_ran`: the viewers see a new view at once).
-    fn allowed(&self, pass_ran: bool) -> Allowed {
-        self.paces.allowed(self.owed, pass_ran, Instant::now())
+    /// What of the work owed, and of the `passes` owed, its pace allows now (`pass_ran`: the
+    /// viewers see a new view at once).
+    fn allowed(&self, passes: PassesOwed, pass_ran: bool) -> Allowed {
+        self.paces
+            .allowed(self.owed, passes, pass_ran, Instant::now())
+    }
+
+    /// The passes owed, and whether they may wait (`turns::passes_owed`).
+    fn passes_owed(&self) -> PassesOwed {
+        let views = self.viewers.turn_views();
+        turns::passes_owed(&views, self.config.work_while_walking)
     }
 
     /// Runs `work`, counts its time, and spaces the next run of paced work by it.
@@ -355,6 +378,7 @@ impl Schedule {
                 cache: &self.cache,
                 rules: &self.rules,
                 more_paths: self.more_paths_for(viewer),
+                focus: self.focus_of(viewer),
             }));
         }
         self.requests.replan(needs);
@@ -373,6 +397,26 @@ impl Schedule {
             threshold: self.config.display_error,
             polish: self.config.refine && !viewer.criterion_dry,
         })
+    }
+
+    /// Where a walking viewer's next steps look on its image (`ahead`), while its camera moves
+    /// and work goes on while walking; otherwise None, the image's centre.
+    fn focus_of(&self, viewer: &Viewer) -> Option<(f32, f32)> {
+        let (Some(view), Some(camera), Some((previous, previous_at))) =
+            (&viewer.view, &viewer.camera, &viewer.previous)
+        else {
+            return None;
+        };
+        let moving = viewer.camera_at.elapsed() < self.config.rest;
+        if !self.config.work_while_walking || !moving {
+            return None;
+        }
+        let depth = ahead::centre_depth(view, &self.mesh, camera);
+        Some(ahead::focus(
+            (previous, *previous_at),
+            (camera, viewer.camera_at),
+            depth,
+        ))
     }
 
     fn sync_viewers(&mut self) {
@@ -434,6 +478,7 @@ impl Schedule {
             outstanding: self.requests.outstanding_before_paths(),
             queue_low: self.config.queue_low,
             rest: self.config.rest,
+            while_walking: self.config.work_while_walking,
             next_round_at: self.paces.next_round_at(self.requests.queued() > 0),
             merge_due: self.config.refine && self.refinement.merge_due(),
         }
@@ -449,6 +494,7 @@ impl Schedule {
     /// that the criterion ran dry. A due pass of coarsening by uniformity comes first; where it
     /// merged, the round ends there: the views are owed a pass.
     fn refine_round(&mut self, id: ViewerId) -> anyhow::Result<()> {
+        let started = Instant::now();
         if self.refinement.merge_due() && self.merge_uniform() {
             self.viewers.leaves_changed();
             return Ok(());
@@ -461,6 +507,7 @@ impl Schedule {
         let image =
             refinement::luminance_image(viewer, &self.mesh, &self.visibility, &mut self.luminance)?;
         let viewer = self.viewers.get_mut(id).expect("candidate exists");
+        viewer.refined_at = Some(started);
         match self
             .refinement
             .round(id, viewer, image, &mut self.mesh, &self.cache)
@@ -493,15 +540,16 @@ impl Schedule {
     }
 
     /// Whether a turn has work without any new event, and else when to wake: a camera coming to
-    /// rest, a round's pace, or a sync or a re-plan its pace put off.
+    /// rest, a round's pace, or a pass, a sync or a re-plan its pace put off.
     fn waiting_for(&self) -> (bool, Option<Instant>) {
         let now = Instant::now();
         let (views, gate) = (self.viewers.turn_views(), self.refine_gate());
-        let allowed = self.paces.allowed(self.owed, false, now);
+        let passes = turns::passes_owed(&views, self.config.work_while_walking);
+        let allowed = self.paces.allowed(self.owed, passes, false, now);
         let candidate = turns::refinement_candidate(&gate, &views, self.refinement.rounds, now);
-        let wake = [turns::next_rest(&gate, &views, now), allowed.wake_at()];
+        let wake = [turns::next_ready(&gate, &views, now), allowed.wake_at()];
         (
-            turns::has_work_now(self.owed, &allowed, &views, candidate),
+            turns::has_work_now(self.owed, &allowed, candidate),
             wake.into_iter().flatten().min(),
         )
     }

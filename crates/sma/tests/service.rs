@@ -670,6 +670,174 @@ async fn a_resting_viewer_gets_more_paths_until_converged_then_nothing() {
     sma.stop().await.unwrap();
 }
 
+/// Longer than any gap between two cameras of a walk on a loaded machine: a walking camera
+/// never rests.
+const WALK_REST: Duration = Duration::from_secs(1);
+
+/// A fake renderer's time per thousand paths: 5 M paths a second, a few times a real
+/// renderer's rate on two cores, and slow enough that work queues up in the SMA.
+const SLOW: Duration = Duration::from_micros(200);
+
+/// A viewer walking slowly to the right from the front viewpoint, as a person does: a camera
+/// every 33 ms, its eye and target 5 mm further each step, for `steps` steps, reading what the
+/// SMA sends between them (and checking the table at every epoch). Refinement is resumed once
+/// the first step's camera is sent, so a camera that waits for rest is never refined before
+/// the walk. Returns the most visible leaves an epoch reported meanwhile.
+async fn walk_right(probe: &mut Probe, steps: u32) -> u64 {
+    let front = probe.scene.viewpoints.iter().find(|v| v.name == "front");
+    let front = front.expect("the front viewpoint").clone();
+    let mut most = 0;
+    for step in 1..=steps {
+        let shifted = |p: [f32; 3]| [p[0] + 0.005 * step as f32, p[1], p[2]];
+        let at = protocol::types::Viewpoint {
+            eye: shifted(front.eye),
+            target: shifted(front.target),
+            ..front.clone()
+        };
+        probe
+            .camera(Camera::from_viewpoint(&at, 0, W, H))
+            .await
+            .unwrap();
+        if step == 1 {
+            probe.send(ViewerToSma::Resume).await.unwrap();
+        }
+        let next_step = tokio::time::Instant::now() + Duration::from_millis(33);
+        while let Ok(epoch) = tokio::time::timeout_at(next_step, probe.next_epoch()).await {
+            most = most.max(epoch.unwrap().visible_leaves);
+        }
+    }
+    most
+}
+
+/// What one walk showed: the visible leaves before it and the most during it, and the requests
+/// made during it.
+struct Walked {
+    leaves_before: u64,
+    most_leaves: u64,
+    requests: Vec<(SampleKey, Quality, Option<[f32; 3]>)>,
+}
+
+/// Two seconds of [`walk_right`] from the front view, complete and unrefined, with work while
+/// walking `on` or off.
+async fn walk_for_two_seconds(on: bool) -> Walked {
+    let scene = diffuse_wall();
+    let (renderer, log) = fake_renderer(scene.clone(), Fault::NoisyTaking(SLOW)).await;
+    let mut config = config(vec![renderer], true);
+    config.schedule.rest = WALK_REST;
+    config.schedule.work_while_walking = on;
+    config.schedule.coarsen_after_passes = 0;
+    let (sma, mut probe) = start_with_probe(&config, &scene).await;
+    probe.send(ViewerToSma::Pause).await.unwrap();
+    let front = view_completely(&mut probe, "front").await;
+    let leaves_before = probe.epochs.last().unwrap().visible_leaves;
+    assert_eq!(probe.epochs.last().unwrap().camera_seq, front.seq);
+    let mark = log.lock().unwrap().len();
+    let most_leaves = walk_right(&mut probe, 60).await;
+    let requests = log.lock().unwrap()[mark..].to_vec();
+    sma.stop().await.unwrap();
+    Walked {
+        leaves_before,
+        most_leaves,
+        requests,
+    }
+}
+
+/// DESIGN.md §3 step 9: a camera that keeps moving (never resting) still gets refinement for
+/// what stays in view, and better samples for it: refinement samples, then their paths up to
+/// the scene's quality. With work while walking off, refinement waits for a rest that never
+/// comes, as in the thesis.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_walking_viewer_gets_refinement_and_better_samples_for_what_stays_in_view() {
+    if !gpu_available() {
+        return;
+    }
+    let on = walk_for_two_seconds(true).await;
+    assert!(
+        on.most_leaves > on.leaves_before,
+        "not refined while walking: {} leaves, {} before",
+        on.most_leaves,
+        on.leaves_before
+    );
+    // A sample asked for again at more paths: it got better while the camera moved.
+    let mut first: HashMap<SampleKey, Quality> = HashMap::new();
+    let mut upgraded = 0;
+    for (key, quality, _) in &on.requests {
+        match first.get(key) {
+            Some(q) if q.bounces == quality.bounces => upgraded += 1,
+            Some(_) => {}
+            None => {
+                first.insert(*key, *quality);
+            }
+        }
+    }
+    assert!(upgraded > 0, "no sample got more paths while walking");
+    let off = walk_for_two_seconds(false).await;
+    assert_eq!(
+        off.most_leaves, off.leaves_before,
+        "refined while walking with work while walking off"
+    );
+}
+
+/// A new view's missing samples come before every upgrade of what the viewer already had in
+/// view, while refinement, top-ups and more paths were going on during the walk (DESIGN.md §3
+/// step 9). The wall's back side was never seen before the jump: from its first request on,
+/// nothing but first samples (direct light) is asked until the last of its first samples.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_new_views_missing_samples_are_asked_for_before_any_upgrade_of_the_last_view() {
+    if !gpu_available() {
+        return;
+    }
+    let scene = diffuse_wall();
+    let (renderer, log) = fake_renderer(scene.clone(), Fault::NoisyTaking(SLOW)).await;
+    let mut config = config(vec![renderer], true);
+    config.schedule.rest = WALK_REST;
+    config.schedule.coarsen_after_passes = 0;
+    let (sma, mut probe) = start_with_probe(&config, &scene).await;
+    probe.send(ViewerToSma::Pause).await.unwrap();
+    view_completely(&mut probe, "front").await;
+    walk_right(&mut probe, 20).await;
+    let mark = log.lock().unwrap().len();
+    let before: Vec<Quality> = log.lock().unwrap().iter().map(|r| r.1).collect();
+    assert!(
+        before.iter().any(|q| q.paths > Quality::DIRECT.paths),
+        "no upgrade was going on"
+    );
+    let back = probe.view("back", W, H).await.unwrap();
+    probe
+        .until(WAIT, |e| e.camera_seq == back.seq && e.shown > 0)
+        .await
+        .unwrap();
+    let settle = tokio::time::Instant::now() + Duration::from_millis(500);
+    while let Ok(epoch) = tokio::time::timeout_at(settle, probe.next_epoch()).await {
+        epoch.unwrap();
+    }
+    let after = log.lock().unwrap()[mark..].to_vec();
+    let back_side = |r: &(SampleKey, Quality, _)| r.0.side == Side::Back;
+    let first = after
+        .iter()
+        .position(back_side)
+        .expect("the back side asked for");
+    let last = after
+        .iter()
+        .rposition(|r| back_side(r) && r.1 == Quality::DIRECT)
+        .expect("first samples of the back side");
+    let ahead_of_them: Vec<_> = after[first..=last]
+        .iter()
+        .filter(|r| r.1 != Quality::DIRECT)
+        .collect();
+    assert!(
+        ahead_of_them.is_empty(),
+        "{} requests beyond first samples came before the new view's last first sample: {:?}",
+        ahead_of_them.len(),
+        &ahead_of_them[..ahead_of_them.len().min(5)]
+    );
+    assert!(
+        after[last..].iter().any(|r| r.1 != Quality::DIRECT),
+        "the upgrades went on after them"
+    );
+    sma.stop().await.unwrap();
+}
+
 /// The thesis as published, end to end: every request is at the scene's quality preset (no
 /// ladder: no direct-light first sample, no more paths for the noise the renderer reports), the
 /// viewer is offered the thesis's criteria only and refused `nld-px` without losing its link,

@@ -26,6 +26,9 @@ pub enum Fault {
     /// Every answer says its paths scattered by half its luminance (variance `(L / 2)²`), so
     /// the SMA has noise to take paths against; the means stay exact.
     Noisy,
+    /// As `Noisy`, and each batch takes this long per thousand paths it traces, as a renderer
+    /// does: work queues up in the SMA as it would against real renderers.
+    NoisyTaking(std::time::Duration),
     /// The points of this mesh vertex are answered NaN, every other point as usual.
     NanAt(u32),
 }
@@ -88,6 +91,10 @@ async fn serve(listener: TcpListener, scene: Scene, shading: Shading, fault: Fau
             log.lock()
                 .expect("log lock")
                 .extend(batch.points.iter().map(|p| (p.key, batch.quality, p.eye)));
+            if let Fault::NoisyTaking(per_kilo_path) = fault {
+                let paths = batch.points.len() as u32 * batch.quality.paths;
+                tokio::time::sleep(per_kilo_path * paths / 1000).await;
+            }
             let rgb: Vec<[f32; 3]> = batch
                 .points
                 .iter()
@@ -104,7 +111,9 @@ async fn serve(listener: TcpListener, scene: Scene, shading: Shading, fault: Fau
             let luminance_variance = rgb
                 .iter()
                 .map(|c| match fault {
-                    Fault::Noisy => (0.5 * conventions::luminance(*c)).powi(2),
+                    Fault::Noisy | Fault::NoisyTaking(_) => {
+                        (0.5 * conventions::luminance(*c)).powi(2)
+                    }
                     _ => 0.0,
                 })
                 .collect();

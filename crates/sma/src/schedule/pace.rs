@@ -2,8 +2,8 @@
 //! the one place that decides, for each turn, which of it runs now. The schedule's thread shares
 //! the machine's cores with the renderers, so every millisecond it spends walking the visible
 //! leaves is a millisecond less of tracing: the viewers' syncs, the re-plans that only reorder
-//! the queue, and the refinement rounds are each spaced out by their own measured cost
-//! ([`Pace`]). [`Paces::allowed`] says what of the work owed may run at an instant, and what is
+//! the queue, the refinement rounds, and the visibility passes of a camera that keeps moving
+//! (DESIGN.md §3 step 9) are each spaced out by their own measured cost ([`Pace`]). [`Paces::allowed`] says what of the work owed may run at an instant, and what is
 //! deferred until when; the turn defers it explicitly, and nothing owed is cleared to put it off.
 
 use std::time::{Duration, Instant};
@@ -26,6 +26,14 @@ const SYNC_SHARE: f64 = 0.1;
 /// samples, and each committed refinement group asked for one.
 const REPLAN_INTERVAL: Duration = Duration::from_millis(50);
 const REPLAN_SHARE: f64 = 0.1;
+
+/// While a camera keeps moving (20–30 cameras a second from a walking viewer), a new view's
+/// cycle (its visibility pass, and the re-plan and sync the pass sets off, each a walk over the
+/// visible leaves) takes at most this share of the schedule thread's time: a pass is drawn for
+/// the latest camera, those that came meanwhile are skipped. Unpaced, the cycles of a large
+/// view took the whole thread, and the rasteriser's threads the cores the renderers needed.
+/// A camera after a pause finds the pace long due, so its first picture never waits for it.
+const WALKING_VIEW_SHARE: f64 = 1.0 / 3.0;
 
 /// Spaces out a recurring task that may wait: the next run comes no sooner than `min_interval`
 /// after the last one began, nor sooner than its cost allows for the task to take at most
@@ -55,11 +63,6 @@ impl Pace {
 
     pub fn due(&self, now: Instant) -> bool {
         now >= self.next_at
-    }
-
-    /// The task may run at once again (what made it costly is gone).
-    pub fn restart(&mut self, now: Instant) {
-        self.next_at = now;
     }
 
     /// The task ran from `started` for `spent`.
@@ -103,9 +106,24 @@ impl Timing {
     }
 }
 
+/// The visibility passes owed, as their pace sees them (`turns::passes_owed`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PassesOwed {
+    None,
+    /// Owed for what may not wait: a viewer's first camera, a camera after a pause, leaves
+    /// that changed under an unchanged camera, or every pass while refinement waits for rest
+    /// (`ScheduleConfig::work_while_walking` off).
+    AtOnce,
+    /// Owed only to cameras that replaced the one their view was drawn from while the viewer
+    /// walks: paced ([`WALKING_VIEW_SHARE`]).
+    Walking,
+}
+
 /// What the paces allow, at one instant, of the work owed that may wait.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Allowed {
+    /// The visibility passes (`PassesOwed`).
+    pub pass: Timing,
     /// Bringing the viewers up to date (`Owed::resync`).
     pub sync: Timing,
     /// A re-plan that only reorders the queue (`Owed::replan_soon`). A re-plan owed at once (a
@@ -116,7 +134,7 @@ pub struct Allowed {
 impl Allowed {
     /// When the first deferred work becomes due, for the loop to wake then.
     pub fn wake_at(&self) -> Option<Instant> {
-        let deferred = [self.sync, self.replan_soon].map(Timing::deferred_until);
+        let deferred = [self.pass, self.sync, self.replan_soon].map(Timing::deferred_until);
         deferred.into_iter().flatten().min()
     }
 }
@@ -128,6 +146,8 @@ pub struct Paces {
     replan: Pace,
     /// Spaces out refinement rounds (`ScheduleConfig::round_share`).
     round: Pace,
+    /// Spaces out a walking camera's views ([`WALKING_VIEW_SHARE`]).
+    walking_view: Pace,
 }
 
 impl Paces {
@@ -136,15 +156,24 @@ impl Paces {
             sync: Pace::new(SYNC_INTERVAL, SYNC_SHARE, now),
             replan: Pace::new(REPLAN_INTERVAL, REPLAN_SHARE, now),
             round: Pace::new(Duration::ZERO, round_share, now),
+            walking_view: Pace::new(Duration::ZERO, WALKING_VIEW_SHARE, now),
         }
     }
 
-    /// What of `owed` may run at `now`. A sync comes at once after a pass (`pass_ran`: the
-    /// viewers see a new view as soon as it is drawn), else at its pace ([`SYNC_INTERVAL`],
-    /// [`SYNC_SHARE`]); a re-plan that may wait at its own ([`REPLAN_INTERVAL`],
-    /// [`REPLAN_SHARE`]).
-    pub fn allowed(&self, owed: Owed, pass_ran: bool, now: Instant) -> Allowed {
+    /// What of `owed` and of the `passes` owed may run at `now`. Passes come at once unless
+    /// every one owed is a walking camera's ([`WALKING_VIEW_SHARE`]). A sync comes at once
+    /// after a pass (`pass_ran`: the viewers see a new view as soon as it is drawn), else at its
+    /// pace ([`SYNC_INTERVAL`], [`SYNC_SHARE`]); a re-plan that may wait at its own
+    /// ([`REPLAN_INTERVAL`], [`REPLAN_SHARE`]).
+    pub fn allowed(&self, owed: Owed, passes: PassesOwed, pass_ran: bool, now: Instant) -> Allowed {
+        let walking = passes == PassesOwed::Walking;
         Allowed {
+            pass: Timing::of(
+                passes != PassesOwed::None,
+                &self.walking_view,
+                !walking,
+                now,
+            ),
             sync: Timing::of(owed.resync(), &self.sync, pass_ran, now),
             replan_soon: Timing::of(owed.replan_soon(), &self.replan, false, now),
         }
@@ -153,14 +182,16 @@ impl Paces {
     /// No refinement round before this. Spacing the rounds gives their time to the renderers
     /// only while the queue holds work for them (`work_queued`); with nothing queued, rounds are
     /// what gives them work (a view's last refinements), and held back they left the renderers
-    /// idle.
+    /// idle. A camera that has come to rest since its viewer's last round is refined at once,
+    /// whatever the rounds cost (`turns::TurnView::ready_at`).
     pub fn next_round_at(&self, work_queued: bool) -> Option<Instant> {
         work_queued.then(|| self.round.next_at())
     }
 
-    /// A new view is refined as soon as it rests, whatever the last view's rounds cost.
-    pub fn camera_moved(&mut self, now: Instant) {
-        self.round.restart(now);
+    /// A walking camera's new view (its pass, re-plan and sync) ran from `started` for `spent`:
+    /// the next one is spaced by it.
+    pub fn walking_view_ran(&mut self, started: Instant, spent: Duration) {
+        self.walking_view.ran(started, spent);
     }
 
     /// `work` ran from `started` for `spent`: paced work is spaced by it.
@@ -210,16 +241,17 @@ mod tests {
         let mut paces = Paces::new(0.05, t0);
         let mut owed = Owed::default();
         owed.samples_arrived();
-        assert_eq!(paces.allowed(owed, false, t0).sync, Timing::Now);
+        let none = PassesOwed::None;
+        assert_eq!(paces.allowed(owed, none, false, t0).sync, Timing::Now);
         paces.ran(Work::Sync, t0, MS);
         let later = t0 + 10 * MS;
-        let allowed = paces.allowed(owed, false, later);
+        let allowed = paces.allowed(owed, none, false, later);
         assert_eq!(allowed.sync, Timing::Deferred(t0 + SYNC_INTERVAL));
         assert_eq!(allowed.wake_at(), Some(t0 + SYNC_INTERVAL));
         assert!(owed.resync(), "still owed");
-        assert_eq!(paces.allowed(owed, true, later).sync, Timing::Now);
+        assert_eq!(paces.allowed(owed, none, true, later).sync, Timing::Now);
         assert_eq!(
-            paces.allowed(Owed::default(), true, later).sync,
+            paces.allowed(Owed::default(), none, true, later).sync,
             Timing::NotOwed
         );
     }
@@ -231,25 +263,48 @@ mod tests {
         paces.ran(Work::Replan, t0, 20 * MS);
         let mut owed = Owed::default();
         owed.queue_changed();
-        let allowed = paces.allowed(owed, false, t0 + MS);
+        let allowed = paces.allowed(owed, PassesOwed::None, false, t0 + MS);
         assert_eq!(allowed.replan_soon, Timing::Deferred(t0 + 200 * MS));
         assert_eq!(allowed.sync, Timing::NotOwed);
         owed.views_changed();
         assert!(owed.replan(), "owed at once, whatever the pace");
         assert_eq!(
-            paces.allowed(owed, false, t0 + 200 * MS).replan_soon,
+            paces
+                .allowed(owed, PassesOwed::None, false, t0 + 200 * MS)
+                .replan_soon,
             Timing::Now
         );
     }
 
     #[test]
-    fn rounds_are_spaced_only_while_work_is_queued_and_a_camera_move_lifts_the_spacing() {
+    fn rounds_are_spaced_only_while_work_is_queued() {
         let t0 = Instant::now();
         let mut paces = Paces::new(0.05, t0);
         paces.ran(Work::Round, t0, 10 * MS);
         assert_eq!(paces.next_round_at(true), Some(t0 + 200 * MS));
         assert_eq!(paces.next_round_at(false), None);
-        paces.camera_moved(t0 + MS);
-        assert_eq!(paces.next_round_at(true), Some(t0 + MS));
+    }
+
+    #[test]
+    fn a_walking_cameras_views_take_a_third_of_the_time_and_other_passes_never_wait() {
+        let t0 = Instant::now();
+        let mut paces = Paces::new(0.05, t0);
+        let pass = |paces: &Paces, passes, at| paces.allowed(Owed::default(), passes, false, at);
+        assert_eq!(pass(&paces, PassesOwed::Walking, t0).pass, Timing::Now);
+        paces.walking_view_ran(t0, 20 * MS);
+        let soon = t0 + 30 * MS;
+        let walking = pass(&paces, PassesOwed::Walking, soon);
+        assert_eq!(walking.pass, Timing::Deferred(t0 + 60 * MS), "20 ms in 60");
+        assert_eq!(walking.wake_at(), Some(t0 + 60 * MS));
+        assert_eq!(pass(&paces, PassesOwed::AtOnce, soon).pass, Timing::Now);
+        assert_eq!(pass(&paces, PassesOwed::None, soon).pass, Timing::NotOwed);
+        let due = pass(&paces, PassesOwed::Walking, t0 + 60 * MS);
+        assert_eq!(due.pass, Timing::Now);
+        // Passes are not the other work's pace: a drawn pass spaces nothing by itself.
+        paces.ran(Work::Pass, soon, 100 * MS);
+        assert_eq!(
+            pass(&paces, PassesOwed::Walking, t0 + 60 * MS).pass,
+            Timing::Now
+        );
     }
 }

@@ -51,7 +51,7 @@ impl PlanRules {
     }
 }
 
-/// When and how a resting viewer's samples get more paths.
+/// When and how a viewer's visible samples get more paths.
 #[derive(Clone, Copy, Debug)]
 pub struct MorePaths {
     /// L_white of the viewer's tone map.
@@ -85,6 +85,9 @@ pub struct NeedsInput<'a> {
     pub rules: &'a PlanRules,
     /// Set once the viewer has a tone map: its noisy samples get more paths (lowest urgency).
     pub more_paths: Option<MorePaths>,
+    /// Where on the image, in pixels, the next steps of a walking viewer look (`ahead::focus`);
+    /// None: the image's centre.
+    pub focus: Option<(f32, f32)>,
 }
 
 /// Every visible sample's needs. A vertex is met once per leaf around it (about six on a
@@ -95,12 +98,14 @@ pub struct NeedsInput<'a> {
 pub fn needs(input: &NeedsInput) -> Vec<Need> {
     let visible = &input.view.visible;
     let (w, h) = (visible.width as f32, visible.height as f32);
+    let (fx, fy) = input.focus.unwrap_or((0.5 * w, 0.5 * h));
     // Per sample, its place in `gathered`, by vertex and side: dense, as vertex ids are.
     let mut place = vec![u32::MAX; 2 * input.mesh.vertex_count()];
     let mut gathered: Vec<(SampleKey, Gathered)> = Vec::new();
     for (v, &(cx, cy)) in visible.leaves.iter().zip(&input.view.centroids) {
-        // On-screen size, weighted toward the centre (1 at the centre, 1/3 in a corner).
-        let (dx, dy) = ((cx - 0.5 * w) / (0.5 * w), (cy - 0.5 * h) / (0.5 * h));
+        // On-screen size, weighted toward the focus (1 there; at rest, the centre, and 1/3 in a
+        // corner): what the next steps still see first (DESIGN.md §3 step 9).
+        let (dx, dy) = ((cx - fx) / (0.5 * w), (cy - fy) / (0.5 * h));
         let priority = v.pixels as f32 / (1.0 + dx * dx + dy * dy);
         let refining = input.pending.group_of(v.leaf).is_some();
         for vertex in input.mesh.node(v.leaf).vertices {
@@ -356,6 +361,7 @@ mod tests {
             cache: &cache,
             rules,
             more_paths: more,
+            focus: None,
         })
     }
 
@@ -389,6 +395,7 @@ mod tests {
             cache: &cache,
             rules: &rules(mesh.base_count()),
             more_paths: None,
+            focus: None,
         });
         let mut seen = HashSet::new();
         for need in &needs {
@@ -407,6 +414,47 @@ mod tests {
         }
         // 16 vertices, each missing: a direct-light sample and an early-rung one.
         assert_eq!(needs.len(), 2 * 16);
+    }
+
+    /// A walking viewer's focus (`ahead`) orders equal leaves: the one near it first; without
+    /// one, leaves at the same distance from the centre are equal.
+    #[test]
+    fn the_leaf_nearer_the_focus_comes_first() {
+        let mesh = SubdivisionMesh::new(&crate::mesh::grid_mesh(3), Default::default());
+        let (left, right) = (0, mesh.base_count() as NodeId - 1);
+        let view = LeafView {
+            centroids: vec![(10.0, 32.0), (54.0, 32.0)],
+            visible: VisibleSet {
+                leaves: [left, right]
+                    .map(|leaf| VisibleLeaf {
+                        leaf,
+                        side: Side::Front,
+                        pixels: 50,
+                    })
+                    .to_vec(),
+                width: 64,
+                height: 64,
+            },
+            ..Default::default()
+        };
+        let cache = ShadingCache::new(1 << 20);
+        let priority_of = |focus, leaf: NodeId| {
+            let needs = needs(&NeedsInput {
+                view: &view,
+                eye: Vec3::new(1.5, 1.5, 4.0),
+                pending: &PendingRefinement::default(),
+                mesh: &mesh,
+                cache: &cache,
+                rules: &rules(mesh.base_count()),
+                more_paths: None,
+                focus,
+            });
+            let on_leaf = |n: &&Need| mesh.node(leaf).vertices.contains(&n.point.key.vertex);
+            needs.iter().find(on_leaf).expect("a need").priority
+        };
+        assert_eq!(priority_of(None, left), priority_of(None, right));
+        let turning_right = Some((64.0, 32.0));
+        assert!(priority_of(turning_right, right) > 2.0 * priority_of(turning_right, left));
     }
 
     /// The thesis profile's fixed quality: a missing sample's one need is the scene's quality

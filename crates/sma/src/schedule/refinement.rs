@@ -33,7 +33,7 @@ pub struct Refinement {
     coarsening: Coarsening,
     /// Coarsening by uniformity (thesis §6), when on.
     uniform: UniformMerge,
-    /// Rounds so far: the resting viewers take turns (`turns::refinement_candidate`).
+    /// Rounds so far: the ready viewers take turns (`turns::refinement_candidate`).
     pub rounds: usize,
     /// R: selections per round (§4.3.5).
     max_selections: usize,

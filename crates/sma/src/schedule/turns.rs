@@ -1,12 +1,13 @@
 //! The decisions of a turn (see the module documentation of `schedule`), as plain functions of
 //! the schedule's state and the time that return what to do, so they are tested with a fake
-//! clock: when the request queue is re-planned and fed ([`Feed`]), which viewer may refine, and
-//! when the loop must wake for a camera coming to rest. The schedule carries them out. What the
-//! paces allow is decided apart, in `pace`.
+//! clock: when the request queue is re-planned and fed ([`Feed`]), which passes are owed and how
+//! urgently ([`passes_owed`]), which viewer may refine, and when the loop must wake for a camera
+//! coming to rest or a round's pace. The schedule carries them out. What the paces allow is
+//! decided apart, in `pace`.
 
 use std::time::{Duration, Instant};
 
-use super::pace::Allowed;
+use super::pace::{Allowed, PassesOwed};
 use super::waits::{Owed, ViewWait};
 use crate::viewer_link::ViewerId;
 
@@ -19,10 +20,15 @@ pub struct TurnView {
     pub paused: bool,
     pub wait: ViewWait,
     pub camera_at: Instant,
-    /// Its camera replaced an earlier one: the viewer may be walking, so refinement waits for
-    /// the camera to rest. A viewer's first camera rests at once: nothing says it moves, and a
-    /// person who has just opened a view is looking at it.
+    /// Its camera replaced an earlier one: the viewer may be walking, so its camera rests only
+    /// once unchanged for `RefineGate::rest`. A viewer's first camera rests at once: nothing
+    /// says it moves, and a person who has just opened a view is looking at it.
     pub camera_replaced: bool,
+    /// Its view was drawn from another camera than its current one: the pass it is owed is a
+    /// new view, not the same view's changed leaves.
+    pub view_behind_camera: bool,
+    /// When its last refinement round began.
+    pub refined_at: Option<Instant>,
 }
 
 impl TurnView {
@@ -32,6 +38,33 @@ impl TurnView {
             self.camera_at + rest
         } else {
             self.camera_at
+        }
+    }
+
+    /// Whether it may be refined at all: it has a view, is not paused, and its criterion has
+    /// not run dry, or a pass of coarsening by uniformity is due, which a viewer whose criterion
+    /// found nothing more still takes its turn for (`uniformity`).
+    fn refinable(&self, gate: &RefineGate) -> bool {
+        self.has_view && !self.paused && (!self.wait.is_exhausted() || gate.merge_due)
+    }
+
+    /// When it may be refined, as far as its camera and the rounds' pace say. A camera that has
+    /// come to rest since the viewer's last round is a new view, refined at its rest whatever
+    /// the rounds cost (DESIGN.md §3 step 6: interactivity first); otherwise rounds keep their
+    /// pace. Without work while walking a camera is refined only at rest; with it (DESIGN.md §3
+    /// step 9), a moving camera is refined at the rounds' pace too.
+    fn ready_at(&self, gate: &RefineGate, now: Instant) -> Instant {
+        let rests_at = self.rests_at(gate.rest);
+        let paced = gate.next_round_at.unwrap_or(now);
+        let new_rest = self.refined_at.is_none_or(|at| rests_at > at);
+        if self.wait.is_exhausted() {
+            // A turn for merging alone: a view is judged uniform only at rest.
+            return rests_at.max(paced);
+        }
+        match (new_rest, gate.while_walking) {
+            (true, true) => rests_at.min(paced),
+            (true, false) => rests_at,
+            (false, _) => rests_at.max(paced),
         }
     }
 }
@@ -48,6 +81,8 @@ pub struct RefineGate {
     pub queue_low: usize,
     /// How long a camera that replaced another must be unchanged to rest.
     pub rest: Duration,
+    /// Refinement also while a camera moves (`ScheduleConfig::work_while_walking`).
+    pub while_walking: bool,
     /// No round before this: the rounds' pace (`ScheduleConfig::round_share`).
     pub next_round_at: Option<Instant>,
     /// A pass of coarsening by uniformity is due (`uniformity`): it comes with a round, so a
@@ -56,9 +91,10 @@ pub struct RefineGate {
 }
 
 /// The viewer whose turn it is to refine at `now`, if refinement may run: never while a pass is
-/// owed to anyone (a camera change interrupts refinement at once), while groups wait, while
-/// the queue is long, or before the rounds' pace allows; then the resting viewers take turns
-/// (`round` counts the rounds so far).
+/// owed to anyone (a camera change interrupts refinement at once, and a round reads the current
+/// camera's view), while groups wait, while the queue is long (a new view's missing samples
+/// come first), or before a viewer is ready (`TurnView::ready_at`); then the ready viewers take
+/// turns (`round` counts the rounds so far).
 pub fn refinement_candidate(
     gate: &RefineGate,
     viewers: &[TurnView],
@@ -69,49 +105,53 @@ pub fn refinement_candidate(
         || gate.groups_pending
         || gate.outstanding >= gate.queue_low
         || viewers.iter().any(|v| v.wait.needs_pass())
-        || gate.next_round_at.is_some_and(|at| now < at)
     {
         return None;
     }
     let ready: Vec<ViewerId> = viewers
         .iter()
-        .filter(|v| {
-            v.has_view
-                && !v.paused
-                && (!v.wait.is_exhausted() || gate.merge_due)
-                && now >= v.rests_at(gate.rest)
-        })
+        .filter(|v| v.refinable(gate) && now >= v.ready_at(gate, now))
         .map(|v| v.id)
         .collect();
     (!ready.is_empty()).then(|| ready[round % ready.len()])
 }
 
-/// When the next viewer's camera comes to rest after `now`, or the rounds' pace allows the next
-/// round, whichever is later, if refinement waits only for those.
-pub fn next_rest(gate: &RefineGate, viewers: &[TurnView], now: Instant) -> Option<Instant> {
+/// When the next viewer becomes ready to refine after `now` (a camera coming to rest, or the
+/// rounds' pace), if refinement waits only for that.
+pub fn next_ready(gate: &RefineGate, viewers: &[TurnView], now: Instant) -> Option<Instant> {
     if !gate.refine {
         return None;
     }
     viewers
         .iter()
-        .filter(|v| v.has_view && !v.paused && (!v.wait.is_exhausted() || gate.merge_due))
-        .map(|v| v.rests_at(gate.rest).max(gate.next_round_at.unwrap_or(now)))
+        .filter(|v| v.refinable(gate))
+        .map(|v| v.ready_at(gate, now))
         .filter(|&t| t > now)
         .min()
 }
 
-/// Whether a turn has something to do without any new event: work owed that no pace defers, a
-/// pass, or a refinement round.
-pub fn has_work_now(
-    owed: Owed,
-    allowed: &Allowed,
-    viewers: &[TurnView],
-    candidate: Option<ViewerId>,
-) -> bool {
+/// The passes owed, and whether they may wait for their pace: only when every one owed is for a
+/// walking viewer's new camera (`while_walking`, DESIGN.md §3 step 9). A viewer's first camera
+/// (no view yet, its first picture waits for the pass) and leaves that changed under an
+/// unchanged camera never wait; without work while walking nothing does, as before.
+pub fn passes_owed(viewers: &[TurnView], while_walking: bool) -> PassesOwed {
+    let mut owed = viewers.iter().filter(|v| v.wait.needs_pass()).peekable();
+    if owed.peek().is_none() {
+        PassesOwed::None
+    } else if while_walking && owed.all(|v| v.has_view && v.view_behind_camera) {
+        PassesOwed::Walking
+    } else {
+        PassesOwed::AtOnce
+    }
+}
+
+/// Whether a turn has something to do without any new event: work owed that no pace defers (a
+/// pass among it), or a refinement round.
+pub fn has_work_now(owed: Owed, allowed: &Allowed, candidate: Option<ViewerId>) -> bool {
     owed.replan()
         || allowed.replan_soon.now()
         || allowed.sync.now()
-        || viewers.iter().any(|v| v.wait.needs_pass())
+        || allowed.pass.now()
         || candidate.is_some()
 }
 
@@ -163,6 +203,7 @@ mod tests {
             outstanding: 0,
             queue_low: 256,
             rest: Duration::from_millis(100),
+            while_walking: false,
             next_round_at: None,
             merge_due: false,
         }
@@ -176,6 +217,8 @@ mod tests {
             wait: ViewWait::Rest,
             camera_at,
             camera_replaced: true,
+            view_behind_camera: false,
+            refined_at: None,
         }
     }
 
@@ -188,7 +231,7 @@ mod tests {
             None
         );
         assert_eq!(
-            next_rest(&gate(), &viewers, clock.now()),
+            next_ready(&gate(), &viewers, clock.now()),
             Some(clock.now() + Duration::from_millis(100))
         );
         clock.advance(100);
@@ -197,7 +240,7 @@ mod tests {
             Some(1)
         );
         assert_eq!(
-            next_rest(&gate(), &viewers, clock.now()),
+            next_ready(&gate(), &viewers, clock.now()),
             None,
             "already resting"
         );
@@ -214,21 +257,23 @@ mod tests {
             refinement_candidate(&gate(), &[first], 0, clock.now()),
             Some(1)
         );
-        assert_eq!(next_rest(&gate(), &[first], clock.now()), None);
+        assert_eq!(next_ready(&gate(), &[first], clock.now()), None);
     }
 
     #[test]
     fn rounds_wait_for_their_pace_and_the_loop_wakes_for_it() {
         let mut clock = FakeClock(Instant::now());
-        let viewers = [resting(1, clock.now())];
+        let mut viewer = resting(1, clock.now());
         clock.advance(1000);
+        viewer.refined_at = Some(clock.now());
+        let viewers = [viewer];
         let paced = RefineGate {
             next_round_at: Some(clock.now() + Duration::from_millis(400)),
             ..gate()
         };
         assert_eq!(refinement_candidate(&paced, &viewers, 0, clock.now()), None);
         assert_eq!(
-            next_rest(&paced, &viewers, clock.now()),
+            next_ready(&paced, &viewers, clock.now()),
             paced.next_round_at,
             "the loop wakes when the pace allows, not only when a camera rests"
         );
@@ -237,7 +282,7 @@ mod tests {
             refinement_candidate(&paced, &viewers, 0, clock.now()),
             Some(1)
         );
-        assert_eq!(next_rest(&paced, &viewers, clock.now()), None);
+        assert_eq!(next_ready(&paced, &viewers, clock.now()), None);
     }
 
     #[test]
@@ -251,12 +296,11 @@ mod tests {
             refinement_candidate(&gate(), &viewers, 0, clock.now()),
             None
         );
-        assert!(has_work_now(
-            Owed::default(),
-            &all_allowed(Owed::default()),
-            &viewers,
-            None
-        ));
+        let pass = Allowed {
+            pass: Timing::Now,
+            ..all_allowed(Owed::default())
+        };
+        assert!(has_work_now(Owed::default(), &pass, None));
     }
 
     #[test]
@@ -304,7 +348,6 @@ mod tests {
         assert!(!has_work_now(
             Owed::default(),
             &all_allowed(Owed::default()),
-            &viewers,
             None
         ));
     }
@@ -327,7 +370,7 @@ mod tests {
             None
         );
         assert_eq!(
-            next_rest(&due, &[exhausted], clock.now()),
+            next_ready(&due, &[exhausted], clock.now()),
             Some(clock.now() + Duration::from_millis(100))
         );
         clock.advance(100);
@@ -342,10 +385,124 @@ mod tests {
         assert_eq!(refinement_candidate(&due, &[paused], 0, clock.now()), None);
     }
 
+    /// A viewer walking: a new camera every 33 ms, its view drawn for each.
+    fn walking(clock: &mut FakeClock, viewer: &mut TurnView, steps: usize) {
+        for _ in 0..steps {
+            clock.advance(33);
+            viewer.camera_at = clock.now();
+        }
+    }
+
+    #[test]
+    fn a_walking_camera_is_refined_at_the_rounds_pace_only_when_working_while_walking() {
+        let mut clock = FakeClock(Instant::now());
+        let mut viewer = resting(1, clock.now());
+        viewer.refined_at = Some(clock.now());
+        walking(&mut clock, &mut viewer, 10);
+        let walk = RefineGate {
+            while_walking: true,
+            ..gate()
+        };
+        assert_eq!(
+            refinement_candidate(&gate(), &[viewer], 0, clock.now()),
+            None
+        );
+        assert_eq!(
+            next_ready(&gate(), &[viewer], clock.now()),
+            Some(clock.now() + Duration::from_millis(100)),
+            "only once it rests"
+        );
+        assert_eq!(
+            refinement_candidate(&walk, &[viewer], 0, clock.now()),
+            Some(1)
+        );
+        // At the rounds' pace, not at every camera.
+        let paced = RefineGate {
+            next_round_at: Some(clock.now() + Duration::from_millis(50)),
+            ..walk
+        };
+        assert_eq!(
+            refinement_candidate(&paced, &[viewer], 0, clock.now()),
+            None
+        );
+        assert_eq!(
+            next_ready(&paced, &[viewer], clock.now()),
+            paced.next_round_at
+        );
+        clock.advance(50);
+        assert_eq!(
+            refinement_candidate(&paced, &[viewer], 0, clock.now()),
+            Some(1)
+        );
+        // A pass owed for its next camera comes first, walking or not.
+        viewer.wait = ViewWait::Pass { exhausted: false };
+        assert_eq!(refinement_candidate(&walk, &[viewer], 0, clock.now()), None);
+    }
+
+    #[test]
+    fn a_camera_coming_to_rest_lifts_the_rounds_pace_once() {
+        let mut clock = FakeClock(Instant::now());
+        let mut viewer = resting(1, clock.now());
+        walking(&mut clock, &mut viewer, 10);
+        viewer.refined_at = Some(clock.now());
+        for while_walking in [true, false] {
+            let paced = RefineGate {
+                while_walking,
+                next_round_at: Some(clock.now() + Duration::from_secs(5)),
+                ..gate()
+            };
+            let rests_at = viewer.camera_at + paced.rest;
+            assert_eq!(next_ready(&paced, &[viewer], clock.now()), Some(rests_at));
+            let at_rest = rests_at;
+            assert_eq!(refinement_candidate(&paced, &[viewer], 0, at_rest), Some(1));
+            // Refined since it rests: the pace holds again.
+            let refined = TurnView {
+                refined_at: Some(at_rest),
+                ..viewer
+            };
+            assert_eq!(refinement_candidate(&paced, &[refined], 0, at_rest), None);
+            assert_eq!(next_ready(&paced, &[refined], at_rest), paced.next_round_at);
+        }
+    }
+
+    #[test]
+    fn only_a_walking_cameras_passes_may_wait() {
+        let now = Instant::now();
+        let moved = TurnView {
+            wait: ViewWait::Pass { exhausted: false },
+            view_behind_camera: true,
+            ..resting(1, now)
+        };
+        let leaves = TurnView {
+            view_behind_camera: false,
+            ..moved
+        };
+        let first = TurnView {
+            has_view: false,
+            camera_replaced: false,
+            ..moved
+        };
+        let settled = resting(2, now);
+        assert_eq!(passes_owed(&[settled], true), PassesOwed::None);
+        assert_eq!(passes_owed(&[moved, settled], true), PassesOwed::Walking);
+        assert_eq!(passes_owed(&[moved], false), PassesOwed::AtOnce, "off");
+        for at_once in [leaves, first] {
+            assert_eq!(passes_owed(&[moved, at_once], true), PassesOwed::AtOnce);
+        }
+        // A pass its pace defers is no work now: the loop sleeps until it is due.
+        let deferred = Allowed {
+            pass: later(),
+            ..all_allowed(Owed::default())
+        };
+        assert!(!has_work_now(Owed::default(), &deferred, None));
+        assert!(deferred.wake_at().is_some());
+    }
+
     /// Nothing deferred: everything owed may run now.
     fn all_allowed(owed: Owed) -> Allowed {
         let timing = |owed| if owed { Timing::Now } else { Timing::NotOwed };
         Allowed {
+            pass: Timing::NotOwed,
             sync: timing(owed.resync()),
             replan_soon: timing(owed.replan_soon()),
         }
@@ -369,9 +526,9 @@ mod tests {
             replan_if_drained: false,
         };
         assert_eq!(feed(owed, &deferred, 3), nothing, "only submits");
-        assert!(!has_work_now(owed, &deferred, &[], None));
+        assert!(!has_work_now(owed, &deferred, None));
         assert!(feed(owed, &all_allowed(owed), 3).replan);
-        assert!(has_work_now(owed, &all_allowed(owed), &[], None));
+        assert!(has_work_now(owed, &all_allowed(owed), None));
     }
 
     #[test]
@@ -379,12 +536,13 @@ mod tests {
         let mut owed = Owed::default();
         owed.views_changed();
         let deferred = Allowed {
+            pass: Timing::NotOwed,
             sync: later(),
             replan_soon: Timing::NotOwed,
         };
         let fed = feed(owed, &deferred, 3);
         assert!(fed.replan && !fed.replan_if_drained);
-        assert!(has_work_now(owed, &deferred, &[], None));
+        assert!(has_work_now(owed, &deferred, None));
     }
 
     #[test]
@@ -421,7 +579,7 @@ mod tests {
             );
         }
         assert!(owed.resync());
-        assert!(!has_work_now(owed, &deferred, &[], None));
+        assert!(!has_work_now(owed, &deferred, None));
     }
 
     #[test]
@@ -429,6 +587,6 @@ mod tests {
         let owed = Owed::default();
         let fed = feed(owed, &all_allowed(owed), 3);
         assert!(!fed.replan && !fed.replan_if_drained);
-        assert!(!has_work_now(owed, &all_allowed(owed), &[], None));
+        assert!(!has_work_now(owed, &all_allowed(owed), None));
     }
 }

@@ -23,10 +23,15 @@ use crate::visibility::LeafView;
 pub struct Viewer {
     outbox: Outbox,
     pub camera: Option<Camera>,
-    /// When the camera last changed (refinement waits for it to rest).
+    /// When the camera last changed (it rests `ScheduleConfig::rest` later).
     pub camera_at: Instant,
     /// The camera replaced an earlier one (`turns::TurnView::camera_replaced`).
     pub camera_replaced: bool,
+    /// The camera it replaced, and when that one came: the motion the plan looks ahead of
+    /// (`ahead::focus`).
+    pub previous: Option<(Camera, Instant)>,
+    /// When its last refinement round began (`turns::TurnView::ready_at`).
+    pub refined_at: Option<Instant>,
     pub wait: ViewWait,
     /// The camera seq whose epoch is still owed.
     answer_pending: Option<u64>,
@@ -61,6 +66,8 @@ impl Viewer {
             camera: None,
             camera_at: Instant::now(),
             camera_replaced: false,
+            previous: None,
+            refined_at: None,
             wait: ViewWait::Camera,
             answer_pending: None,
             view: None,
@@ -83,6 +90,7 @@ impl Viewer {
     pub fn camera_moved(&mut self, camera: Camera) {
         self.answer_pending = Some(camera.seq);
         self.camera_replaced = self.camera.is_some();
+        self.previous = self.camera.take().map(|c| (c, self.camera_at));
         self.camera = Some(camera);
         self.camera_at = Instant::now();
         self.wait.camera_moved();
@@ -90,9 +98,21 @@ impl Viewer {
         self.criterion_dry = false;
     }
 
+    /// Whether its view was drawn from another camera than its current one.
+    pub fn view_behind_camera(&self) -> bool {
+        self.view
+            .as_ref()
+            .is_some_and(|view| view.camera.as_ref() != self.camera.as_ref())
+    }
+
     /// Sends what changed for this viewer, closed by an `Epoch`; nothing when nothing changed,
-    /// no camera is answered and completeness did not flip.
+    /// no camera is answered and completeness did not flip. Nothing either while its pass is
+    /// owed (a walking camera's, deferred by its pace): an epoch for its new camera must
+    /// answer that camera's view, not the last one's.
     pub fn sync(&mut self, input: &SyncInput) {
+        if self.wait.needs_pass() {
+            return;
+        }
         let (Some(view), Some(camera)) = (&self.view, &self.camera) else {
             return;
         };
@@ -181,8 +201,6 @@ pub enum Heard {
     Nothing,
     /// A viewer left: the queue holds needs of its view.
     Left,
-    /// A viewer's camera moved.
-    CameraMoved,
 }
 
 /// Every connected viewer, by id.
@@ -247,6 +265,8 @@ impl Viewers {
                 wait: v.wait,
                 camera_at: v.camera_at,
                 camera_replaced: v.camera_replaced,
+                view_behind_camera: v.view_behind_camera(),
+                refined_at: v.refined_at,
             })
             .collect()
     }
@@ -275,7 +295,7 @@ impl Viewers {
         let heard = match message {
             ViewerToSma::Camera(camera) => {
                 viewer.camera_moved(camera);
-                Heard::CameraMoved
+                Heard::Nothing
             }
             ViewerToSma::SetCriterion { name } => {
                 // Under the thesis profile `nld-os` runs as `nld-os-thesis` (the `Refinement`

@@ -10,7 +10,8 @@ pub enum ViewWait {
     /// A visibility pass: the camera moved, the leaves changed, or K new samples came.
     /// `exhausted` carries over what the refinement waited for before (see `Input`).
     Pass { exhausted: bool },
-    /// Its camera to rest (or its turn): the view is current and its criterion has more to give.
+    /// Its turn (its camera to rest, or with work while walking the rounds' pace): the view is
+    /// current and its criterion has more to give.
     Rest,
     /// New input: the criterion found nothing more for this view, until new samples arrive,
     /// refinement groups are committed, or the viewer picks another criterion.

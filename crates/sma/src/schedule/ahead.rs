@@ -1,0 +1,170 @@
+//! Where on a walking viewer's image its next steps look (DESIGN.md §3 step 9: what stays in view
+//! is worked on in the order the next steps will see it, the current view first, then ahead
+//! along the motion). The plan (`plan`) weighs each visible leaf by its distance on the image
+//! from a point, the *focus*: the image's centre for a camera at rest, and for a moving one the
+//! point its view will be centred on half a second on, the last step's motion (its turn and its
+//! move) continued. Turning right puts the focus right of the centre: what lies left leaves the
+//! view first, and what lies right stays longest. Walking straight on keeps it at the centre,
+//! where the view grows from; stepping sideways moves it the way of the step, by as much as the
+//! surface seen at the centre, at its depth, moves on the image.
+//!
+//! Only the order of the work changes, never what is asked for: a leaf out of view is never
+//! planned, and a new view's missing samples still come before everything else (`need`).
+
+use std::f32::consts::FRAC_PI_2;
+use std::time::{Duration, Instant};
+
+use glam::{Quat, Vec3};
+use protocol::viewer_link::Camera;
+
+use crate::mesh::SubdivisionMesh;
+use crate::visibility::LeafView;
+
+/// How far ahead the focus looks: a few steps of a person walking, short enough that the motion
+/// of the last step still says where the view goes.
+pub const LOOKAHEAD: Duration = Duration::from_millis(500);
+
+/// Two cameras closer in time than this (taken in one turn) count as this far apart, so one
+/// quick step does not throw the focus to the image's edge.
+const MIN_STEP: Duration = Duration::from_millis(20);
+
+/// The turn continued for the look-ahead is at most a quarter turn.
+const MAX_TURN: f32 = FRAC_PI_2;
+
+/// The focus in pixels of `current`, which came at `current_at` after `previous` at
+/// `previous_at`, seeing the surface at its image's centre at `depth` along its view direction
+/// (None: nothing there; then only the turn moves the focus). On the image: clamped to its
+/// border.
+pub fn focus(
+    (previous, previous_at): (&Camera, Instant),
+    (current, current_at): (&Camera, Instant),
+    depth: Option<f32>,
+) -> (f32, f32) {
+    let (before, now) = (previous.pinhole(), current.pinhole());
+    let step = current_at
+        .saturating_duration_since(previous_at)
+        .max(MIN_STEP);
+    let k = LOOKAHEAD.as_secs_f32() / step.as_secs_f32();
+    let mut turn = now.rotation * before.rotation.inverse();
+    if turn.w < 0.0 {
+        turn = -turn;
+    }
+    let (axis, angle) = turn.to_axis_angle();
+    let ahead_turn = if angle.is_finite() && angle > 0.0 {
+        Quat::from_axis_angle(axis, (angle * k).min(MAX_TURN))
+    } else {
+        Quat::IDENTITY
+    };
+    let forward = ahead_turn * now.forward();
+    // Where the view will be centred, as seen from the current eye.
+    let towards = match depth {
+        Some(depth) => (now.eye - before.eye) * k + forward * depth,
+        None => forward,
+    };
+    let local = now.rotation.inverse() * towards;
+    let (half_h, half_w) = (now.half_height(), now.half_height() * now.aspect());
+    let (sx, sy) = if local.z < -1e-6 {
+        (local.x / -local.z / half_w, local.y / -local.z / half_h)
+    } else {
+        // Beside or behind the eye: towards that side, at the border.
+        let (sx, sy) = (local.x / half_w, local.y / half_h);
+        let far = sx.abs().max(sy.abs());
+        if far > 0.0 {
+            (sx / far, sy / far)
+        } else {
+            (0.0, 0.0)
+        }
+    };
+    let (w, h) = (now.width as f32, now.height as f32);
+    (
+        0.5 * w * (1.0 + sx.clamp(-1.0, 1.0)),
+        0.5 * h * (1.0 - sy.clamp(-1.0, 1.0)),
+    )
+}
+
+/// How far along `camera`'s view direction lies the surface seen at the centre of `view`, if
+/// any: a leaf's centroid stands for it.
+pub fn centre_depth(view: &LeafView, mesh: &SubdivisionMesh, camera: &Camera) -> Option<f32> {
+    let (w, h) = (view.visible.width as usize, view.visible.height as usize);
+    let leaf = (*view.pixel_leaves.get(h / 2 * w + w / 2)?)?;
+    let [a, b, c] = mesh.leaf_positions(leaf);
+    let centroid: Vec3 = (a + b + c) / 3.0;
+    let depth = (centroid - camera.eye_vec()).dot(camera.pinhole().forward());
+    (depth > 0.0).then_some(depth)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use conventions::camera::look_rotation;
+
+    const W: u32 = 200;
+    const H: u32 = 100;
+
+    fn camera(eye: Vec3, target: Vec3) -> Camera {
+        Camera {
+            seq: 0,
+            eye: eye.to_array(),
+            orientation: look_rotation(eye, target, Vec3::Y).to_array(),
+            fov_y_deg: 60.0,
+            width: W,
+            height: H,
+        }
+    }
+
+    /// The focus after one 33-ms step from `a` to `b`, the surface at `depth`.
+    fn after_step(a: &Camera, b: &Camera, depth: Option<f32>) -> (f32, f32) {
+        let t0 = Instant::now();
+        focus((a, t0), (b, t0 + Duration::from_millis(33)), depth)
+    }
+
+    #[test]
+    fn at_rest_or_walking_straight_on_the_focus_is_the_centre() {
+        let a = camera(Vec3::ZERO, Vec3::NEG_Z);
+        let (x, y) = after_step(&a, &a, Some(5.0));
+        assert!(
+            (x - 100.0).abs() < 1e-3 && (y - 50.0).abs() < 1e-3,
+            "{x} {y}"
+        );
+        let b = camera(Vec3::new(0.0, 0.0, -0.05), Vec3::new(0.0, 0.0, -1.0));
+        let (x, y) = after_step(&a, &b, Some(5.0));
+        assert!(
+            (x - 100.0).abs() < 1e-3 && (y - 50.0).abs() < 1e-3,
+            "{x} {y}"
+        );
+    }
+
+    #[test]
+    fn turning_or_stepping_right_puts_the_focus_right_and_no_further_than_the_border() {
+        let a = camera(Vec3::ZERO, Vec3::NEG_Z);
+        // About 1.7° in 33 ms, some 26° in half a second: right of the centre (x 142 of 200),
+        // inside the image.
+        let turned = camera(Vec3::ZERO, Vec3::new(0.03, 0.0, -1.0));
+        let (x, y) = after_step(&a, &turned, None);
+        assert!(x > 130.0 && x < 200.0 && (y - 50.0).abs() < 1e-3, "{x} {y}");
+        // A fast turn: at the border, not beyond.
+        let fast = camera(Vec3::ZERO, Vec3::new(0.3, 0.0, -1.0));
+        assert_eq!(after_step(&a, &fast, None).0, 200.0);
+        // Stepping right, looking ahead: right of the centre, more for a nearer surface.
+        let stepped = camera(Vec3::new(0.02, 0.0, 0.0), Vec3::new(0.02, 0.0, -1.0));
+        let near = after_step(&a, &stepped, Some(1.0)).0;
+        let far = after_step(&a, &stepped, Some(10.0)).0;
+        assert!(near > far && far > 100.0, "{near} {far}");
+        // Turning left, or up: the other way.
+        let left = camera(Vec3::ZERO, Vec3::new(-0.03, 0.0, -1.0));
+        assert!(after_step(&a, &left, None).0 < 70.0);
+        let up = camera(Vec3::ZERO, Vec3::new(0.0, 0.03, -1.0));
+        assert!(after_step(&a, &up, None).1 < 25.0);
+    }
+
+    #[test]
+    fn two_cameras_at_one_instant_do_not_throw_the_focus() {
+        let a = camera(Vec3::ZERO, Vec3::NEG_Z);
+        let turned = camera(Vec3::ZERO, Vec3::new(0.01, 0.0, -1.0));
+        let t0 = Instant::now();
+        let same_instant = focus((&a, t0), (&turned, t0), None);
+        let one_step = focus((&a, t0), (&turned, t0 + MIN_STEP), None);
+        assert_eq!(same_instant, one_step);
+        assert!(same_instant.0 < 200.0);
+    }
+}
