@@ -29,6 +29,7 @@ pub fn settings(sun: Option<Sun>, sky: Sky) -> SceneSettings {
             bounces: Some(2),
         },
         viewpoints: Vec::new(),
+        textures: Default::default(),
     }
 }
 
