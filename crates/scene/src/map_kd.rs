@@ -190,11 +190,7 @@ impl<'a> MapLoader<'a> {
 }
 
 /// Reads and decodes one texture file; warns (once, as it is read once) when it cannot.
-fn read(
-    files: &dyn SceneFiles,
-    path: &Path,
-    builder: &mut SceneBuilder,
-) -> Option<TextureFile> {
+fn read(files: &dyn SceneFiles, path: &Path, builder: &mut SceneBuilder) -> Option<TextureFile> {
     let fallback = "its materials keep their Kd";
     let bytes = files
         .read(path)
