@@ -13,6 +13,7 @@
 //! need [`World::to_local`].
 
 use glam::{DVec3, Vec3};
+use protocol::SceneIdentity;
 use scene::{Effects, Scene};
 
 use crate::bvh::{BuildPreset, Hit, PACKET_RAYS, SceneBvh};
@@ -111,6 +112,15 @@ impl World {
     /// A world position (an eye, a ray origin) in the local frame.
     pub fn to_local(&self, p: Vec3) -> Vec3 {
         conventions::camera::relative_to(p, self.origin)
+    }
+
+    /// The scene as the handshake compares it: fingerprint and textures on or off (DESIGN.md
+    /// §5, §8).
+    pub fn identity(&self) -> SceneIdentity {
+        SceneIdentity {
+            fingerprint: self.scene.fingerprint,
+            textures: self.scene.settings.textures.enabled,
+        }
     }
 
     pub fn effects(&self) -> Effects {

@@ -24,13 +24,13 @@ const SIZE: u32 = 32;
 const BLOCKS: [[u8; 3]; 4] = [[200, 40, 40], [40, 200, 40], [40, 40, 200], [128, 128, 128]];
 
 fn texture_png() -> Vec<u8> {
-    let mut texels = Vec::new();
-    for y in 0..4 {
-        for x in 0..4 {
-            texels.extend(BLOCKS[(y / 2) * 2 + x / 2]);
-        }
-    }
-    let image = image::RgbImage::from_raw(4, 4, texels).expect("4 × 4");
+    let texels: Vec<[u8; 3]> = (0..16).map(|i| BLOCKS[(i / 8) * 2 + (i % 4) / 2]).collect();
+    png(&texels, 4, 4)
+}
+
+/// A PNG of `texels`, row by row from the top.
+fn png(texels: &[[u8; 3]], width: u32, height: u32) -> Vec<u8> {
+    let image = image::RgbImage::from_raw(width, height, texels.concat()).expect("sizes");
     let mut bytes = Cursor::new(Vec::new());
     image
         .write_to(&mut bytes, image::ImageFormat::Png)
@@ -248,4 +248,46 @@ fn a_missing_texture_falls_back_to_kd() {
     let a = reference(&missing, "both", Some(2));
     let b = reference(&without_map, "both", Some(2));
     assert_eq!(a.pixels, b.pixels);
+}
+
+/// A renderer and an SMA whose textures differ are refused at the handshake: one with textures
+/// off, or one whose textures are other files. The same scene is welcome.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_sma_with_other_textures_is_refused_at_the_handshake() {
+    use protocol::ProtocolError;
+    use protocol::frame::DEFAULT_MAX_FRAME;
+    use renderer::service::Service;
+
+    let world = std::sync::Arc::new(textured_world("enabled = true"));
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    let service = Service::new(std::sync::Arc::clone(&world), 1, DEFAULT_MAX_FRAME).unwrap();
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let server = tokio::spawn(service.serve(listener, async {
+        let _ = stopped.await;
+    }));
+
+    // The same scene with textures off; and on, with another image in the texture's file.
+    let untextured = identity(&load(&toml(""), MTL, Some(texture_png())));
+    let grey = png(&[[128, 128, 128]; 16], 4, 4);
+    let other_files = identity(&load(&toml("enabled = true"), MTL, Some(grey)));
+    for (theirs, reason) in [
+        (untextured, "textures mismatch: ours on, peer's off"),
+        (other_files, "fingerprint mismatch"),
+    ] {
+        let refused = connect_as_sma(addr, theirs).await.err();
+        assert!(
+            matches!(&refused, Some(ProtocolError::Refused(r)) if r.contains(reason)),
+            "expected a refusal naming {reason:?}, got {refused:?}"
+        );
+    }
+    let welcome = connect_as_sma(addr, world.identity()).await;
+    assert!(welcome.is_ok(), "{:?}", welcome.err());
+    drop(welcome);
+    stop.send(()).unwrap();
+    tokio::time::timeout(std::time::Duration::from_secs(10), server)
+        .await
+        .expect("the server stops")
+        .unwrap()
+        .unwrap();
 }

@@ -41,7 +41,7 @@ async fn pool_of_one() -> (PoolHandle, mpsc::Receiver<PoolEvent>, watch::Sender<
         fake_renderer::start(scene.clone(), |p, _, _, _| flat(p.into()), Fault::None).await;
     let config = PoolConfig {
         renderers: vec![addr],
-        fingerprint: scene.fingerprint,
+        scene: crate::viewer_link::scene_identity(&scene),
         depth: 1,
         max_frame: 1 << 24,
         backoff_min: Duration::from_millis(50),
