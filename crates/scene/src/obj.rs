@@ -69,21 +69,27 @@ pub fn load_obj(
     // Libraries that failed to open were reported as missing and their faces get the default.
     let materials = materials.unwrap_or_default();
     let mut converted: Vec<Material> = materials.iter().map(convert_material).collect();
-    let textured = materials.iter().filter(|m| m.diffuse_texture.is_some());
+    // Only the textures of materials some face uses are read (and warned about).
+    let used: Vec<bool> = (0..materials.len())
+        .map(|i| models.iter().any(|m| m.mesh.material_id == Some(i)))
+        .collect();
+    let textured: Vec<usize> = (0..materials.len())
+        .filter(|&i| used[i] && materials[i].diffuse_texture.is_some())
+        .collect();
     if textures.enabled {
         let mut loader = MapLoader::new(files, textures.albedo);
-        for (m, out) in materials.iter().zip(&mut converted) {
-            if let Some(argument) = &m.diffuse_texture {
-                let dir = folders.get(&m.name).map_or(Path::new(""), PathBuf::as_path);
-                out.diffuse_map = loader.load(&m.name, argument, dir, &mut builder);
-            }
+        let obj_dir = path.parent().unwrap_or(Path::new(""));
+        for i in textured {
+            let m = &materials[i];
+            let argument = m.diffuse_texture.as_deref().unwrap_or_default();
+            let dir = folders.get(&m.name).map_or(obj_dir, PathBuf::as_path);
+            converted[i].diffuse_map = loader.load(&m.name, argument, dir, &mut builder);
         }
-    } else if textured.clone().count() > 0 {
+    } else if !textured.is_empty() {
         builder.note(format!(
-            "{} of {} materials have a map_Kd texture, not read: the scene's textures are off \
-             ([textures] enabled = false)",
-            textured.count(),
-            materials.len()
+            "{} of the materials in use have a map_Kd texture, not read: the scene's textures \
+             are off ([textures] enabled = false)",
+            textured.len()
         ));
     }
     add_geometry(&mut builder, &models, converted);
