@@ -5,7 +5,9 @@
 
 use std::path::PathBuf;
 
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
+use sma::config::Profile;
 
 use crate::launch::LaunchConfig;
 
@@ -46,7 +48,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         None => {
             conventions::logging::init();
-            crate::launch::run(cli.launch.config())
+            crate::launch::run(cli.launch.config()?)
         }
         Some(Command::Renderer(c)) => renderer::cli::run(c),
         Some(Command::Sma(c)) => sma::cli::run(c),
@@ -73,6 +75,10 @@ pub struct LaunchArgs {
     /// Refinement criterion (rnd, nld-is, nld-os, …).
     #[arg(long, default_value = "nld-os")]
     pub criterion: String,
+    /// Which system the SMA runs: today's, or the thesis's as published (2006; see `walkthrough
+    /// sma --help`). Under it nld-os and nld-is run as their -thesis forms, and nld-px is refused.
+    #[arg(long, default_value_t = Profile::Today, value_parser = profile_parser())]
+    pub profile: Profile,
     /// Number of renderer processes; the cores are shared among them.
     #[arg(long, default_value_t = 1)]
     pub renderers: usize,
@@ -93,19 +99,29 @@ pub struct LaunchArgs {
     pub out: Option<PathBuf>,
 }
 
+/// `--profile`: one of the SMA's profiles, by name.
+fn profile_parser() -> impl TypedValueParser<Value = Profile> {
+    let names: Vec<&str> = Profile::ALL.iter().map(|p| p.name()).collect();
+    PossibleValuesParser::new(names)
+        .map(|name| Profile::from_name(&name).expect("a possible value"))
+}
+
 impl LaunchArgs {
-    fn config(self) -> LaunchConfig {
-        LaunchConfig {
+    /// Refused here, before any process starts: a criterion the profile does not run.
+    fn config(self) -> anyhow::Result<LaunchConfig> {
+        self.profile.criterion_named(&self.criterion)?;
+        Ok(LaunchConfig {
             scene: self.scene,
             view: self.view,
             criterion: self.criterion,
+            profile: self.profile,
             renderers: self.renderers,
             width: self.width,
             height: self.height,
             seconds: self.seconds,
             headless: self.headless,
             out: self.out,
-        }
+        })
     }
 }
 
@@ -124,4 +140,25 @@ pub enum SceneCommand {
     },
     /// Writes a built-in scene as OBJ + MTL + TOML.
     Export { builtin: String, dir: PathBuf },
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn launch(args: &[&str]) -> anyhow::Result<LaunchConfig> {
+        let args = std::iter::once("walkthrough").chain(args.iter().copied());
+        Cli::try_parse_from(args)?.launch.config()
+    }
+
+    #[test]
+    fn the_profile_goes_to_the_sma_and_refuses_what_it_does_not_run() {
+        assert_eq!(launch(&[]).unwrap().profile, Profile::Today);
+        let thesis = launch(&["--profile", "thesis", "--criterion", "nld-os"]).unwrap();
+        assert_eq!(thesis.profile, Profile::Thesis);
+        assert!(launch(&["--profile", "thesis", "--criterion", "nld-px"]).is_err());
+        assert!(launch(&["--criterion", "nld-px"]).is_ok());
+        assert!(launch(&["--criterion", "nope"]).is_err());
+        assert!(launch(&["--profile", "2006"]).is_err());
+    }
 }

@@ -23,6 +23,8 @@ pub struct LaunchConfig {
     pub view: Option<String>,
     /// Refinement criterion (rnd, nld-is, nld-os, …).
     pub criterion: String,
+    /// Which system the SMA runs (`sma::config::Profile`), passed on as `--profile`.
+    pub profile: sma::config::Profile,
     /// Number of renderer processes; the cores are shared among them.
     pub renderers: usize,
     pub width: u32,
@@ -107,6 +109,8 @@ async fn run_async(args: LaunchConfig) -> anyhow::Result<()> {
         "127.0.0.1:0",
         "--criterion",
         &args.criterion,
+        "--profile",
+        args.profile.name(),
     ]);
     // The renderers load their scenes side by side; then each reports its address.
     for renderer in &mut servers {

@@ -3,7 +3,9 @@
 
 use std::path::PathBuf;
 
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
+use sma::config::Profile;
 
 use crate::accuracy::{self, AccuracyConfig};
 use crate::convergence::{self, ConvergenceConfig};
@@ -33,6 +35,9 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Accuracy(args) => accuracy::run(args.config()),
         BenchCommand::Cost(args) => crate::cost::run(args.config()),
         BenchCommand::LoopbackSink { listen } => crate::protocol::loopback_sink(&listen),
+        BenchCommand::Reproduction { runs } => {
+            crate::reproduction::run(crate::reproduction::ReproductionConfig { runs })
+        }
     }
 }
 
@@ -56,6 +61,14 @@ pub enum BenchCommand {
     Accuracy(AccuracyArgs),
     /// Error after 10 s and 60 s per ladder cap × bounce depth × criterion (DESIGN.md §10).
     Cost(CostArgs),
+    /// The thesis's findings beside ours (thesis §5.2–5.3), from `convergence` runs on MC, VR and
+    /// VT with rnd, nld-is and nld-os: one with `--profile thesis`, one with today's defaults.
+    Reproduction {
+        /// The `--out` folder of `convergence`, run with `--profile thesis` and with today's
+        /// defaults (and of `accuracy --convergence` for the speed-ups).
+        #[arg(long, default_value = "docs/reproduction")]
+        runs: PathBuf,
+    },
     /// The receiving end of the loopback protocol benchmark (started by `report` as a child).
     #[command(hide = true)]
     LoopbackSink {
@@ -75,9 +88,15 @@ pub struct ConvergenceArgs {
     #[arg(long, value_delimiter = ',')]
     pub views: Vec<String>,
     /// Criteria to compare. Default: rnd, nld-is-thesis, nld-os-thesis and the best noise-aware
-    /// criterion (nld-px); a run without refinement is always added.
+    /// criterion (nld-px), or under --profile thesis the first three; a run without refinement
+    /// is always added.
     #[arg(long, value_delimiter = ',')]
     pub criteria: Vec<String>,
+    /// Which system every SMA runs: today's, or the thesis's as published (`walkthrough sma
+    /// --profile`). Tables, plots and CSVs say "today" or "thesis (2006)", and a view measured
+    /// under the thesis's profile has files of its own (`<scene>-<view>-thesis.*`).
+    #[arg(long, default_value_t = Profile::Today, value_parser = profile_parser())]
+    pub profile: Profile,
     /// Length of each run; snapshots every second.
     #[arg(long, default_value_t = 60.0)]
     pub seconds: f64,
@@ -129,6 +148,7 @@ impl ConvergenceArgs {
             scene: self.scene,
             views: self.views,
             criteria: self.criteria,
+            profile: self.profile,
             seconds: self.seconds,
             at_samples: self.at_samples,
             width: self.images.width,
@@ -248,6 +268,13 @@ impl AccuracyArgs {
             no_report: self.no_report,
         }
     }
+}
+
+/// `--profile`: one of the SMA's profiles, by name.
+fn profile_parser() -> impl TypedValueParser<Value = Profile> {
+    let names: Vec<&str> = Profile::ALL.iter().map(|p| p.name()).collect();
+    PossibleValuesParser::new(names)
+        .map(|name| Profile::from_name(&name).expect("a possible value"))
 }
 
 /// The sample counts at which `bench convergence` takes snapshots besides one a second: quarter

@@ -6,7 +6,8 @@
 //!   the sections of `bench report` (internals through each crate's `bench` feature; the farm's
 //!   faults and uneven hosts with real processes);
 //! - [`convergence`], [`accuracy`] and [`cost`]: the end-to-end measurements of DESIGN.md §10,
-//!   with [`metrics`], [`plots`] and [`strips`];
+//!   with [`metrics`], [`plots`] and [`strips`]; [`reproduction`]: the thesis's findings beside
+//!   ours, from convergence runs of both profiles;
 //! - [`ray_throughput`]: the ray-throughput table of the [`renderer`] section;
 //! - [`stats`] (medians, least squares) and [`machine`]: shared by all;
 //! - [`product`]: where the `walkthrough` binary the benchmarks start is;
@@ -25,6 +26,7 @@ pub mod protocol;
 pub mod ray_throughput;
 pub mod renderer;
 pub mod report;
+pub mod reproduction;
 pub mod scene;
 pub mod sma_core;
 pub mod sma_service;

@@ -8,7 +8,6 @@
 
 use std::path::Path;
 
-use anyhow::Context;
 use conventions::luminance::luminance;
 use conventions::tone_map::{ToneMap, srgb8};
 
@@ -30,37 +29,15 @@ pub struct LinearImage {
     pub alpha: Option<Vec<f32>>,
 }
 
-struct ExrPixels {
-    width: usize,
-    rgb: Vec<[f32; 3]>,
-    alpha: Option<Vec<f32>>,
-}
-
 impl LinearImage {
+    /// The image of an EXR file, through the renderer's one EXR reader.
     pub fn read_exr(path: &Path) -> anyhow::Result<LinearImage> {
-        let image = exr::prelude::read_first_rgba_layer_from_file(
-            path,
-            |size, channels: &exr::prelude::RgbaChannels| ExrPixels {
-                width: size.width(),
-                rgb: vec![[0.0; 3]; size.area()],
-                alpha: channels.3.as_ref().map(|_| vec![1.0; size.area()]),
-            },
-            |px: &mut ExrPixels, pos, (r, g, b, a): (f32, f32, f32, f32)| {
-                let i = pos.y() * px.width + pos.x();
-                px.rgb[i] = [r, g, b];
-                if let Some(alpha) = px.alpha.as_mut() {
-                    alpha[i] = a;
-                }
-            },
-        )
-        .with_context(|| format!("reading {}", path.display()))?;
-        let size = image.layer_data.size;
-        let pixels = image.layer_data.channel_data.pixels;
+        let image = renderer::image_files::read_exr(path)?;
         Ok(LinearImage {
-            width: size.width() as u32,
-            height: size.height() as u32,
-            rgb: pixels.rgb,
-            alpha: pixels.alpha,
+            width: image.width,
+            height: image.height,
+            rgb: image.pixels.iter().map(|p| p.to_array()).collect(),
+            alpha: image.alpha,
         })
     }
 

@@ -136,19 +136,15 @@ fn write_scene_views(md: &mut String, runs: usize) -> anyhow::Result<()> {
         "| view | visible base | visible leaves | median ms ({runs} runs) |\n|---|---:|---:|---:|"
     )?;
     for vp in &scene.settings.viewpoints {
-        let viewpoint = Viewpoint {
-            name: vp.name.clone(),
-            eye: vp.eye,
-            target: vp.target,
-            up: vp.up,
-            fov_y_deg: vp.fov_y_deg,
-        };
         let mut times = Vec::new();
         let mut last = None;
         for run in 0..runs + 1 {
             // A new camera each run (its sequence number), so that both levels render: a
             // camera seen before keeps its level 1.
-            let camera = Camera::from_viewpoint(&viewpoint, run as u64, WIDTH, HEIGHT);
+            let camera = Camera {
+                seq: run as u64,
+                ..testkit::views::camera(vp, WIDTH, HEIGHT)
+            };
             let t = Instant::now();
             last = Some(visibility.leaf_view(&mesh, &camera)?);
             times.push(t.elapsed().as_secs_f64() * 1e3);

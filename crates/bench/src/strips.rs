@@ -98,7 +98,8 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let (w, h) = (384usize, 288usize);
         let exr = dir.path().join("s.exr");
-        exr::prelude::write_rgb_file(&exr, w, h, |_, _| (0.5f32, 0.5f32, 0.5f32)).unwrap();
+        let grey = vec![glam::Vec3::splat(0.5); w * h];
+        renderer::image_files::write_exr(&exr, w as u32, h as u32, &grey).unwrap();
         let reference = Reference::new(LinearImage {
             width: w as u32,
             height: h as u32,

@@ -42,6 +42,14 @@ impl Pinhole {
         self.width.max(1) as f32 / self.height.max(1) as f32
     }
 
+    /// Half the image plane's height at unit distance down the view direction, `tan(fov_y / 2)`:
+    /// in the camera frame (-Z forward, +Y up) the image spans `±half_height` in y and
+    /// `±half_height · aspect` in x at z = -1. Every ray through the image, and every drawing of
+    /// what it sees, is scaled by it.
+    pub fn half_height(&self) -> f32 {
+        (0.5 * self.fov_y_deg.to_radians()).tan()
+    }
+
     /// Unit view direction.
     pub fn forward(&self) -> Vec3 {
         self.rotation * Vec3::NEG_Z
@@ -83,7 +91,7 @@ impl Pinhole {
     /// World-space unit direction through image point (x, y) in pixels (x = 0.5 is the centre of
     /// the first column).
     pub fn ray_direction(&self, x: f32, y: f32) -> Vec3 {
-        let t = (0.5 * self.fov_y_deg.to_radians()).tan();
+        let t = self.half_height();
         let sx = (2.0 * x / self.width.max(1) as f32 - 1.0) * t * self.aspect();
         let sy = (1.0 - 2.0 * y / self.height.max(1) as f32) * t;
         (self.rotation * Vec3::new(sx, sy, -1.0)).normalize()
@@ -129,6 +137,17 @@ mod tests {
         let want = (Vec3::new(4.0, 2.5, -1.0) - Vec3::new(1.0, 2.0, 3.0)).normalize();
         assert!(d.abs_diff_eq(want, 1e-5), "{d} vs {want}");
         assert!(c.forward().abs_diff_eq(want, 1e-5));
+    }
+
+    /// The image's top edge and right edge, at unit depth, sit at the half extents.
+    #[test]
+    fn half_height_is_where_the_edge_rays_meet_unit_depth() {
+        let c = Pinhole::look_at(Vec3::ZERO, Vec3::NEG_Z, Vec3::Y, 60.0, [640, 480]);
+        let top = c.ray_direction(320.0, 0.0);
+        let right = c.ray_direction(640.0, 240.0);
+        assert!((top.y / -top.z - c.half_height()).abs() < 1e-6);
+        assert!((right.x / -right.z - c.half_height() * c.aspect()).abs() < 1e-6);
+        assert!((c.half_height() - 30f32.to_radians().tan()).abs() < 1e-7);
     }
 
     #[test]

@@ -29,7 +29,7 @@ pub fn read_addr(
     mut rest: impl Write + Send + 'static,
     timeout: Duration,
 ) -> io::Result<SocketAddr> {
-    // One message, the address: a rendezvous of one slot.
+    // One address is sent, once: room for it.
     let (found, addr) = mpsc::sync_channel(1);
     std::thread::spawn(move || {
         let mut found = Some(found);

@@ -10,7 +10,8 @@
 //! - `ray_order`: ray streams regrouped by direction octant and origin before tracing;
 //! - [`shade`]: points and batches at a quality, deterministic per (seed, index);
 //! - [`service`]: the TCP server of the renderer link;
-//! - [`reference`] and [`tonemap`]: reference images (EXR + tone-mapped PNG);
+//! - [`reference`] and [`image_files`]: reference images (EXR + tone-mapped PNG), and the one EXR
+//!   reader;
 //! - [`vector_level`]: the CPU's vector instructions the ray queries use, chosen at run time;
 //!   [`subnormals`]: tiny floats flushed to zero on the tracing threads;
 //! - [`cli`]: `renderer serve` and `renderer reference`, the only module that parses arguments.
@@ -19,6 +20,7 @@ pub(crate) mod bvh;
 pub mod cli;
 pub(crate) mod counters;
 pub mod estimator;
+pub mod image_files;
 pub(crate) mod lights;
 pub(crate) mod material;
 pub(crate) mod offset;
@@ -31,8 +33,7 @@ pub mod sampling;
 pub mod service;
 pub(crate) mod shade;
 pub(crate) mod strata;
-pub mod subnormals;
-pub mod tonemap;
+pub(crate) mod subnormals;
 pub mod vector_level;
 pub(crate) mod wavefront;
 #[cfg(target_arch = "x86_64")]

@@ -13,8 +13,8 @@ use rayon::prelude::*;
 
 use crate::counters::{RayCounts, RayKind};
 use crate::estimator::{Estimator, path_radiance};
+use crate::image_files;
 use crate::sampling::{Rng, stream, uniform2};
-use crate::tonemap;
 use crate::wavefront::{Start, WAVE_PATHS, trace_paths};
 use crate::world::World;
 
@@ -263,14 +263,14 @@ pub fn render_to_files(
     ));
     let (image, counts) = render(world, &camera, s, Some(&bar));
     bar.finish();
-    tonemap::write_exr(out, s.width, s.height, &image.pixels)?;
+    image_files::write_exr(out, s.width, s.height, &image.pixels)?;
     // The white of the geometry, like the SMA's L_white (the largest cached sample, DESIGN.md §6):
     // a visible sun disc or sky must not darken the whole picture.
     let l_white = l_white.unwrap_or_else(|| {
         let seen = image.pixels.iter().zip(&image.covered).filter(|(_, c)| **c);
-        tonemap::max_luminance(seen.map(|(p, _)| *p))
+        image_files::max_luminance(seen.map(|(p, _)| *p))
     });
-    tonemap::write_png(
+    image_files::write_png(
         &out.with_extension("png"),
         s.width,
         s.height,

@@ -248,9 +248,9 @@ fn reference_files_are_written_and_read_back() {
         seed: 3,
     };
     let (img, _) = renderer::reference::render_to_files(&w, "main", &s, &out, None).unwrap();
-    let (width, height, pixels) = renderer::tonemap::read_exr(&out).unwrap();
-    assert_eq!((width, height), (24, 16));
-    assert_eq!(pixels, img.pixels);
+    let back = renderer::image_files::read_exr(&out).unwrap();
+    assert_eq!((back.width, back.height), (24, 16));
+    assert_eq!(back.pixels, img.pixels);
     let png = image::open(out.with_extension("png")).unwrap().to_rgb8();
     assert_eq!(png.dimensions(), (24, 16));
     assert!(png.pixels().any(|p| p.0.iter().any(|&c| c > 0)));

@@ -152,6 +152,8 @@ pub struct ShadingCache {
     /// Slots whose renderer answers were rejected too often (`mark_failed`): never asked again,
     /// shown with the mean of their leaves' other vertices.
     failed: std::collections::HashSet<u32, FastHash>,
+    /// The fraction of the brightest visible samples [`ShadingCache::l_white`] leaves above it.
+    l_white_outliers: f64,
 }
 
 fn slot_index(key: SampleKey) -> usize {
@@ -179,7 +181,19 @@ impl ShadingCache {
             eyes: HashMap::default(),
             eye_variants: 0,
             failed: Default::default(),
+            l_white_outliers: L_WHITE_OUTLIERS,
         }
+    }
+
+    /// The same cache with `fraction` (0..1) of the brightest visible samples left above
+    /// L_white; 0: L_white is their maximum, as the thesis has it (§2.3, appendix A).
+    pub fn with_l_white_outliers(mut self, fraction: f64) -> Self {
+        self.l_white_outliers = if fraction.is_finite() {
+            fraction.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        self
     }
 
     pub fn get(&self, key: SampleKey) -> Option<CachedSample> {
@@ -511,10 +525,12 @@ impl ShadingCache {
 
     /// L_white of DESIGN.md §6 (thesis appendix A), over the cached samples of the visible leaves
     /// on their visible sides, vertices off-screen included: the largest luminance but for the
-    /// top [`L_WHITE_OUTLIERS`] of them. The plain maximum lets one sample decide for the whole
-    /// view: a vertex of bracara's pool that happened to mirror the sun set L_white so high that
-    /// the picture went dark and every S fell below S_min, and NLD_OS stopped refining for good
-    /// (a 20-s convergence run stuck at 6.6k samples). The few samples above L_white show white.
+    /// top fraction of them set by [`ShadingCache::with_l_white_outliers`] (by default
+    /// [`L_WHITE_OUTLIERS`]; the thesis profile sets 0, the maximum). The plain maximum lets one
+    /// sample decide for the whole view: a vertex of bracara's pool that happened to mirror the
+    /// sun set L_white so high that the picture went dark and every S fell below S_min, and
+    /// NLD_OS stopped refining for good (a 20-s convergence run stuck at 6.6k samples). The few
+    /// samples above L_white show white.
     pub fn l_white(&self, mesh: &SubdivisionMesh, visible: &VisibleSet) -> f32 {
         let mut lum: Vec<f32> = visible
             .leaves
@@ -528,7 +544,7 @@ impl ShadingCache {
             .filter_map(|key| self.packed(slot_index(key)))
             .map(|s| luminance(s.rgb))
             .collect();
-        let skipped = (lum.len() as f64 * L_WHITE_OUTLIERS) as usize;
+        let skipped = (lum.len() as f64 * self.l_white_outliers) as usize;
         let Some(rank) = lum.len().checked_sub(1 + skipped) else {
             return 0.0;
         };
@@ -548,8 +564,9 @@ fn sample_of(e: &Estimate, view_dependent: bool, eye: Option<Vec3>, seen: Stamp)
     }
 }
 
-/// The fraction of the brightest visible samples [`ShadingCache::l_white`] leaves above it.
-const L_WHITE_OUTLIERS: f64 = 0.001;
+/// The fraction of the brightest visible samples [`ShadingCache::l_white`] leaves above it by
+/// default (`ScheduleConfig::l_white_outliers`).
+pub const L_WHITE_OUTLIERS: f64 = 0.001;
 
 #[cfg(test)]
 mod tests;

@@ -12,7 +12,7 @@ use clap::builder::{PossibleValuesParser, TypedValueParser};
 use protocol::admission::PortLimits;
 use protocol::liveness::Liveness;
 
-use crate::config::{ScheduleConfig, SmaConfig};
+use crate::config::{Profile, ScheduleConfig, SmaConfig};
 use crate::criteria::{CriterionKind, CriterionSettings};
 use crate::mesh::{MeshParams, NeighbourRule};
 
@@ -40,6 +40,33 @@ fn neighbour_rule_parser() -> impl TypedValueParser<Value = NeighbourRule> {
     let names: Vec<&str> = NeighbourRule::ALL.iter().map(|r| r.name()).collect();
     PossibleValuesParser::new(names)
         .map(|name| NeighbourRule::from_name(&name).expect("a possible value"))
+}
+
+/// `--profile`: one of the profiles' names, as a [`Profile`].
+fn profile_parser() -> impl TypedValueParser<Value = Profile> {
+    let names: Vec<&str> = Profile::ALL.iter().map(|p| p.name()).collect();
+    PossibleValuesParser::new(names)
+        .map(|name| Profile::from_name(&name).expect("a possible value"))
+}
+
+/// A fraction: at least 0, below 1.
+fn fraction(text: &str) -> Result<f64, String> {
+    let value: f64 = text.parse().map_err(|e| format!("{text:?}: {e}"))?;
+    if (0.0..1.0).contains(&value) {
+        Ok(value)
+    } else {
+        Err(format!("{value} is not a fraction (at least 0, below 1)"))
+    }
+}
+
+/// A switch's value on the command line.
+fn on_off(value: bool) -> &'static str {
+    if value { "on" } else { "off" }
+}
+
+/// `on` or `off`, as a bool.
+fn on_off_parser() -> impl TypedValueParser<Value = bool> {
+    PossibleValuesParser::new(["on", "off"]).map(|value| value == "on")
 }
 
 /// A share of time: above 0, at most 1.
@@ -109,6 +136,14 @@ pub struct Cli {
     /// milliseconds is lost and its connection closed.
     #[arg(long, default_value_t = defaults().viewer_silence.as_millis() as u64)]
     pub viewer_silence_ms: u64,
+    /// Which system runs: today's, or the thesis's as published (2006): fixed-quality samples at
+    /// the scene's preset (no quality ladder), L_white the maximum, NLD_IS leaves of 6 pixels at
+    /// least, nld-os and nld-is as their -thesis forms (nld-px refused), one pass of RND and
+    /// NLD_IS per camera, the thesis's neighbour rule, no coarsening (`SmaConfig::with_profile`).
+    /// --neighbour-rule, --l-white-outliers and --coarsen-after-passes, given, still win; the
+    /// quality ladder's flags do nothing under it.
+    #[arg(long, default_value_t = Profile::Today, value_parser = profile_parser())]
+    pub profile: Profile,
     /// Refinement criterion (each viewer may change its own with SetCriterion).
     #[arg(long, default_value_t = defaults().schedule.criterion, value_parser = criterion_parser())]
     pub criterion: CriterionKind,
@@ -190,11 +225,28 @@ pub struct Cli {
     #[arg(long, default_value_t = defaults().schedule.stats_every.as_secs_f32())]
     pub stats_secs: f32,
     /// Collapse the subdivision of a base triangle no viewer has seen for this many visibility
-    /// passes (0: never).
+    /// passes (0: never) [default: 300; 0 under --profile thesis].
     // Passes come with each camera change and every K samples, so this is some seconds of walking
     // away, or minutes of standing elsewhere.
-    #[arg(long, default_value_t = defaults().schedule.coarsen_after_passes)]
-    pub coarsen_after_passes: u64,
+    #[arg(long)]
+    pub coarsen_after_passes: Option<u64>,
+    /// The fraction of the brightest visible samples that L_white, the tone map's white and the
+    /// NLD metric's L_max, leaves above it (0: their maximum) [default: 0.001; 0 under --profile
+    /// thesis].
+    #[arg(long, value_parser = fraction)]
+    pub l_white_outliers: Option<f64>,
+    /// Merge back a visible red split whose midpoint samples the parent's corners predict
+    /// (linear interpolation), within their noise or one display step, once all are settled
+    /// (on|off).
+    // Off until measured: `walkthrough-bench convergence --sma-flags=--merge-uniform,on` against
+    // three runs without it, the six default views at 60 s (leaves and bytes saved, FLIP).
+    #[arg(
+        long,
+        action = clap::ArgAction::Set,
+        default_value = on_off(defaults().schedule.merge_uniform),
+        value_parser = on_off_parser()
+    )]
+    pub merge_uniform: bool,
     /// The quality ladder's last rung: samples get paths by fours past the scene's quality
     /// while the viewer rests, up to this many paths each.
     #[arg(long, default_value_t = defaults().schedule.max_paths)]
@@ -249,8 +301,8 @@ pub struct Cli {
     /// NLD_IS: at most this fraction of the pixels is selected per camera (§4.3.3).
     #[arg(long, default_value_t = criterion_defaults().nld_is_fraction)]
     pub nld_is_fraction: f32,
-    /// No criterion selects a leaf covering fewer pixels (§4.3.3 has 6; measured: see
-    /// `CriterionSettings::default`).
+    /// No criterion selects a leaf covering fewer pixels (§4.3.3 has 6 for NLD_IS, which
+    /// --profile thesis sets for NLD_IS alone; measured: see `CriterionSettings::default`).
     #[arg(long, default_value_t = criterion_defaults().min_leaf_pixels)]
     pub min_leaf_pixels: u32,
     /// NLD_PX: weight of size alone in a leaf's priority (eq. 3.4's ε).
@@ -264,14 +316,32 @@ pub struct Cli {
     pub weld_tolerance: f32,
     /// How a neighbour across a split edge is closed (§4.2, DESIGN.md §4): red-green bisects it;
     /// thesis splits it 1:4 when the edge is shorter than its height on it (fig. 4.7), up to a
-    /// bound per refinement step (`mesh::NeighbourRule`), bisecting past it.
-    #[arg(long, default_value_t = mesh_defaults().neighbour_rule, value_parser = neighbour_rule_parser())]
-    pub neighbour_rule: NeighbourRule,
+    /// bound per refinement step (`mesh::NeighbourRule`), bisecting past it [default:
+    /// red-green; thesis under --profile thesis].
+    #[arg(long, value_parser = neighbour_rule_parser())]
+    pub neighbour_rule: Option<NeighbourRule>,
 }
 
 impl Cli {
-    /// The configuration these flags ask for.
-    pub fn config(&self) -> SmaConfig {
+    /// The configuration these flags ask for: today's from the flags, then the profile
+    /// (`SmaConfig::with_profile`), then the flags of what it sets, where given. Refused: a
+    /// criterion the profile does not offer.
+    pub fn config(&self) -> anyhow::Result<SmaConfig> {
+        let mut config = self.today().with_profile(self.profile)?;
+        if let Some(rule) = self.neighbour_rule {
+            config.mesh.neighbour_rule = rule;
+        }
+        if let Some(fraction) = self.l_white_outliers {
+            config.schedule.l_white_outliers = fraction;
+        }
+        if let Some(passes) = self.coarsen_after_passes {
+            config.schedule.coarsen_after_passes = passes;
+        }
+        Ok(config)
+    }
+
+    /// The configuration of today's profile, from the flags and the defaults.
+    fn today(&self) -> SmaConfig {
         SmaConfig {
             listen: self.listen.clone(),
             renderers: self.renderers.clone(),
@@ -297,7 +367,7 @@ impl Cli {
             mesh: MeshParams {
                 min_edge_length: self.min_edge_length,
                 weld_tolerance_rel: self.weld_tolerance,
-                neighbour_rule: self.neighbour_rule,
+                neighbour_rule: mesh_defaults().neighbour_rule,
             },
             schedule: self.schedule_config(),
         }
@@ -315,11 +385,13 @@ impl Cli {
             nld_is_fraction: self.nld_is_fraction,
             min_leaf_pixels: self.min_leaf_pixels,
             nld_px_epsilon: self.nld_px_epsilon,
+            ..criterion_defaults()
         }
     }
 
     fn schedule_config(&self) -> ScheduleConfig {
         ScheduleConfig {
+            profile: defaults().schedule.profile,
             criterion: self.criterion,
             criterion_settings: self.criterion_settings(),
             refine: !self.no_refine,
@@ -335,9 +407,12 @@ impl Cli {
             round_share: self.round_share,
             view_angle_deg: self.view_angle_deg,
             stats_every: Duration::from_secs_f32(self.stats_secs.max(0.1)),
+            l_white_outliers: defaults().schedule.l_white_outliers,
             cache_budget_bytes: self.cache_mib << 20,
-            coarsen_after_passes: self.coarsen_after_passes,
+            coarsen_after_passes: defaults().schedule.coarsen_after_passes,
+            merge_uniform: self.merge_uniform,
             seed: self.seed,
+            ladder: defaults().schedule.ladder,
             max_paths: self.max_paths,
             early_rung: !self.no_early_rung,
             top_up_share: self.top_up_share,
@@ -355,13 +430,14 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 }
 
 async fn serve(cli: Cli) -> anyhow::Result<()> {
+    let config = cli.config()?;
     let scene =
         scene::load(&cli.scene).with_context(|| format!("loading scene {:?}", cli.scene))?;
     let ctrl_c = async {
         let _ = tokio::signal::ctrl_c().await;
         tracing::info!("shutting down");
     };
-    let running = crate::server::start(cli.config(), scene, ctrl_c).await?;
+    let running = crate::server::start(config, scene, ctrl_c).await?;
     // The launcher and tests read this line to learn the port when `--listen` asks for port 0.
     conventions::listening::announce("sma", running.addr)?;
     // After the viewers' line, which a reader of the first `listening on` line takes.
@@ -378,7 +454,7 @@ mod tests {
     #[test]
     fn flag_defaults_are_the_config_defaults() {
         let cli = Cli::try_parse_from(["sma", "--renderer", "r:1"]).unwrap();
-        let (from_flags, defaults) = (cli.config(), SmaConfig::default());
+        let (from_flags, defaults) = (cli.config().unwrap(), SmaConfig::default());
         assert_eq!(from_flags.listen, defaults.listen);
         assert_eq!(from_flags.renderers, ["r:1"]);
         assert_eq!(from_flags.max_frame, defaults.max_frame);
@@ -404,7 +480,7 @@ mod tests {
     #[test]
     fn renderers_are_dialed_or_join_a_renderer_port_but_one_way_is_given() {
         let cli = Cli::try_parse_from(["sma", "--renderer-listen", "0.0.0.0:7300"]).unwrap();
-        let config = cli.config();
+        let config = cli.config().unwrap();
         assert_eq!(config.renderer_listen.as_deref(), Some("0.0.0.0:7300"));
         assert!(config.renderers.is_empty());
         assert!(Cli::try_parse_from(["sma"]).is_err());
@@ -424,15 +500,31 @@ mod tests {
     fn the_neighbour_rule_is_parsed_by_name() {
         let with = |rule: &str| {
             Cli::try_parse_from(["sma", "--renderer", "r:1", "--neighbour-rule", rule])
-                .map(|cli| cli.config().mesh.neighbour_rule)
+                .map(|cli| cli.config().unwrap().mesh.neighbour_rule)
         };
         assert_eq!(with("thesis").unwrap(), NeighbourRule::Thesis);
         assert_eq!(with("red-green").unwrap(), NeighbourRule::RedGreen);
         assert!(with("loop").is_err());
         let default = Cli::try_parse_from(["sma", "--renderer", "r:1"]).unwrap();
         assert_eq!(
-            default.config().mesh.neighbour_rule,
+            default.config().unwrap().mesh.neighbour_rule,
             NeighbourRule::RedGreen
+        );
+    }
+
+    #[test]
+    fn merging_by_uniformity_is_switched_on_or_off() {
+        let with = |value: &str| {
+            Cli::try_parse_from(["sma", "--renderer", "r:1", "--merge-uniform", value])
+                .map(|cli| cli.config().unwrap().schedule.merge_uniform)
+        };
+        assert!(with("on").unwrap());
+        assert!(!with("off").unwrap());
+        assert!(with("yes").is_err());
+        let default = Cli::try_parse_from(["sma", "--renderer", "r:1"]).unwrap();
+        assert!(
+            !default.config().unwrap().schedule.merge_uniform,
+            "off until measured"
         );
     }
 
@@ -440,9 +532,62 @@ mod tests {
     fn a_round_share_outside_zero_to_one_is_refused() {
         let with =
             |share: &str| Cli::try_parse_from(["sma", "--renderer", "r:1", "--round-share", share]);
-        assert_eq!(with("0.25").unwrap().config().schedule.round_share, 0.25);
+        assert_eq!(
+            with("0.25").unwrap().config().unwrap().schedule.round_share,
+            0.25
+        );
         for bad in ["0", "-0.1", "1.5", "NaN", "x"] {
             assert!(with(bad).is_err(), "{bad} accepted");
         }
+    }
+
+    fn thesis(flags: &[&str]) -> anyhow::Result<SmaConfig> {
+        let args = ["sma", "--renderer", "r:1", "--profile", "thesis"];
+        Cli::try_parse_from(args.iter().chain(flags))?.config()
+    }
+
+    #[test]
+    fn the_thesis_profile_is_the_config_with_that_profile() {
+        let config = thesis(&[]).unwrap();
+        let want = SmaConfig::default().with_profile(Profile::Thesis).unwrap();
+        assert_eq!(config.schedule.profile, Profile::Thesis);
+        assert_eq!(config.schedule.criterion, CriterionKind::NldOsThesis);
+        assert_eq!(
+            format!("{:?}", config.schedule),
+            format!("{:?}", want.schedule)
+        );
+        assert_eq!(format!("{:?}", config.mesh), format!("{:?}", want.mesh));
+        assert!(Cli::try_parse_from(["sma", "--renderer", "r:1", "--profile", "x"]).is_err());
+    }
+
+    #[test]
+    fn the_thesis_profile_maps_the_noise_aware_criteria_and_refuses_nld_px() {
+        let criterion = |name| thesis(&["--criterion", name]).map(|c| c.schedule.criterion);
+        assert_eq!(criterion("nld-is").unwrap(), CriterionKind::NldIsThesis);
+        assert_eq!(criterion("rnd").unwrap(), CriterionKind::Rnd);
+        assert_eq!(criterion("nld-mm").unwrap(), CriterionKind::NldMm);
+        let refused = criterion("nld-px").unwrap_err().to_string();
+        assert!(
+            refused.contains("nld-px") && refused.contains("thesis (2006)"),
+            "{refused}"
+        );
+    }
+
+    #[test]
+    fn a_flag_given_beside_the_profile_still_wins() {
+        let config = thesis(&[
+            "--neighbour-rule",
+            "red-green",
+            "--l-white-outliers",
+            "0.01",
+            "--coarsen-after-passes",
+            "5",
+        ])
+        .unwrap();
+        assert_eq!(config.mesh.neighbour_rule, NeighbourRule::RedGreen);
+        assert_eq!(config.schedule.l_white_outliers, 0.01);
+        assert_eq!(config.schedule.coarsen_after_passes, 5);
+        assert!(!config.schedule.ladder, "the rest is the thesis's");
+        assert!(thesis(&["--l-white-outliers", "1"]).is_err());
     }
 }

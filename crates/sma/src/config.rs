@@ -8,8 +8,9 @@ use protocol::admission::PortLimits;
 use protocol::frame::DEFAULT_MAX_FRAME;
 use protocol::liveness::Liveness;
 
-use crate::criteria::{CriterionKind, CriterionSettings};
-use crate::mesh::MeshParams;
+use crate::cache::L_WHITE_OUTLIERS;
+use crate::criteria::{CriterionKind, CriterionSettings, Passes};
+use crate::mesh::{MeshParams, NeighbourRule};
 
 /// A whole SMA: where it listens, which renderers it uses, and how it refines.
 #[derive(Clone, Debug)]
@@ -69,9 +70,175 @@ impl Default for SmaConfig {
     }
 }
 
+impl SmaConfig {
+    /// This configuration under `profile`: the one place a profile is applied, so whatever
+    /// differs between the system of today and the thesis's is read here. `Profile::Today`
+    /// changes nothing. `Profile::Thesis` runs the system as the thesis published it:
+    ///
+    /// - fixed-quality samples: every vertex is shaded once at the scene's quality preset, with
+    ///   no quality ladder (no direct-light first sample, no early rung, no rungs above the
+    ///   preset, no more paths where noise shows): the thesis's renderer returned one value per
+    ///   vertex (§2.1, §2.2; DESIGN.md §5), so `ScheduleConfig::ladder` is off;
+    /// - L_white the maximum luminance of the visible samples (§2.3 "the maximum luminance",
+    ///   §4.3.2's L_max, appendix A's x_max), not a percentile: `l_white_outliers` 0;
+    /// - NLD_IS leaves at least 6 pixels (§4.3.3): `nld_is_min_leaf_pixels`;
+    /// - no noise discounting: `nld-os` and `nld-is` run as `nld-os-thesis` and
+    ///   `nld-is-thesis` (eq. 4.6, 4.5), and `nld-px`, this project's criterion, is not offered
+    ///   ([`Profile::criterion`]);
+    /// - one pass of RND and of NLD_IS per camera, as §4.3.1 and §4.3.3 end them
+    ///   (`Passes::One`); NLD_OS's passes, S_ref stepping down to S_min, are §4.3.4's own;
+    /// - the thesis's neighbour rule (§4.2, fig. 4.7) in place of red–green's bisection;
+    /// - no coarsening, by passes unseen or by uniformity (`merge_uniform`): removing
+    ///   subdivision is future work in §6.
+    ///
+    /// What the thesis never gave a value for keeps today's measured default: S_ref's start and
+    /// step, S_min, R, K, the large-triangle fraction, RND's and NLD_IS's fractions, the other
+    /// criteria's leaf minimum, and the bound on the neighbour rule's propagation
+    /// (`mesh::neighbour_rule`'s 9 splits per step).
+    ///
+    /// Every addition beyond the thesis (merging by uniformity today; per-pixel direct light, an
+    /// object-space filter, textures, a cache file, coarsening by a memory budget to come) has a
+    /// setting of its own, turned off here under `Profile::Thesis`.
+    pub fn with_profile(mut self, profile: Profile) -> Result<SmaConfig, CriterionRefused> {
+        let schedule = &mut self.schedule;
+        schedule.criterion = profile.criterion(schedule.criterion)?;
+        schedule.profile = profile;
+        match profile {
+            Profile::Today => {}
+            Profile::Thesis => {
+                schedule.ladder = false;
+                schedule.l_white_outliers = 0.0;
+                schedule.criterion_settings.nld_is_min_leaf_pixels = Some(THESIS_NLD_IS_MIN_PIXELS);
+                schedule.criterion_settings.passes = Passes::One;
+                schedule.coarsen_after_passes = 0;
+                schedule.merge_uniform = false;
+                self.mesh.neighbour_rule = NeighbourRule::Thesis;
+            }
+        }
+        Ok(self)
+    }
+}
+
+/// §4.3.3: NLD_IS subdivides a leaf only if it covers at least 6 pixels.
+pub const THESIS_NLD_IS_MIN_PIXELS: u32 = 6;
+
+/// Which system the SMA runs: today's, or the thesis's as published (DESIGN.md §10), applied by
+/// [`SmaConfig::with_profile`], which lists what differs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Profile {
+    #[default]
+    Today,
+    Thesis,
+}
+
+impl Profile {
+    pub const ALL: [Profile; 2] = [Profile::Today, Profile::Thesis];
+
+    /// The profile's name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Profile::Today => "today",
+            Profile::Thesis => "thesis",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Profile> {
+        Profile::ALL.into_iter().find(|p| p.name() == name)
+    }
+
+    /// How tables, plots and logs name it.
+    pub fn label(self) -> &'static str {
+        match self {
+            Profile::Today => "today",
+            Profile::Thesis => "thesis (2006)",
+        }
+    }
+
+    /// The criterion that runs under this profile when `kind` is asked for. The thesis's
+    /// criteria read eq. 4.3 as it stands, with no noise discounting: the noise-aware `nld-os`
+    /// and `nld-is` run as their `-thesis` forms, and `nld-px`, which has no thesis form, is
+    /// refused.
+    pub fn criterion(self, kind: CriterionKind) -> Result<CriterionKind, CriterionRefused> {
+        match (self, kind) {
+            (Profile::Today, kind) => Ok(kind),
+            (Profile::Thesis, CriterionKind::NldOs) => Ok(CriterionKind::NldOsThesis),
+            (Profile::Thesis, CriterionKind::NldIs) => Ok(CriterionKind::NldIsThesis),
+            (Profile::Thesis, CriterionKind::NldPx) => Err(CriterionRefused::NotOffered {
+                criterion: kind,
+                profile: self,
+            }),
+            (Profile::Thesis, kind) => Ok(kind),
+        }
+    }
+
+    /// [`Profile::criterion`] for a criterion's name.
+    pub fn criterion_named(self, name: &str) -> Result<CriterionKind, CriterionRefused> {
+        let kind = CriterionKind::from_name(name)
+            .ok_or_else(|| CriterionRefused::Unknown(name.to_string()))?;
+        self.criterion(kind)
+    }
+
+    /// The criteria this profile offers: those that run as themselves (a viewer's panel lists
+    /// these; the names mapped to them are still accepted).
+    pub fn criteria(self) -> Vec<CriterionKind> {
+        CriterionKind::ALL
+            .into_iter()
+            .filter(|&k| self.criterion(k) == Ok(k))
+            .collect()
+    }
+
+    /// The offered criteria's names, comma-separated (for messages).
+    pub fn criteria_names(self) -> String {
+        let names: Vec<&str> = self.criteria().iter().map(|k| k.name()).collect();
+        names.join(", ")
+    }
+}
+
+impl std::fmt::Display for Profile {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A criterion asked for that the profile does not run.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum CriterionRefused {
+    /// No criterion has this name.
+    Unknown(String),
+    /// The profile does not offer it.
+    NotOffered {
+        criterion: CriterionKind,
+        profile: Profile,
+    },
+}
+
+impl std::fmt::Display for CriterionRefused {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CriterionRefused::Unknown(name) => write!(
+                f,
+                "unknown criterion {name:?}; known: {}",
+                CriterionKind::names()
+            ),
+            CriterionRefused::NotOffered { criterion, profile } => write!(
+                f,
+                "criterion {criterion} is not part of the {} profile (the thesis's criteria \
+                 have no noise discounting); it offers {}",
+                profile.label(),
+                profile.criteria_names()
+            ),
+        }
+    }
+}
+
+impl std::error::Error for CriterionRefused {}
+
 /// Every knob of the schedule's loop.
 #[derive(Clone, Debug)]
 pub struct ScheduleConfig {
+    /// Which system runs; set by [`SmaConfig::with_profile`] together with every setting it
+    /// changes, never alone. The schedule reads it where a viewer names a criterion.
+    pub profile: Profile,
     /// The criterion a viewer starts with (each may change its own with `SetCriterion`).
     pub criterion: CriterionKind,
     pub criterion_settings: CriterionSettings,
@@ -105,26 +272,38 @@ pub struct ScheduleConfig {
     /// the next (0..1]: a round walks every visible leaf, and so do the carry-over, re-plan and
     /// viewer sync it sets off, so on a large view the rounds' cycle, not the renderers, took
     /// the cores. Only while work is queued for the renderers; a camera move lifts the spacing
-    /// (`schedule::costs::Pace`).
+    /// (`schedule::pace::Pace`).
     pub round_share: f64,
     /// A view-dependent sample is retaken once the eye has moved by this angle, seen from it.
     pub view_angle_deg: f32,
     /// Time between stats lines.
     pub stats_every: Duration,
+    /// The fraction of the brightest visible samples that L_white leaves above it (DESIGN.md
+    /// §6, `ShadingCache::l_white`); 0: their maximum, as the thesis has it.
+    pub l_white_outliers: f64,
     pub cache_budget_bytes: usize,
     /// Visibility passes a base triangle must be out of every view before its subdivision is
     /// collapsed; 0: never.
     pub coarsen_after_passes: u64,
+    /// Coarsening by uniformity (thesis §6, DESIGN.md §4): a visible red parent whose midpoint
+    /// samples its own corners predict, within their noise or one display step, is merged back
+    /// (`schedule::uniformity`). Off until measured.
+    pub merge_uniform: bool,
     /// Seed of the criteria's random streams.
     pub seed: u64,
+    /// Whether samples climb the quality ladder (DESIGN.md §5, `schedule::ladder`); off, every
+    /// visible sample is traced once at the scene's quality preset (or `bounces`) and gets no
+    /// more paths, as in the thesis, and the stated end comes once every visible sample is at
+    /// that quality and the criterion finds nothing more.
+    pub ladder: bool,
     /// The quality ladder's last rung: paths per sample (DESIGN.md §5).
     pub max_paths: u32,
     /// Whether the ladder has its early rung, a quarter of the scene's paths, for direct-light
-    /// upgrades and refinement samples (`schedule::plan::Qualities`); off, both get the scene's
+    /// upgrades and refinement samples (`schedule::ladder::Qualities`); off, both get the scene's
     /// quality at once, so that the two can be measured side by side.
     pub early_rung: bool,
     /// While refinement's samples are queued, the share of the paths traced that goes to
-    /// bringing early-rung samples up to the scene's quality (`schedule::requests::Urgency::
+    /// bringing early-rung samples up to the scene's quality (`schedule::need::Urgency::
     /// TopUp`); 0: only when refinement waits for nothing.
     pub top_up_share: f64,
     /// Bounces of every path, in place of the scene's quality preset's (None: the preset's):
@@ -139,6 +318,7 @@ pub struct ScheduleConfig {
 impl Default for ScheduleConfig {
     fn default() -> Self {
         ScheduleConfig {
+            profile: Profile::Today,
             criterion: CriterionKind::NldOs,
             criterion_settings: CriterionSettings::default(),
             refine: true,
@@ -158,10 +338,14 @@ impl Default for ScheduleConfig {
             round_share: 0.05,
             view_angle_deg: 2.0,
             stats_every: Duration::from_secs(2),
+            // One glint otherwise sets it for the whole view (see `ShadingCache::l_white`).
+            l_white_outliers: L_WHITE_OUTLIERS,
             cache_budget_bytes: 1024 << 20,
             coarsen_after_passes: 300,
+            merge_uniform: false,
             seed: 1,
             // 64 × 4 × 4: two rungs past the interactive preset, a quarter of its noise.
+            ladder: true,
             max_paths: 1024,
             early_rung: true,
             top_up_share: 0.5,
@@ -169,5 +353,92 @@ impl Default for ScheduleConfig {
             // One step of an 8-bit display.
             display_error: 1.0 / 255.0,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn thesis() -> SmaConfig {
+        SmaConfig::default().with_profile(Profile::Thesis).unwrap()
+    }
+
+    #[test]
+    fn today_changes_nothing() {
+        let today = SmaConfig::default().with_profile(Profile::Today).unwrap();
+        let default = SmaConfig::default();
+        assert_eq!(format!("{today:?}"), format!("{default:?}"));
+    }
+
+    #[test]
+    fn the_thesis_profile_sets_what_the_thesis_published() {
+        let (thesis, today) = (thesis(), SmaConfig::default());
+        let s = &thesis.schedule;
+        assert_eq!(s.profile, Profile::Thesis);
+        assert!(!s.ladder && today.schedule.ladder, "fixed-quality samples");
+        assert_eq!(s.l_white_outliers, 0.0, "L_white the maximum");
+        assert_eq!(s.criterion_settings.nld_is_min_leaf_pixels, Some(6));
+        assert_eq!(s.criterion_settings.passes, Passes::One);
+        assert_eq!(s.coarsen_after_passes, 0, "no coarsening");
+        assert_eq!(thesis.mesh.neighbour_rule, NeighbourRule::Thesis);
+        assert_eq!(s.criterion, CriterionKind::NldOsThesis);
+        // What the thesis never gave a value for stays as today.
+        let mut unchanged = today.schedule.criterion_settings;
+        unchanged.nld_is_min_leaf_pixels = Some(6);
+        unchanged.passes = Passes::One;
+        assert_eq!(s.criterion_settings, unchanged);
+        assert_eq!(
+            (s.max_selections, s.revisit_samples, s.min_split_pixels),
+            (
+                today.schedule.max_selections,
+                today.schedule.revisit_samples,
+                today.schedule.min_split_pixels
+            )
+        );
+    }
+
+    #[test]
+    fn the_thesis_offers_its_own_criteria_and_maps_the_noise_aware_ones() {
+        use CriterionKind::*;
+        assert_eq!(Profile::Today.criteria(), CriterionKind::ALL);
+        assert_eq!(
+            Profile::Thesis.criteria(),
+            [Rnd, NldIsThesis, NldOsThesis, NldMm]
+        );
+        let thesis = Profile::Thesis;
+        assert_eq!(thesis.criterion(NldOs), Ok(NldOsThesis));
+        assert_eq!(thesis.criterion(NldIs), Ok(NldIsThesis));
+        assert_eq!(thesis.criterion_named("rnd"), Ok(Rnd));
+        assert_eq!(thesis.criterion_named("nld-mm"), Ok(NldMm));
+        assert_eq!(
+            thesis.criterion_named("nld-px"),
+            Err(CriterionRefused::NotOffered {
+                criterion: NldPx,
+                profile: thesis
+            })
+        );
+        assert!(matches!(
+            thesis.criterion_named("nope"),
+            Err(CriterionRefused::Unknown(_))
+        ));
+        let mut config = SmaConfig::default();
+        config.schedule.criterion = NldPx;
+        let refused = config.with_profile(thesis).unwrap_err().to_string();
+        assert!(
+            refused.contains("nld-px is not part of the thesis (2006) profile"),
+            "{refused}"
+        );
+        assert!(Profile::Today.criterion_named("nld-px").is_ok());
+    }
+
+    #[test]
+    fn profiles_are_named_and_labelled() {
+        for p in Profile::ALL {
+            assert_eq!(Profile::from_name(p.name()), Some(p));
+        }
+        assert_eq!(Profile::Thesis.label(), "thesis (2006)");
+        assert_eq!(Profile::Today.label(), "today");
+        assert_eq!(Profile::default(), Profile::Today);
     }
 }

@@ -151,8 +151,14 @@ pub struct CriterionSettings {
     pub rnd_fraction: f32,
     /// NLD_IS: at most this fraction of width × height leaves is selected per camera (§4.3.3).
     pub nld_is_fraction: f32,
-    /// No selection of a leaf covering fewer pixels (§4.3.3: 6).
+    /// No selection of a leaf covering fewer pixels (§4.3.3: 6, for NLD_IS).
     pub min_leaf_pixels: u32,
+    /// NLD_IS's own minimum in place of `min_leaf_pixels` (None: that one). The thesis gives
+    /// 6 pixels for NLD_IS alone (§4.3.3); its profile sets it here, and leaves the others at
+    /// `min_leaf_pixels` (`config::Profile`).
+    pub nld_is_min_leaf_pixels: Option<u32>,
+    /// RND and NLD_IS: whether a pass over the image is followed by another.
+    pub passes: Passes,
     /// NLD_PX: ε of eq. 3.4, the weight of a leaf's size alone in its priority
     /// `(ε + (1 - ε) S) × pixels`; it ranks large flat leaves (fig. 4.10) against shading edges.
     pub nld_px_epsilon: f32,
@@ -195,9 +201,27 @@ impl Default for CriterionSettings {
             rnd_fraction: 0.1,
             nld_is_fraction: 0.1,
             min_leaf_pixels: 2,
+            nld_is_min_leaf_pixels: None,
             nld_px_epsilon: 0.05,
+            passes: Passes::UntilDry,
         }
     }
+}
+
+/// How many passes RND and NLD_IS make over one camera's image. NLD_OS (and NLD_MM) have no
+/// such choice: their passes over the visible set, S_ref stepping down to S_min, are §4.3.4's
+/// own rule ("the process ends when the S of every triangle is below S_ref").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Passes {
+    /// A pass that selected something is followed by another over the image refined meanwhile
+    /// (its new leaves are new candidates); one that selected nothing ends the criterion's work
+    /// for the camera.
+    #[default]
+    UntilDry,
+    /// One pass per camera, as the thesis ends them: RND once its picks reach a fraction of
+    /// width × height (§4.3.1), NLD_IS at 1-pixel quadrants or once a fraction of the pixels is
+    /// selected (§4.3.3).
+    One,
 }
 
 /// A criterion of `kind`; `seed` feeds the random ones.

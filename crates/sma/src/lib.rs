@@ -14,20 +14,23 @@
 //! - [`schedule`]: the event loop tying them together;
 //! - [`config`]: the SMA's configuration, plain values;
 //! - [`server`]: the listener, and starting/stopping a whole SMA (also in-process, for tests);
+//! - [`clock`]: waiting on an optional instant, for the schedule's loop and the pool;
 //! - [`cli`]: the command line, the only module that parses arguments.
 //!
 //! The `testing` feature exposes the fixtures of the core's own tests to the launcher's
-//! benchmarks: `mesh::grid_mesh` and `criteria::synthetic` (the synthetic scenes behind the
-//! criterion defaults).
+//! benchmarks and to the tests of the whole system: `mesh::grid_mesh`, `criteria::synthetic` (the
+//! synthetic scenes behind the criterion defaults) and `visibility::coverage` (the pixels a set of
+//! triangles covers). The SMA's own tests enable it through their dev-dependency on this crate.
 
 pub mod cache;
 pub mod criteria;
 pub mod mesh;
 pub(crate) mod nld;
-pub mod sample;
+pub(crate) mod sample;
 pub mod visible_set;
 
 pub mod cli;
+pub(crate) mod clock;
 pub mod config;
 pub(crate) mod pool;
 pub(crate) mod schedule;

@@ -98,7 +98,7 @@ pub async fn start(
     };
     let pool = pool::spawn(pool_config, pool_tx, joining, shutdown_rx.clone());
     let link = ViewerLinkConfig {
-        scene_info: scene_info(&scene, config.schedule.criterion),
+        scene_info: scene_info(&scene, config.schedule.criterion, config.schedule.profile),
         scene: scene_identity(&scene),
         max_frame: config.max_frame,
         handshake_deadline: config.viewer_port.handshake_deadline,
@@ -107,6 +107,12 @@ pub async fn start(
         silence: config.viewer_silence,
         backlog_bytes: config.viewer_backlog_bytes,
     };
+    tracing::info!(
+        profile = config.schedule.profile.label(),
+        criterion = %config.schedule.criterion,
+        scene = %scene.name,
+        "sma starting"
+    );
     let schedule = Schedule::new(config.schedule, &scene, mesh, gpu, pool);
     tracing::debug!(adapter = %schedule.adapter(), scene = %scene.name, "visibility device");
     let listener = TcpListener::bind(&config.listen)

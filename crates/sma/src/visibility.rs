@@ -1,23 +1,26 @@
 //! GPU visibility, headless (DESIGN.md §3 steps 2–3; thesis §4.1).
 //!
-//! - [`carry_over`]: a view brought to a refined or coarsened mesh without a pass, the camera
+//! - `carry_over`: a view brought to a refined or coarsened mesh without a pass, the camera
 //!   unchanged;
-//! - [`gpu`]: the device (a GPU when there is one, else Mesa) and offscreen targets with readback;
+//! - `gpu`: the device (a GPU when there is one, else Mesa) and offscreen targets with readback;
 //! - [`id_pass`]: triangles into an R32Uint ID buffer with depth, per-triangle pixel coverage;
-//! - [`levels`]: level 1 over the base mesh, level 2 over the leaves of visible base triangles;
-//! - [`luminance_pass`]: the Gouraud luminance image of what a viewer shows, for `nld-is`;
-//! - [`coverage_mask`]: the pixels a set of triangles covers, for tests;
-//! - [`view`]: a camera and depth range; every pass draws camera-relative.
+//! - `levels`: level 1 over the base mesh, level 2 over the leaves of visible base triangles;
+//! - `luminance_pass`: the Gouraud luminance image of what a viewer shows, for `nld-is`;
+//! - `coverage_mask`: the pixels a set of triangles covers, for tests (behind the `testing`
+//!   feature);
+//! - `view`: a camera and depth range; every pass draws camera-relative.
 
-pub mod carry_over;
-pub mod coverage_mask;
-pub mod gpu;
+mod carry_over;
+#[cfg(any(test, feature = "testing"))]
+mod coverage_mask;
+mod gpu;
 pub mod id_pass;
-pub mod levels;
-pub mod luminance_pass;
-pub mod view;
+mod levels;
+mod luminance_pass;
+mod view;
 
 pub use carry_over::carry_over;
+#[cfg(any(test, feature = "testing"))]
 pub use coverage_mask::coverage;
 pub use gpu::{Gpu, GpuError};
 pub use id_pass::{Coverage, IdImage, IdPass, TriangleBuffer};

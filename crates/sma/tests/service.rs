@@ -10,9 +10,9 @@ use std::time::Duration;
 use glam::Vec3;
 use protocol::Side;
 use protocol::renderer_link::{Quality, SampleKey};
-use protocol::viewer_link::{Camera, ViewerToSma};
+use protocol::viewer_link::{Camera, SmaToViewer, ViewerToSma};
 use scene::{Material, Scene, SceneBuilder, SceneSettings, ViewpointSetting};
-use sma::config::SmaConfig;
+use sma::config::{Profile, SmaConfig};
 use sma::server::Running;
 use sma::visibility::Gpu;
 use testkit::fake_renderer::{self, Fault, Log};
@@ -22,6 +22,9 @@ use testkit::probe::Probe;
 const W: u32 = 200;
 const H: u32 = 150;
 const WAIT: Duration = Duration::from_secs(60);
+/// `Stats` intervals that must pass without work to show that a converged SMA asks for nothing
+/// (at a `stats_every` of 10 ms, half a second of its turns at least).
+const QUIET_INTERVALS: usize = 50;
 
 fn gpu_available() -> bool {
     gpu_or_skip(Gpu::new()).is_some()
@@ -385,6 +388,88 @@ async fn subdivision_out_of_view_long_enough_is_coarsened_back_to_the_base_mesh(
     assert!(shown_after_looking_away(0).await >= 12);
 }
 
+/// Flat shading but for a darker back side: nothing to refine but what the large-triangle rule
+/// splits (§4.3.5).
+fn flat(_: Vec3, side: Side, _: Quality, _: Option<Vec3>) -> [f32; 3] {
+    [if side == Side::Back { 0.25 } else { 0.5 }; 3]
+}
+
+/// What a view showed at its stated end.
+struct StatedEnd {
+    /// The mesh's leaves.
+    leaves: u64,
+    /// Shown triangles across the fake renderer's shadow edge at x = 0.3.
+    across_the_edge: usize,
+}
+
+/// Refines the wall and the floor from the front, shaded by `shading`, until the view's stated
+/// end, with coarsening by uniformity (`--merge-uniform`) on or off, checking that the table is
+/// then conforming and covers the visible surface.
+async fn stated_end(shading: fake_renderer::Shading, merge_uniform: bool) -> StatedEnd {
+    let scene = diffuse_wall();
+    let (renderer, _) = fake_renderer::start(scene.clone(), shading, Fault::None).await;
+    let mut config = config(vec![renderer], true);
+    config.schedule.merge_uniform = merge_uniform;
+    config.schedule.max_paths = 4 * Quality::INTERACTIVE.paths;
+    config.schedule.stats_every = Duration::from_millis(10);
+    let (sma, mut probe) = start_with_probe(&config, &scene).await;
+    let camera = probe.view("front", W, H).await.unwrap();
+    let stats = probe.until_converged(WAIT).await.unwrap();
+    if let Some(problem) = probe.conformity_problem() {
+        panic!("not conforming at the stated end: {problem}");
+    }
+    let holes = differing(
+        &scene_coverage(&scene, &camera),
+        &shown_coverage(&scene, &probe, &camera),
+    );
+    assert!(
+        holes <= (W * H) as usize / 1000,
+        "{holes} pixels differ from the visible surface"
+    );
+    let across_the_edge = probe
+        .triangles()
+        .iter()
+        .filter(|t| t.iter().any(|p| p.x < 0.3) && t.iter().any(|p| p.x > 0.3))
+        .count();
+    sma.stop().await.unwrap();
+    StatedEnd {
+        leaves: stats.leaves,
+        across_the_edge,
+    }
+}
+
+/// The thesis's future work (§6): a split of a flat surface brings nothing, which is known only
+/// once it is made. On flat shading every split is the large-triangle rule's, and merging by
+/// uniformity takes most of them back; across a shadow edge (`radiance_at`) the splits that
+/// found it stay.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn splits_that_showed_nothing_are_merged_back_only_with_merging_by_uniformity() {
+    if !gpu_available() {
+        return;
+    }
+    let (off, on) = (stated_end(flat, false).await, stated_end(flat, true).await);
+    eprintln!(
+        "flat: {} leaves without merging, {} with it",
+        off.leaves, on.leaves
+    );
+    assert!(
+        on.leaves * 2 < off.leaves,
+        "{} leaves merging, {} without",
+        on.leaves,
+        off.leaves
+    );
+    let (off, on) = (
+        stated_end(radiance_at, false).await,
+        stated_end(radiance_at, true).await,
+    );
+    eprintln!(
+        "shadow edge: {} leaves ({} across it) without merging, {} ({}) with it",
+        off.leaves, off.across_the_edge, on.leaves, on.across_the_edge
+    );
+    assert!(on.leaves < off.leaves);
+    assert!(on.across_the_edge * 10 >= off.across_the_edge * 9);
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_renderer_killed_mid_batch_loses_no_request() {
     if !gpu_available() {
@@ -560,15 +645,137 @@ async fn a_resting_viewer_gets_more_paths_until_converged_then_nothing() {
         requests.iter().all(|q| q.paths <= rung.paths),
         "a request went past the cap"
     );
-    // After the stated end the renderer is left alone.
+    // After the stated end the renderer is left alone: each `Stats` closes an interval of the
+    // schedule's turns, and the next ones all find it converged with nothing traced (a request
+    // would be outstanding, or answered, within its interval), while the renderer is asked for
+    // nothing.
     let settled = log.lock().unwrap().len();
-    tokio::time::sleep(Duration::from_millis(500)).await;
+    let (mut quiet, mut working) = (0, Vec::new());
+    probe
+        .until_stats(WAIT, |s| {
+            if s.converged && s.paths_per_sec == 0.0 {
+                quiet += 1;
+            } else {
+                working.push(*s);
+            }
+            quiet == QUIET_INTERVALS || !working.is_empty()
+        })
+        .await
+        .unwrap();
+    assert!(working.is_empty(), "work after convergence: {working:?}");
     assert_eq!(
         log.lock().unwrap().len(),
         settled,
         "requests after convergence"
     );
     sma.stop().await.unwrap();
+}
+
+/// The thesis as published, end to end: every request is at the scene's quality preset (no
+/// ladder: no direct-light first sample, no more paths for the noise the renderer reports), the
+/// viewer is offered the thesis's criteria only and refused `nld-px` without losing its link,
+/// L_white is the maximum of what it is shown, and the view still reaches its stated end, the
+/// shadow edge refined, and is then left alone.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_thesis_profile_refines_at_fixed_quality_to_its_stated_end() {
+    if !gpu_available() {
+        return;
+    }
+    let scene = diffuse_wall();
+    let (renderer, log) = fake_renderer(scene.clone(), Fault::Noisy).await;
+    let mut config = config(vec![renderer], true)
+        .with_profile(Profile::Thesis)
+        .unwrap();
+    config.schedule.stats_every = Duration::from_millis(10);
+    let (sma, mut probe) = start_with_probe(&config, &scene).await;
+    assert_eq!(
+        probe.scene.criteria,
+        ["nld-os-thesis", "rnd", "nld-is-thesis", "nld-mm"]
+    );
+    view_completely(&mut probe, "front").await;
+    let stats = probe.until_converged(WAIT).await.unwrap();
+    assert!(stats.converged);
+    let preset = Quality {
+        paths: scene.settings.quality.paths,
+        bounces: scene.settings.quality.bounces,
+    };
+    let requests: Vec<Quality> = log.lock().unwrap().iter().map(|r| r.1).collect();
+    assert!(!requests.is_empty());
+    assert!(
+        requests.iter().all(|q| *q == preset),
+        "a request off the preset {preset:?}: {:?}",
+        requests.iter().find(|q| **q != preset)
+    );
+    assert_eq!(repeated_requests(&log), vec![], "a sample shaded twice");
+    assert!(
+        stats.leaves > scene.mesh.triangles.len() as u64,
+        "the shadow edge at x = 0.3 was not refined: {} leaves",
+        stats.leaves
+    );
+    // L_white is the maximum luminance shown (the fake renderer's lit side, 1.0).
+    let shown_max = probe
+        .table
+        .values()
+        .flat_map(|t| t.radiance.iter().map(|rgb| conventions::luminance(*rgb)))
+        .fold(0.0, f32::max);
+    let l_white = probe.l_white.expect("a tone map");
+    assert!(
+        (l_white - shown_max).abs() <= 1e-6 * shown_max,
+        "{l_white} against {shown_max}"
+    );
+    // After the stated end nothing more is asked: no further paths for the reported noise.
+    let settled = log.lock().unwrap().len();
+    let mut quiet = 0;
+    probe
+        .until_stats(WAIT, |s| {
+            quiet += usize::from(s.converged && s.paths_per_sec == 0.0);
+            quiet == QUIET_INTERVALS || !s.converged
+        })
+        .await
+        .unwrap();
+    assert_eq!(quiet, QUIET_INTERVALS, "work after the stated end");
+    assert_eq!(log.lock().unwrap().len(), settled, "requests after the end");
+    // `nld-px` is refused with an error, and the link stays.
+    probe
+        .send(ViewerToSma::SetCriterion {
+            name: "nld-px".into(),
+        })
+        .await
+        .unwrap();
+    let refused = tokio::time::timeout(WAIT, async {
+        loop {
+            match probe.read().await.unwrap() {
+                SmaToViewer::Error { message } => return message,
+                _ => continue,
+            }
+        }
+    })
+    .await
+    .unwrap();
+    assert!(refused.contains("nld-px"), "{refused}");
+    assert_eq!(next_criterion(&mut probe).await, "nld-os-thesis", "kept");
+    // `nld-is` runs as the thesis has it.
+    probe
+        .send(ViewerToSma::SetCriterion {
+            name: "nld-is".into(),
+        })
+        .await
+        .unwrap();
+    assert_eq!(next_criterion(&mut probe).await, "nld-is-thesis");
+    sma.stop().await.unwrap();
+}
+
+/// The criterion the next `Refinement` reply names, read off the link.
+async fn next_criterion(probe: &mut Probe) -> String {
+    tokio::time::timeout(WAIT, async {
+        loop {
+            if let SmaToViewer::Refinement { criterion, .. } = probe.read().await.unwrap() {
+                return criterion;
+            }
+        }
+    })
+    .await
+    .unwrap()
 }
 
 /// A reply with one NaN point keeps its other points; that point is asked for again, a few

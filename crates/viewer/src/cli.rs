@@ -115,7 +115,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 
 impl Cli {
     /// The configuration these flags ask for.
-    pub fn config(self) -> ViewerConfig {
+    pub(crate) fn config(self) -> ViewerConfig {
         ViewerConfig {
             connect: self.connect,
             view: self.view,

@@ -62,9 +62,10 @@ impl Uniforms {
     /// The eye ray basis of `draw.wgsl`'s sky: right and up scaled to the image's half extent
     /// at unit distance along the view direction.
     fn set_sky(&mut self, camera: &Camera, sky: &SkyInfo) {
-        let rotation = camera.rotation();
-        let half_height = (0.5 * camera.fov_y_deg.to_radians()).tan();
-        let half_width = half_height * camera.aspect();
+        let pinhole = camera.pinhole();
+        let rotation = pinhole.rotation;
+        let half_height = pinhole.half_height();
+        let half_width = half_height * pinhole.aspect();
         let w0 = |v: Vec3| v.extend(0.0).to_array();
         self.right = w0(rotation * Vec3::X * half_width);
         self.up = w0(rotation * Vec3::Y * half_height);

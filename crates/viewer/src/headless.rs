@@ -12,7 +12,7 @@ use crate::camera_path::CameraPath;
 use crate::camera_sender::{CameraSender, DEFAULT_INTERVAL};
 use crate::config::ViewerConfig;
 use crate::draw::DrawSettings;
-use crate::link::{Link, LinkEvent};
+use crate::link::{Link, LinkEvent, event_queue};
 use crate::panel::Facts;
 use crate::progress::ProgressPrinter;
 use crate::session::{pick_viewpoint, preferences};
@@ -121,10 +121,9 @@ pub fn run(config: &ViewerConfig) -> anyhow::Result<()> {
     let (writer, adapter) = SnapshotWriter::create(&config.out, canvas, config.hold_snapshots)?;
     tracing::debug!(%adapter, "headless viewer");
     tracing::info!("snapshots go to {}", config.out.display());
-    let (tx, events) = mpsc::channel();
-    let link = Link::spawn(config.connect.clone(), move |event| {
-        let _ = tx.send(event);
-    })?;
+    // The loop looks every tick, so it needs no wake-up.
+    let (notify, events) = event_queue(|| {});
+    let link = Link::spawn(config.connect.clone(), notify)?;
     let mut headless = Headless {
         writer,
         plan: SnapshotPlan::new(
@@ -142,7 +141,9 @@ pub fn run(config: &ViewerConfig) -> anyhow::Result<()> {
         snapshots: 0,
         progress: ProgressPrinter::new(config.progress),
     };
-    let result = headless.run(&events);
+    let result = headless.run(&events.receiver);
+    // Nothing takes the link's events any more: a link waiting for room stops waiting.
+    drop(events);
     headless.link.close();
     result.and(headless.writer.finish())
 }

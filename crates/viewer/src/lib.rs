@@ -21,10 +21,10 @@
 pub(crate) mod camera_path;
 pub(crate) mod camera_sender;
 pub mod cli;
-pub mod config;
+pub(crate) mod config;
 pub mod draw;
 pub mod gpu;
-pub mod headless;
+pub(crate) mod headless;
 pub mod link;
 pub mod offscreen;
 pub(crate) mod overlay;

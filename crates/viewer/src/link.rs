@@ -3,9 +3,12 @@
 //! and forwards what the viewer may draw. When the link drops it reconnects with exponential
 //! backoff; every new session starts from an empty table (the SMA forgets what a viewer held).
 //!
-//! The viewer's front end (window or headless) gets [`LinkEvent`]s through a callback, so a winit
-//! event loop can be woken by its proxy and a headless loop by a channel.
+//! The viewer's front end (window or headless) gets [`LinkEvent`]s through a callback; both front
+//! ends make it a bounded queue ([`event_queue`]) that wakes a winit event loop through its proxy
+//! and that a headless loop polls.
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use protocol::connection::{TcpReader, TcpWriter, connect_handshake};
@@ -45,9 +48,59 @@ pub const SMA_SILENCE: Duration = Duration::from_secs(10);
 const FIRST_RETRY: Duration = Duration::from_millis(100);
 const MAX_RETRY: Duration = Duration::from_secs(5);
 
+/// Messages the front end may have queued for the SMA. The link's task takes them as they come
+/// (between sessions it drops them); they wait only while a write to the SMA waits for room in
+/// the socket, or while the link waits for a front end [`EVENT_QUEUE`] events behind, which is
+/// then not sending either. The front end sends at most 20 cameras a second (`camera_sender`)
+/// and a command per key or click, so a full outbox means the SMA has read nothing for seconds
+/// past the socket's own buffer: what comes then is dropped (see [`Link::send`]) rather than
+/// make the front end wait for the SMA.
+const OUTBOX: usize = 64;
+
+/// Link events a front end may be behind by (see [`event_queue`]). The SMA closes an update at
+/// most every 50 ms, plus a `Stats` a second, and the front end takes what is queued every
+/// frame or tick, so 256 are some 12 s of a front end that does not look. Past that the link's
+/// thread waits for it and reads nothing more: what the SMA has for this viewer then waits in
+/// the SMA's own bounded outbox, coalesced per triangle, rather than here.
+pub(crate) const EVENT_QUEUE: usize = 256;
+
+/// The queue between the link and a front end that takes the events in its own loop: the
+/// callback for [`Link::spawn`], which queues each event, waiting while [`EVENT_QUEUE`] are
+/// queued, and calls `wake` unless a wake-up is already pending; and the receiving end. A front
+/// end that `wake` wakes calls [`EventQueue::woken`] before it takes what is queued. Drop the
+/// receiving end before closing the link, so a link waiting for room stops waiting.
+pub(crate) fn event_queue(
+    wake: impl Fn() + Send + 'static,
+) -> (impl Fn(LinkEvent) + Send + 'static, EventQueue) {
+    let (tx, receiver) = std::sync::mpsc::sync_channel(EVENT_QUEUE);
+    let pending = Arc::new(AtomicBool::new(false));
+    let notify_pending = Arc::clone(&pending);
+    let notify = move |event| {
+        if tx.send(event).is_ok() && !notify_pending.swap(true, Ordering::SeqCst) {
+            wake();
+        }
+    };
+    (notify, EventQueue { receiver, pending })
+}
+
+/// The front end's end of [`event_queue`].
+pub(crate) struct EventQueue {
+    pub receiver: std::sync::mpsc::Receiver<LinkEvent>,
+    pending: Arc<AtomicBool>,
+}
+
+impl EventQueue {
+    /// Marks the wake-up taken: an event queued from now on wakes the front end again, so none
+    /// is left behind one it has already taken.
+    pub fn woken(&self) {
+        self.pending.store(false, Ordering::SeqCst);
+    }
+}
+
 /// The front end's handle: messages to the SMA, and the thread to join at the end.
 pub struct Link {
-    outbox: mpsc::UnboundedSender<ViewerToSma>,
+    /// `None` once the link is shut down: its task then ends when it has taken what is queued.
+    outbox: Option<mpsc::Sender<ViewerToSma>>,
     thread: Option<std::thread::JoinHandle<()>>,
 }
 
@@ -57,7 +110,7 @@ impl Link {
         addr: String,
         notify: impl Fn(LinkEvent) + Send + 'static,
     ) -> anyhow::Result<Link> {
-        let (outbox, inbox) = mpsc::unbounded_channel();
+        let (outbox, inbox) = mpsc::channel(OUTBOX);
         let runtime = tokio::runtime::Builder::new_current_thread()
             .enable_all()
             .build()?;
@@ -65,15 +118,22 @@ impl Link {
             .name("sma-link".into())
             .spawn(move || runtime.block_on(run(addr, notify, inbox)))?;
         Ok(Link {
-            outbox,
+            outbox: Some(outbox),
             thread: Some(thread),
         })
     }
 
-    /// Queues a message; dropped while disconnected (the front end resends its state on
-    /// `Connected`, so nothing stale reaches a new session).
+    /// Queues a message without waiting; dropped while disconnected (the front end resends its
+    /// state on `Connected`, so nothing stale reaches a new session), and dropped with a warning
+    /// when [`OUTBOX`] messages already wait for an SMA that reads nothing.
     pub fn send(&self, msg: ViewerToSma) {
-        let _ = self.outbox.send(msg);
+        let Some(outbox) = &self.outbox else { return };
+        if let Err(mpsc::error::TrySendError::Full(msg)) = outbox.try_send(msg) {
+            tracing::warn!(
+                "the SMA has not read {OUTBOX} messages; dropping {}",
+                outgoing_kind(&msg)
+            );
+        }
     }
 
     /// Says goodbye to the SMA and waits for the link to end.
@@ -81,8 +141,12 @@ impl Link {
         self.shut_down();
     }
 
+    /// Says `Bye` if the outbox has room, then closes it: the task ends once it has taken what
+    /// is queued, `Bye` or not, so the join never waits on a full outbox.
     fn shut_down(&mut self) {
-        let _ = self.outbox.send(ViewerToSma::Bye);
+        if let Some(outbox) = self.outbox.take() {
+            let _ = outbox.try_send(ViewerToSma::Bye);
+        }
         if let Some(thread) = self.thread.take() {
             let _ = thread.join();
         }
@@ -102,11 +166,7 @@ enum SessionEnd {
     Lost(String),
 }
 
-async fn run(
-    addr: String,
-    notify: impl Fn(LinkEvent),
-    mut inbox: mpsc::UnboundedReceiver<ViewerToSma>,
-) {
+async fn run(addr: String, notify: impl Fn(LinkEvent), mut inbox: mpsc::Receiver<ViewerToSma>) {
     let mut retry = FIRST_RETRY;
     loop {
         let attempt = tokio::time::timeout(CONNECT_TIMEOUT, connect(&addr));
@@ -147,7 +207,7 @@ type Connected = (TcpReader<SmaToViewer>, TcpWriter<ViewerToSma>, SceneInfo);
 /// were meant for no session: the front end restates its state on `Connected`.
 async fn unless_finished<T>(
     work: impl Future<Output = T>,
-    inbox: &mut mpsc::UnboundedReceiver<ViewerToSma>,
+    inbox: &mut mpsc::Receiver<ViewerToSma>,
 ) -> Option<T> {
     tokio::pin!(work);
     loop {
@@ -187,7 +247,7 @@ async fn session(
     mut reader: TcpReader<SmaToViewer>,
     mut writer: TcpWriter<ViewerToSma>,
     notify: &impl Fn(LinkEvent),
-    inbox: &mut mpsc::UnboundedReceiver<ViewerToSma>,
+    inbox: &mut mpsc::Receiver<ViewerToSma>,
 ) -> SessionEnd {
     let mut staging = Staging::default();
     let silence = tokio::time::sleep(SMA_SILENCE);
@@ -244,6 +304,17 @@ fn other_event(msg: SmaToViewer) -> LinkEvent {
     }
 }
 
+fn outgoing_kind(msg: &ViewerToSma) -> &'static str {
+    match msg {
+        ViewerToSma::Camera(_) => "Camera",
+        ViewerToSma::SetCriterion { .. } => "SetCriterion",
+        ViewerToSma::Pause => "Pause",
+        ViewerToSma::Resume => "Resume",
+        ViewerToSma::Bye => "Bye",
+        ViewerToSma::Pong { .. } => "Pong",
+    }
+}
+
 fn kind(msg: &SmaToViewer) -> &'static str {
     match msg {
         SmaToViewer::SceneInfo(_) => "SceneInfo",
@@ -256,5 +327,53 @@ fn kind(msg: &SmaToViewer) -> &'static str {
         SmaToViewer::Refinement { .. } => "Refinement",
         SmaToViewer::Error { .. } => "Error",
         SmaToViewer::Ping { .. } => "Ping",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::atomic::AtomicUsize;
+
+    use super::*;
+
+    fn stats() -> LinkEvent {
+        LinkEvent::Stats(Stats::default())
+    }
+
+    #[test]
+    fn the_event_queue_wakes_once_per_taking() {
+        let wakes = Arc::new(AtomicUsize::new(0));
+        let counted = Arc::clone(&wakes);
+        let (notify, queue) = event_queue(move || {
+            counted.fetch_add(1, Ordering::SeqCst);
+        });
+        notify(stats());
+        notify(stats());
+        assert_eq!(
+            wakes.load(Ordering::SeqCst),
+            1,
+            "one wake-up pending at a time"
+        );
+        queue.woken();
+        assert_eq!(queue.receiver.try_iter().count(), 2);
+        notify(stats());
+        assert_eq!(
+            wakes.load(Ordering::SeqCst),
+            2,
+            "an event after the taking wakes again"
+        );
+    }
+
+    #[test]
+    fn a_full_event_queue_lets_go_once_its_receiver_is_dropped() {
+        let (notify, queue) = event_queue(|| {});
+        for _ in 0..EVENT_QUEUE {
+            notify(stats());
+        }
+        let blocked = std::thread::spawn(move || notify(stats()));
+        std::thread::sleep(Duration::from_millis(50));
+        assert!(!blocked.is_finished(), "a full queue holds the link back");
+        drop(queue);
+        blocked.join().expect("the link goes on");
     }
 }

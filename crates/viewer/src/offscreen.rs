@@ -205,7 +205,8 @@ impl Offscreen {
             },
         );
         gpu.queue.submit([encoder.finish()]);
-        let (tx, rx) = std::sync::mpsc::channel();
+        // The mapping's callback runs once: room for its one answer.
+        let (tx, rx) = std::sync::mpsc::sync_channel(1);
         buffer.slice(..).map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);
         });

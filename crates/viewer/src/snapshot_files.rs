@@ -87,6 +87,12 @@ impl SnapshotWriter {
     ) -> anyhow::Result<(SnapshotWriter, String)> {
         let held_before_drawing = if hold { HELD_BEFORE_DRAWING } else { 0 };
         let files = SnapshotFiles::create(dir)?;
+        // Bounded in bytes, not in count: `Shared::reserve` admits a frame only while the frames
+        // queued hold at most `MAX_WAITING_BYTES`, each counting at least its own size. A count
+        // bound could not stand in for it: frames range from a few hundred bytes to tens of
+        // megabytes, a `sync_channel` of the count the budget allows would allocate its slots up
+        // front, and one that filled first would leave a holding writer waiting for bytes that
+        // never come while the viewer waited for a slot.
         let (waiting, queue) = channel();
         let (opened, adapter) = sync_channel(1);
         let shared = Arc::new(Shared::default());

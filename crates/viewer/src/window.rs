@@ -24,7 +24,7 @@ use crate::camera_sender::{CameraSender, DEFAULT_INTERVAL};
 use crate::config::ViewerConfig;
 use crate::draw::{DrawSettings, Drawer, Output, depth_range, depth_texture};
 use crate::gpu::Gpu;
-use crate::link::{Link, LinkEvent};
+use crate::link::{EventQueue, Link, event_queue};
 use crate::overlay::Overlay;
 use crate::panel::{Action, Facts};
 use crate::progress::ProgressPrinter;
@@ -35,6 +35,10 @@ use crate::walk_camera::{WalkCamera, default_speed};
 
 /// Title prefix, also what the window test searches for.
 pub const TITLE: &str = "walkthrough viewer";
+/// What the window logs (at `debug`, with `panel` shown or not) once it has drawn and has
+/// nothing more to draw until an input or the SMA changes something: the window test waits for
+/// it before a click, which must then be drawn for on its own.
+pub const SETTLED: &str = "window settled";
 const TITLE_EVERY: Duration = Duration::from_millis(500);
 /// Longest step of one frame: a key tapped after a long idle moves a little, not far.
 const MAX_FRAME_S: f32 = 0.1;
@@ -42,17 +46,31 @@ const LOOK_RAD_PER_PIXEL: f32 = 0.003;
 const TURN_RAD_PER_S: f32 = 1.5;
 const SPEED_STEP: f32 = 1.5;
 
-pub fn run(config: &ViewerConfig) -> anyhow::Result<()> {
-    let event_loop = EventLoop::<LinkEvent>::with_user_event().build()?;
+pub(crate) fn run(config: &ViewerConfig) -> anyhow::Result<()> {
+    // winit's own queue of user events has no bound, so the link's events wait in a bounded one
+    // and winit carries only a wake-up, one at a time.
+    let event_loop = EventLoop::<LinkWoke>::with_user_event().build()?;
     let proxy = event_loop.create_proxy();
-    let link = Link::spawn(config.connect.clone(), move |event| {
-        let _ = proxy.send_event(event);
-    })?;
-    let mut app = App::new(config.clone(), link);
+    let (notify, events) = event_queue(move || {
+        let _ = proxy.send_event(LinkWoke);
+    });
+    let link = Link::spawn(config.connect.clone(), notify)?;
+    let mut app = App::new(config.clone(), link, events);
     event_loop.run_app(&mut app)?;
-    app.link.close();
-    app.failure.map_or(Ok(()), Err)
+    let App {
+        link,
+        events,
+        failure,
+        ..
+    } = app;
+    // Nothing takes the link's events any more: a link waiting for room stops waiting.
+    drop(events);
+    link.close();
+    failure.map_or(Ok(()), Err)
 }
+
+/// The link has queued events ([`event_queue`]).
+struct LinkWoke;
 
 /// The window and what draws into it.
 struct Display {
@@ -156,6 +174,7 @@ impl Keys {
 struct App {
     config: ViewerConfig,
     link: Link,
+    events: EventQueue,
     state: ViewState,
     display: Option<Display>,
     walk: Option<WalkCamera>,
@@ -174,11 +193,13 @@ struct App {
     last_frame: Instant,
     frames: u32,
     title_at: Instant,
+    /// A frame was drawn since the window last settled ([`SETTLED`]).
+    drawn: bool,
     failure: Option<anyhow::Error>,
 }
 
 impl App {
-    fn new(config: ViewerConfig, link: Link) -> App {
+    fn new(config: ViewerConfig, link: Link, events: EventQueue) -> App {
         let now = Instant::now();
         App {
             settings: DrawSettings {
@@ -194,6 +215,7 @@ impl App {
             progress: ProgressPrinter::new(config.progress),
             config,
             link,
+            events,
             state: ViewState::default(),
             display: None,
             walk: None,
@@ -204,6 +226,7 @@ impl App {
             last_frame: now,
             frames: 0,
             title_at: now,
+            drawn: false,
             failure: None,
         }
     }
@@ -396,6 +419,7 @@ impl App {
         d.gpu.queue.submit([encoder.finish()]);
         d.gpu.queue.present(texture);
         self.frames += 1;
+        self.drawn = true;
         for action in actions {
             self.apply(action);
         }
@@ -431,7 +455,7 @@ impl App {
     }
 }
 
-impl ApplicationHandler<LinkEvent> for App {
+impl ApplicationHandler<LinkWoke> for App {
     fn resumed(&mut self, event_loop: &ActiveEventLoop) {
         if self.display.is_some() {
             return;
@@ -448,10 +472,13 @@ impl ApplicationHandler<LinkEvent> for App {
         }
     }
 
-    fn user_event(&mut self, _: &ActiveEventLoop, event: LinkEvent) {
-        match self.state.handle(event) {
-            Reaction::Resend => self.restate(),
-            Reaction::Drawn(_) | Reaction::Nothing => {}
+    fn user_event(&mut self, _: &ActiveEventLoop, _: LinkWoke) {
+        self.events.woken();
+        while let Ok(event) = self.events.receiver.try_recv() {
+            match self.state.handle(event) {
+                Reaction::Resend => self.restate(),
+                Reaction::Drawn(_) | Reaction::Nothing => {}
+            }
         }
         self.redraw();
     }
@@ -536,6 +563,8 @@ impl ApplicationHandler<LinkEvent> for App {
                 .is_some_and(|d| d.overlay.wants_repaint());
         if self.keys.moving() || panel_busy {
             self.redraw();
+        } else if std::mem::take(&mut self.drawn) {
+            tracing::debug!(panel = self.panel, "{SETTLED}");
         }
         // A camera change held back by the rate limit goes out on one of these wake-ups.
         self.offer_camera();

@@ -6,8 +6,10 @@
 
 mod common;
 
+use std::io::BufRead;
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use common::{Seen, StandIn, front_camera, known_triangles, scene};
@@ -112,6 +114,48 @@ fn mean_difference(
     total as f64 / (3 * width * H as u64) as f64
 }
 
+/// The viewer's log lines so far, read from its stderr (and passed on to the test's).
+#[derive(Clone, Default)]
+struct Log(Arc<Mutex<Vec<String>>>);
+
+impl Log {
+    fn follow(child: &mut Child) -> Log {
+        let log = Log::default();
+        let lines = log.clone();
+        let stderr = child.stderr.take().expect("the viewer's stderr is piped");
+        std::thread::spawn(move || {
+            for line in std::io::BufReader::new(stderr).lines() {
+                let Ok(line) = line else { break };
+                eprintln!("{line}");
+                lines.0.lock().unwrap().push(line);
+            }
+        });
+        log
+    }
+
+    fn len(&self) -> usize {
+        self.0.lock().unwrap().len()
+    }
+
+    /// Waits until the window has settled with its panel shown ([`viewer::window::SETTLED`]) in
+    /// a line at `from` or later, and after every line where it settled with the panel hidden.
+    fn wait_settled_with_panel(&self, what: &str, from: usize) {
+        let settled = |line: &String, panel: bool| {
+            line.contains(viewer::window::SETTLED) && line.contains(&format!("panel={panel}"))
+        };
+        wait_for(what, || {
+            let lines = self.0.lock().unwrap();
+            let hidden = lines.iter().rposition(|l| settled(l, false));
+            let from = hidden.map_or(from, |h| from.max(h + 1));
+            lines
+                .iter()
+                .skip(from)
+                .any(|l| settled(l, true))
+                .then_some(())
+        })
+    }
+}
+
 /// Waits until the screen shows `want` over `columns`; returns the last difference.
 fn wait_for_screen(
     what: &str,
@@ -146,13 +190,20 @@ fn the_window_shows_the_triangles_and_its_panel_hides_it_on_h_walks_and_jumps_on
     let mut reaper = Reaper(Vec::new());
     let display = start_xvfb(&mut reaper);
     let sma = StandIn::start(scene());
-    let viewer = Command::new(env!("CARGO_BIN_EXE_viewer"))
+    let mut viewer = Command::new(env!("CARGO_BIN_EXE_viewer"))
         .env("DISPLAY", &display)
         .env_remove("WAYLAND_DISPLAY")
+        // The window says at `debug` when it has settled; the rest as by default.
+        .env(
+            "RUST_LOG",
+            "warn,viewer=info,viewer::window=debug,egui_wgpu=error",
+        )
         .args(["--connect", &sma.addr, "--view", "front"])
         .args(["--width", &W.to_string(), "--height", &H.to_string()])
+        .stderr(Stdio::piped())
         .spawn()
         .expect("starting the viewer");
+    let log = Log::follow(&mut viewer);
     reaper.0.push(viewer);
 
     let camera = sma.expect_camera();
@@ -230,18 +281,25 @@ fn the_window_shows_the_triangles_and_its_panel_hides_it_on_h_walks_and_jumps_on
     );
 
     // The panel back, a click on the second viewpoint's button: the camera jumps there. The
-    // click comes once the panel is on the screen and has settled, with nothing else to draw:
-    // the click alone must make the window draw the panel again to see it.
+    // click comes once the panel is on the screen and the window has settled, the pointer over
+    // the button, with nothing else to draw: the click alone must make the window draw the panel
+    // again to see it. The window says when it has settled; the stand-in SMA sends nothing
+    // that is drawn meanwhile, so the line after the pointer's move is that move's.
+    let before_h = log.len();
     x_command(&display, "xdotool", &["key", "h"]);
     wait_for("the panel back", || {
         let shot = screenshot(&display)?;
         (mean_difference(&shot, &want.display, 0..PANEL_PX) > 10.0).then_some(())
     });
-    std::thread::sleep(Duration::from_secs(2));
+    log.wait_settled_with_panel("the window settled with its panel", before_h);
     let button = viewer::panel::viewpoint_button(1).center();
     let (x, y) = (button.x.round().to_string(), button.y.round().to_string());
+    let before_move = log.len();
     x_command(&display, "xdotool", &["mousemove", &x, &y]);
-    std::thread::sleep(Duration::from_millis(300));
+    log.wait_settled_with_panel(
+        "the window drawn for the pointer on the button (a hover is drawn) and settled",
+        before_move,
+    );
     x_command(&display, "xdotool", &["click", "1"]);
     let side = &scene().viewpoints[1];
     let jumped = wait_for("the camera at the clicked viewpoint", || {

@@ -55,7 +55,22 @@ pub(crate) struct DirectRecord {
 
 impl DirectRecord {
     fn matches(&self, r: &ViewRecord, spp: u32) -> bool {
-        self.stem == r.stem() && self.width == r.width && self.height == r.height && self.spp == spp
+        self.describes(r) && self.spp == spp
+    }
+
+    /// Whether this is a render of `r`'s view at its size, at any paths per pixel.
+    pub(crate) fn describes(&self, r: &ViewRecord) -> bool {
+        self.stem == r.view_stem() && self.width == r.width && self.height == r.height
+    }
+
+    /// The render's wall time, scene load included.
+    pub(crate) fn seconds(&self) -> f64 {
+        self.direct.seconds
+    }
+
+    /// The render's mean FLIP against the view's ground truth.
+    pub(crate) fn flip(&self) -> f64 {
+        self.direct.flip
     }
 
     fn line(&self) -> String {
@@ -114,6 +129,12 @@ pub(crate) fn measure_or_recall(
     records: &mut Vec<DirectRecord>,
 ) -> anyhow::Result<Direct> {
     let stored = records.iter().position(|d| d.matches(record, args.spp));
+    // The same view under another profile was rendered by this run already: one render a view.
+    if let Some(i) = stored
+        && !records[i].direct.recalled
+    {
+        return Ok(records[i].direct.clone());
+    }
     if !Path::new(&record.ground_truth).is_file() {
         let stored = stored.with_context(|| {
             format!(
@@ -136,7 +157,7 @@ pub(crate) fn measure_or_recall(
     );
     let direct = direct_render(exe, record, args)?;
     let line = DirectRecord {
-        stem: record.stem(),
+        stem: record.view_stem(),
         width: record.width,
         height: record.height,
         spp: args.spp,
@@ -155,7 +176,7 @@ fn direct_render(exe: &Path, r: &ViewRecord, args: &AccuracyConfig) -> anyhow::R
     std::fs::create_dir_all(&args.direct)?;
     let out = args.direct.join(format!(
         "{}-{}x{}-{}spp.exr",
-        r.stem(),
+        r.view_stem(),
         r.width,
         r.height,
         args.spp
@@ -225,6 +246,7 @@ mod tests {
             sample_counts: vec![1000],
             ground_truth: ground_truth.into(),
             measured: String::new(),
+            profile: sma::config::Profile::Today,
         }
     }
 

@@ -10,9 +10,10 @@ use std::path::{Path, PathBuf};
 use crate::convergence::cpu;
 use crate::convergence::manifest::{self, ViewRecord};
 use crate::convergence::record::{self, Measurement, run_labels, run_rows, time_to_reach};
+use sma::config::Profile;
 use testkit::loopback::CpuShares;
 
-mod direct;
+pub(crate) mod direct;
 mod targets;
 
 use direct::Direct;
@@ -81,7 +82,13 @@ fn section(results: &[ViewResult], args: &AccuracyConfig) -> String {
     for v in results {
         view_table(&mut md, v, &args.levels);
     }
-    md.push_str(&targets::section(results));
+    // The targets are this project's, judged on today's system; the thesis's runs are there to
+    // be compared with in the tables above.
+    let today: Vec<&ViewResult> = results
+        .iter()
+        .filter(|v| v.record.profile == Profile::Today)
+        .collect();
+    md.push_str(&targets::section(&today));
     md
 }
 
@@ -89,9 +96,8 @@ fn view_table(md: &mut String, v: &ViewResult, levels: &[f64]) {
     let r = &v.record;
     let _ = writeln!(
         md,
-        "### {} {} ({}×{}, runs of {} s{})\n\nDirect render: {:.1} s, its own mean FLIP {:.3} ({}).\n",
-        r.label,
-        r.view,
+        "### {} ({}×{}, runs of {} s{})\n\nDirect render: {:.1} s, its own mean FLIP {:.3} ({}).\n",
+        r.title(),
         r.width,
         r.height,
         r.seconds,

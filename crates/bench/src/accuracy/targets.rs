@@ -31,7 +31,7 @@ const VIEWS_AT_COMPETITOR: usize = 3;
 const VIEWS_AT_EQUAL_PATHS: usize = 5;
 const DEFAULT_VIEWS: usize = 6;
 
-pub(crate) fn section(results: &[ViewResult]) -> String {
+pub(crate) fn section(results: &[&ViewResult]) -> String {
     let mut md = String::from("### End-to-end targets\n\n");
     let _ = writeln!(
         md,
@@ -353,6 +353,7 @@ mod tests {
                 sample_counts: vec![1000, 2000],
                 ground_truth: "gt.exr".into(),
                 measured: String::new(),
+                profile: sma::config::Profile::Today,
             },
             rows,
             direct: Direct {
@@ -382,7 +383,7 @@ mod tests {
     #[test]
     fn a_busy_falling_view_meets_what_it_can() {
         // The best criterion reaches 0.1 at 2 s (0.5 / (1 + 2·2) = 0.1): 40 s / 2 s = 20×.
-        let md = section(&[view("MC", 40.0, rows(2.0, 0.95), 0.9)]);
+        let md = section(&[&view("MC", 40.0, rows(2.0, 0.95), 0.9)]);
         assert!(md.contains("| bracara MC | 1 | 0.95 | 0.90 |"), "{md}");
         assert!(md.contains("| 20.0× |"), "{md}");
         assert!(
@@ -397,7 +398,7 @@ mod tests {
 
     #[test]
     fn idle_windows_and_a_worse_criterion_are_missed() {
-        let md = section(&[view("VT", 40.0, rows(0.5, 0.3), 0.9)]);
+        let md = section(&[&view("VT", 40.0, rows(0.5, 0.3), 0.9)]);
         assert!(md.contains("| bracara VT | 1 | 0.30 | 0.90 |"), "{md}");
         assert!(md.contains("no at 268.4 M paths"), "{md}");
         assert!(
@@ -425,14 +426,14 @@ mod tests {
             let label = crate::convergence::record::repeat_label(BEST_NOISE_AWARE, k);
             v.cpu.push((label, cpu));
         }
-        let md = section(&[v]);
+        let md = section(&[&v]);
         assert!(md.contains("| bracara MC | 3 | 0.90 | 0.90 |"), "{md}");
         assert!(md.contains("| 10.0× |"), "{md}");
     }
 
     #[test]
     fn a_renderer_that_holds_work_but_does_not_compute_misses_the_stricter_check() {
-        let md = section(&[view("VR", 40.0, rows(2.0, 1.0), 0.1)]);
+        let md = section(&[&view("VR", 40.0, rows(2.0, 1.0), 0.1)]);
         assert!(md.contains("| bracara VR | 1 | 1.00 | 0.10 |"), "{md}");
         assert!(
             md.contains(

@@ -1,14 +1,16 @@
 //! `views.csv` in the output folder: which views were measured and on what terms. Views can be
 //! measured one at a time (the full benchmark is long on two cores); each new measurement replaces
-//! that view's line, and the Markdown section and `bench accuracy` cover every line.
+//! that view's line (a view under each profile has its own), and the Markdown section and
+//! `bench accuracy` cover every line.
 
 use std::path::Path;
 
 use anyhow::Context;
+use sma::config::Profile;
 
 const FILE: &str = "views.csv";
 const HEADER: &str =
-    "label,scene,view,width,height,gt_spp,seconds,sample_counts,ground_truth,measured";
+    "label,scene,view,width,height,gt_spp,seconds,sample_counts,ground_truth,measured,profile";
 
 /// One measured view and its terms.
 #[derive(Clone, Debug, PartialEq)]
@@ -29,12 +31,29 @@ pub struct ViewRecord {
     /// When and at which commit the runs were made (`machine::measured_stamp`); empty in a line
     /// written before the column existed.
     pub measured: String,
+    /// Which system ran (the SMA's `--profile`); today's in a line written before the column
+    /// existed.
+    pub profile: Profile,
 }
 
 impl ViewRecord {
-    /// `<label>-<view>`: the stem of this view's files.
+    /// `<label>-<view>`, and `-<profile>` past today's: the stem of this view's files.
     pub fn stem(&self) -> String {
+        match self.profile {
+            Profile::Today => self.view_stem(),
+            profile => format!("{}-{}", self.view_stem(), profile.name()),
+        }
+    }
+
+    /// `<label>-<view>`, whatever the profile: what the view's ground truth and direct render
+    /// are known by.
+    pub fn view_stem(&self) -> String {
         format!("{}-{}", self.label, self.view)
+    }
+
+    /// `<label> <view>, <profile label>`: how headings and plot titles name the measurement.
+    pub fn title(&self) -> String {
+        format!("{} {}, {}", self.label, self.view, self.profile.label())
     }
 
     fn line(&self) -> String {
@@ -42,22 +61,29 @@ impl ViewRecord {
         let counts: Vec<String> = r.sample_counts.iter().map(u64::to_string).collect();
         let (width, height, spp, seconds) = (r.width, r.height, r.gt_spp, r.seconds);
         format!(
-            "{},{},{},{width},{height},{spp},{seconds},{},{},{}",
+            "{},{},{},{width},{height},{spp},{seconds},{},{},{},{}",
             r.label,
             r.scene,
             r.view,
             counts.join(";"),
             r.ground_truth,
-            r.measured
+            r.measured,
+            r.profile.name()
         )
     }
 
     fn parse(line: &str) -> anyhow::Result<ViewRecord> {
         let f: Vec<&str> = line.split(',').collect();
         anyhow::ensure!(
-            f.len() == 9 || f.len() == 10,
-            "expected 10 fields (9 before `measured`)"
+            (9..=11).contains(&f.len()),
+            "expected 11 fields (9 before `measured`, 10 before `profile`)"
         );
+        let profile = match f.get(10) {
+            None => Profile::Today,
+            Some(name) => {
+                Profile::from_name(name).with_context(|| format!("no profile is named {name:?}"))?
+            }
+        };
         Ok(ViewRecord {
             label: f[0].into(),
             scene: f[1].into(),
@@ -73,6 +99,7 @@ impl ViewRecord {
                 .collect::<Result<_, _>>()?,
             ground_truth: f[8].into(),
             measured: f.get(9).copied().unwrap_or("").into(),
+            profile,
         })
     }
 }
@@ -118,16 +145,34 @@ mod tests {
             sample_counts: vec![1000, 2000],
             ground_truth: "out/gt/x.exr".into(),
             measured: "2026-12-04 at abc1234".into(),
+            profile: Profile::Today,
         }
     }
 
     #[test]
-    fn a_line_from_before_the_measured_column_still_reads() {
+    fn lines_from_before_the_measured_and_profile_columns_still_read() {
         let mut r = record("MC", 5.0);
         let line = r.line();
-        let old = line.rsplit_once(',').unwrap().0;
+        let before_profile = line.rsplit_once(',').unwrap().0;
+        assert_eq!(ViewRecord::parse(before_profile).unwrap(), r);
+        let before_measured = before_profile.rsplit_once(',').unwrap().0;
         r.measured.clear();
-        assert_eq!(ViewRecord::parse(old).unwrap(), r);
+        assert_eq!(ViewRecord::parse(before_measured).unwrap(), r);
+    }
+
+    #[test]
+    fn a_view_under_each_profile_has_its_own_line_and_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let thesis = ViewRecord {
+            profile: Profile::Thesis,
+            ..record("MC", 5.0)
+        };
+        assert_eq!(thesis.stem(), "bracara-MC-thesis");
+        assert_eq!(thesis.view_stem(), record("MC", 5.0).stem());
+        assert_eq!(thesis.title(), "bracara MC, thesis (2006)");
+        upsert(dir.path(), &record("MC", 5.0)).unwrap();
+        upsert(dir.path(), &thesis).unwrap();
+        assert_eq!(read(dir.path()).unwrap(), vec![record("MC", 5.0), thesis]);
     }
 
     #[test]

@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::Context;
+use sma::config::Profile;
 
 use crate::metrics::{LinearImage, Reference};
 use crate::{plots, strips};
@@ -53,8 +54,11 @@ pub struct ConvergenceConfig {
     /// Views to measure. Default: MC, VR, VT of bracara and S1, S2, S3 of Sponza; with --scene, all
     /// of that scene's views.
     pub views: Vec<String>,
-    /// Criteria to compare. Default: every criterion the SMA offers.
+    /// Criteria to compare. Default: [`default_criteria`] of the profile.
     pub criteria: Vec<String>,
+    /// Which system every `walkthrough sma` runs (its `--profile`): the tables, plots and CSVs
+    /// say which, and a view measured under each has files of its own.
+    pub profile: Profile,
     /// Length of each run; snapshots every second.
     pub seconds: f64,
     /// Fixed sample counts at which snapshots are also taken.
@@ -101,11 +105,7 @@ pub(crate) struct ViewSpec {
 
 pub fn run(args: ConvergenceConfig) -> anyhow::Result<()> {
     let exe = crate::product::walkthrough_exe()?;
-    let criteria = if args.criteria.is_empty() {
-        default_criteria()
-    } else {
-        args.criteria.clone()
-    };
+    let criteria = criteria_under(args.profile, &args.criteria)?;
     std::fs::create_dir_all(&args.out)?;
     let specs = if args.report_only {
         vec![]
@@ -142,6 +142,22 @@ pub fn default_criteria() -> Vec<String> {
         .iter()
         .chain(std::iter::once(&BEST_NOISE_AWARE))
         .map(|c| c.to_string())
+        .collect()
+}
+
+/// The criteria to run under `profile`, named as what runs (`nld-os` under the thesis's is
+/// `nld-os-thesis`), so that the labels say what ran; `asked` empty: the default ones, which
+/// under the thesis's profile are its own three (§5.2), the rivals. A criterion the profile does
+/// not offer (`nld-px` under the thesis's) is refused before anything runs.
+pub fn criteria_under(profile: Profile, asked: &[String]) -> anyhow::Result<Vec<String>> {
+    let asked = match (asked.is_empty(), profile) {
+        (false, _) => asked.to_vec(),
+        (true, Profile::Today) => default_criteria(),
+        (true, Profile::Thesis) => RIVALS.iter().map(|c| c.to_string()).collect(),
+    };
+    asked
+        .iter()
+        .map(|name| Ok(profile.criterion_named(name)?.name().to_string()))
         .collect()
 }
 
@@ -244,6 +260,7 @@ fn measure_view(
         sample_counts: args.at_samples.clone(),
         ground_truth: gt.to_string_lossy().into_owned(),
         measured: crate::machine::measured_stamp(),
+        profile: args.profile,
     };
     let runs_dir = args.runs.join(record.stem());
     let csv = args.out.join(format!("{}.csv", record.stem()));
@@ -261,7 +278,8 @@ fn measure_view(
         eprintln!("  {}…", run.label);
         let dir = runs_dir.join(&run.label);
         let (measured, cpu) = measure_run(&run.system, &run.viewer, &run.label, &reference, &dir)?;
-        rows.extend(measured);
+        let profile = args.profile;
+        rows.extend(measured.into_iter().map(|m| Measurement { profile, ..m }));
         shares.push((run.label.clone(), cpu));
     }
     record::write_csv(&csv, &rows)?;
@@ -304,9 +322,11 @@ fn planned_runs(
         refine,
         seed: args.seed,
         renderers: args.renderers,
-        // A busy share for every one-second snapshot.
+        // A busy share for every one-second snapshot; the profile before the flags given, which
+        // may change what it sets.
         sma_flags: [
             STATS_EVERY_SECOND.map(String::from).as_slice(),
+            &["--profile".to_string(), args.profile.name().to_string()],
             &args.sma_flags,
         ]
         .concat(),
@@ -342,6 +362,20 @@ fn planned_runs(
     runs
 }
 
+/// What a view's section says of the system that ran.
+fn profile_note(profile: Profile) -> &'static str {
+    match profile {
+        Profile::Today => "System: today's (`--profile today`).\n\n",
+        Profile::Thesis => {
+            "System: the thesis as published (`--profile thesis`, README \"The thesis as \
+             published\"): every sample at the scene's fixed quality, no ladder and no further \
+             paths; L_white the maximum; the criteria without noise discounting, one pass of RND \
+             and NLD_IS per camera, NLD_IS leaves of 6 pixels at least; the thesis's neighbour \
+             rule; no coarsening.\n\n"
+        }
+    }
+}
+
 /// Starts a fresh system, runs the viewer, and measures every snapshot it wrote; with the CPU
 /// time each process used.
 pub fn measure_run(
@@ -359,7 +393,8 @@ pub fn measure_run(
     Ok((measure_snapshots(label, reference, &snapshots_dir)?, cpu))
 }
 
-/// The error of every snapshot a viewer wrote into `dir`.
+/// The error of every snapshot a viewer wrote into `dir`, as today's profile's (the caller that
+/// ran another says so: `measure_view`).
 pub fn measure_snapshots(
     label: &str,
     reference: &Reference,
@@ -382,6 +417,7 @@ pub fn measure_snapshots(
                 outstanding: s.outstanding,
                 error,
                 exr: Some(s.exr),
+                profile: Profile::Today,
             })
         })
         .collect()
@@ -422,22 +458,19 @@ pub fn section(out: &Path) -> anyhow::Result<String> {
     let _ = writeln!(md, "Machine: {}.\n", crate::machine::describe());
     for record in &records {
         let rows = record::read_csv(&out.join(format!("{}.csv", record.stem())))?;
-        let title = format!(
-            "{} {}: error against the ground truth",
-            record.label, record.view
-        );
+        let title = format!("{}: error against the ground truth", record.title());
         plots::error_panels(&out.join(format!("{}.svg", record.stem())), &title, &rows)?;
         let _ = writeln!(
             md,
-            "### {} {} ({}×{}, ground truth {} paths per pixel, runs of {} s{})\n",
-            record.label,
-            record.view,
+            "### {} ({}×{}, ground truth {} paths per pixel, runs of {} s{})\n",
+            record.title(),
             record.width,
             record.height,
             record.gt_spp,
             record.seconds,
             measured_note(&record.measured)
         );
+        md.push_str(profile_note(record.profile));
         if let Some(base) = base_mesh(&rows) {
             let _ = writeln!(
                 md,
@@ -451,7 +484,7 @@ pub fn section(out: &Path) -> anyhow::Result<String> {
         }
         md.push_str(&tables::time_table(record, &rows));
         md.push_str("\nMean FLIP at equal paths traced (time when reached):\n\n");
-        md.push_str(&tables::paths_table(&rows));
+        md.push_str(&tables::paths_table(record, &rows));
         let shares = cpu::read_csv(&out.join(format!("{}-cpu.csv", record.stem())))?;
         if !shares.is_empty() {
             md.push_str(
@@ -469,4 +502,28 @@ pub fn section(out: &Path) -> anyhow::Result<String> {
         );
     }
     Ok(md)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_criteria_are_named_as_what_runs_under_the_profile() {
+        let names = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert_eq!(
+            criteria_under(Profile::Today, &[]).unwrap(),
+            default_criteria()
+        );
+        assert_eq!(
+            criteria_under(Profile::Thesis, &[]).unwrap(),
+            names(&RIVALS)
+        );
+        assert_eq!(
+            criteria_under(Profile::Thesis, &names(&["nld-os", "nld-mm"])).unwrap(),
+            names(&["nld-os-thesis", "nld-mm"])
+        );
+        assert!(criteria_under(Profile::Thesis, &names(&["nld-px"])).is_err());
+        assert!(criteria_under(Profile::Today, &names(&["nope"])).is_err());
+    }
 }

@@ -7,6 +7,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
+use sma::config::Profile;
 
 use crate::metrics::ImageError;
 
@@ -33,10 +34,24 @@ pub struct Measurement {
     pub error: ImageError,
     /// The viewer's linear image (in the raw runs folder; absent from CSVs read back).
     pub exr: Option<PathBuf>,
+    /// Which system ran (the SMA's `--profile`), by its label in the CSV: "today" or
+    /// "thesis (2006)".
+    pub profile: Profile,
 }
 
 const HEADER: &str = "run,time_s,samples,paths,shown,inserted,removed,outstanding,renderer_busy,\
-                      converged,flip,rmse";
+                      converged,flip,rmse,profile";
+/// The header of a CSV written before the profile column: its runs are today's.
+const HEADER_BEFORE_PROFILES: &str = "run,time_s,samples,paths,shown,inserted,removed,\
+                                      outstanding,renderer_busy,converged,flip,rmse";
+
+/// The profile whose label is `label`.
+fn profile_labelled(label: &str) -> anyhow::Result<Profile> {
+    Profile::ALL
+        .into_iter()
+        .find(|p| p.label() == label)
+        .with_context(|| format!("no profile is labelled {label:?}"))
+}
 
 pub fn write_csv(path: &Path, rows: &[Measurement]) -> anyhow::Result<()> {
     let mut out = std::io::BufWriter::new(
@@ -46,7 +61,7 @@ pub fn write_csv(path: &Path, rows: &[Measurement]) -> anyhow::Result<()> {
     for m in rows {
         writeln!(
             out,
-            "{},{:.3},{},{},{},{},{},{},{:.3},{},{:.5},{:.5}",
+            "{},{:.3},{},{},{},{},{},{},{:.3},{},{:.5},{:.5},{}",
             m.run,
             m.time_s,
             m.samples,
@@ -58,7 +73,8 @@ pub fn write_csv(path: &Path, rows: &[Measurement]) -> anyhow::Result<()> {
             m.renderer_busy,
             u8::from(m.converged),
             m.error.flip,
-            m.error.rmse
+            m.error.rmse,
+            m.profile.label()
         )?;
     }
     Ok(out.flush()?)
@@ -68,8 +84,9 @@ pub fn read_csv(path: &Path) -> anyhow::Result<Vec<Measurement>> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     let mut lines = text.lines();
+    let header = lines.next();
     anyhow::ensure!(
-        lines.next() == Some(HEADER),
+        header == Some(HEADER) || header == Some(HEADER_BEFORE_PROFILES),
         "{} does not start with {HEADER:?} (measured by an older `bench convergence`: measure again)",
         path.display()
     );
@@ -81,7 +98,10 @@ pub fn read_csv(path: &Path) -> anyhow::Result<Vec<Measurement>> {
 
 fn parse_row(line: &str) -> anyhow::Result<Measurement> {
     let f: Vec<&str> = line.split(',').collect();
-    anyhow::ensure!(f.len() == 12, "expected 12 fields");
+    anyhow::ensure!(
+        f.len() == 12 || f.len() == 13,
+        "expected 13 fields (12 before `profile`)"
+    );
     Ok(Measurement {
         run: f[0].to_string(),
         time_s: f[1].parse()?,
@@ -98,6 +118,9 @@ fn parse_row(line: &str) -> anyhow::Result<Measurement> {
             rmse: f[11].parse()?,
         },
         exr: None,
+        profile: f
+            .get(12)
+            .map_or(Ok(Profile::Today), |l| profile_labelled(l))?,
     })
 }
 
@@ -195,6 +218,7 @@ pub fn test_measurement(run: &str, time_s: f64, samples: u64, flip: f64) -> Meas
             rmse: flip / 2.0,
         },
         exr: None,
+        profile: Profile::Today,
     }
 }
 
@@ -217,6 +241,31 @@ mod tests {
         ];
         write_csv(&path, &rows).unwrap();
         assert_eq!(read_csv(&path).unwrap(), rows);
+        let thesis = vec![Measurement {
+            profile: Profile::Thesis,
+            ..m("nld-os-thesis", 1.0, 100, 0.25)
+        }];
+        write_csv(&path, &thesis).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(
+            text.lines().nth(1).unwrap().ends_with(",thesis (2006)"),
+            "{text}"
+        );
+        assert_eq!(read_csv(&path).unwrap(), thesis);
+    }
+
+    #[test]
+    fn a_csv_from_before_the_profile_column_reads_as_today() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("old.csv");
+        std::fs::write(
+            &path,
+            format!(
+                "{HEADER_BEFORE_PROFILES}\nrnd,1.000,100,6400,10,12,2,0,0.900,0,0.25000,0.12500\n"
+            ),
+        )
+        .unwrap();
+        assert_eq!(read_csv(&path).unwrap(), vec![m("rnd", 1.0, 100, 0.25)]);
     }
 
     #[test]

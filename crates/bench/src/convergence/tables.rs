@@ -51,7 +51,7 @@ const TIME_ROWS: &[(&str, Cell)] = &[
 
 pub fn time_table(record: &ViewRecord, rows: &[Measurement]) -> String {
     let times = table_times(record.seconds);
-    let mut md = String::from("| Time (s) | |");
+    let mut md = format!("| Time (s) | {} |", record.profile.label());
     for t in &times {
         let _ = write!(md, " {t} |");
     }
@@ -77,7 +77,7 @@ pub fn time_table(record: &ViewRecord, rows: &[Measurement]) -> String {
 }
 
 /// Mean FLIP at the first snapshot at which each level of paths had been traced, and when.
-pub fn paths_table(rows: &[Measurement]) -> String {
+pub fn paths_table(record: &ViewRecord, rows: &[Measurement]) -> String {
     let labels = run_labels(rows);
     let levels: Vec<u64> = PATH_LEVELS
         .into_iter()
@@ -87,7 +87,7 @@ pub fn paths_table(rows: &[Measurement]) -> String {
                 .any(|l| at_paths(&run_rows(rows, l), *n).is_some())
         })
         .collect();
-    let mut md = String::from("| Paths traced |");
+    let mut md = format!("| Paths traced, {} |", record.profile.label());
     for n in &levels {
         let _ = write!(md, " {} |", millions(*n));
     }
@@ -142,6 +142,7 @@ mod tests {
             sample_counts: vec![100, 200, 400],
             ground_truth: "gt.exr".into(),
             measured: String::new(),
+            profile: sma::config::Profile::Today,
         }
     }
 
@@ -180,8 +181,18 @@ mod tests {
         assert!(time.contains("|  | FLIP | 0.900 | — | 0.200 |"), "{time}");
         assert!(time.contains("|  | paths | 0.0 M | — | 0.0 M |"), "{time}");
         // 20 000 samples × 64 paths = 1.28 M paths: past the first level only.
-        let paths = paths_table(&rows);
-        assert!(paths.starts_with("| Paths traced | 1.0 M |\n"), "{paths}");
+        let paths = paths_table(&record(), &rows);
+        assert!(
+            paths.starts_with("| Paths traced, today | 1.0 M |\n"),
+            "{paths}"
+        );
+        assert!(time.starts_with("| Time (s) | today | 0 |"), "{time}");
+        let thesis = ViewRecord {
+            profile: sma::config::Profile::Thesis,
+            ..record()
+        };
+        let time = time_table(&thesis, &rows);
+        assert!(time.starts_with("| Time (s) | thesis (2006) |"), "{time}");
         assert!(paths.contains("| rnd | 0.100 (2.1 s) |"), "{paths}");
         assert!(paths.contains("| nld-os | — |"), "{paths}");
     }

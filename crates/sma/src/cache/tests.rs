@@ -154,6 +154,46 @@ fn l_white_leaves_out_a_lone_outlier() {
     assert_eq!(ShadingCache::new(1).l_white(&mesh, &visible), 0.0);
 }
 
+/// The thesis profile's L_white (§2.3, appendix A): the maximum of the visible samples, glint
+/// and all.
+#[test]
+fn l_white_without_outliers_is_the_maximum() {
+    let mesh = SubdivisionMesh::new(&crate::mesh::grid_mesh(40), Default::default());
+    let mut cache = ShadingCache::new(1 << 24).with_l_white_outliers(0.0);
+    let visible = VisibleSet {
+        leaves: (0..mesh.base_count() as NodeId)
+            .map(|leaf| crate::visible_set::VisibleLeaf {
+                leaf,
+                side: Side::Front,
+                pixels: 9,
+            })
+            .collect(),
+        width: 64,
+        height: 64,
+    };
+    for v in 0..mesh.vertex_count() as u32 {
+        let l = if v == 7 { 1e5 } else { 1.0 + v as f32 * 1e-4 };
+        cache.insert(key(v), sample(l, Quality::DIRECT, 0));
+    }
+    let lum = |v: u32| {
+        let l = if v == 7 { 1e5 } else { 1.0 + v as f32 * 1e-4 };
+        conventions::luminance([l; 3])
+    };
+    assert_eq!(cache.l_white(&mesh, &visible), lum(7));
+    // Not visible, not counted.
+    let one = VisibleSet {
+        leaves: visible.leaves[1..2].to_vec(),
+        ..visible
+    };
+    let most = mesh
+        .node(1)
+        .vertices
+        .map(lum)
+        .into_iter()
+        .fold(0.0, f32::max);
+    assert_eq!(cache.l_white(&mesh, &one), most);
+}
+
 /// A long random walk of visible sets: after each eviction the cache is within budget
 /// unless everything left is visible now, and nothing visible now is evicted.
 #[test]

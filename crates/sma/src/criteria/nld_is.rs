@@ -11,12 +11,14 @@
 //! that shows something: the SMA paces its viewer syncs, so a round may come before the first
 //! triangles are shown, and a pass over that blank image would find nothing and end the work
 //! before the picture exists. At most `nld_is_fraction` × width ×
-//! height leaves are selected per camera.
+//! height leaves are selected per camera. With `Passes::One` (the thesis profile) the first pass
+//! ends the work for the camera, as §4.3.3 ends it; the leaf minimum is then the thesis's 6
+//! pixels (`CriterionSettings::nld_is_min_leaf_pixels`).
 
 use std::collections::{HashMap, HashSet, VecDeque};
 
 use super::{
-    Criterion, CriterionInput, CriterionKind, CriterionSettings, LuminanceImage, Metric,
+    Criterion, CriterionInput, CriterionKind, CriterionSettings, LuminanceImage, Metric, Passes,
     leaf_display_error, nld_mm,
 };
 use crate::mesh::NodeId;
@@ -96,6 +98,7 @@ pub struct NldIs {
     floor: f32,
     fraction: f32,
     min_leaf_pixels: u32,
+    passes: Passes,
     queue: VecDeque<Quad>,
     /// Whether another pass may start: at first, and after a pass that selected something.
     pass_due: bool,
@@ -120,7 +123,10 @@ impl NldIs {
             metric,
             floor: settings.significance_floor(metric, 0.0),
             fraction: settings.nld_is_fraction,
-            min_leaf_pixels: settings.min_leaf_pixels,
+            min_leaf_pixels: settings
+                .nld_is_min_leaf_pixels
+                .unwrap_or(settings.min_leaf_pixels),
+            passes: settings.passes,
             queue: VecDeque::new(),
             pass_due: true,
             in_pass: false,
@@ -230,7 +236,7 @@ impl NldIs {
         }
         if self.in_pass {
             self.in_pass = false;
-            self.pass_due = self.found;
+            self.pass_due = self.found && self.passes == Passes::UntilDry;
         }
         if !self.pass_due {
             return false;
@@ -298,6 +304,47 @@ mod tests {
         assert!(is.queue.is_empty() && !is.pass_due);
         is.reset();
         assert!(!is.select(&edge.input(), usize::MAX).is_empty());
+    }
+
+    /// §4.3.3: one hierarchical pass per camera, however much it found.
+    #[test]
+    fn one_pass_ends_the_work_for_the_camera() {
+        let mut edge = Synthetic::new(4, 64, Shading::ShadowEdge);
+        let one = CriterionSettings {
+            passes: Passes::One,
+            ..Default::default()
+        };
+        let mut is = NldIs::new(&one, Metric::Thesis);
+        let first = is.select(&edge.input(), usize::MAX);
+        assert!(!first.is_empty());
+        edge.refine_and_shade(&first);
+        assert!(
+            is.select(&edge.input(), usize::MAX).is_empty(),
+            "no second pass"
+        );
+        is.reset();
+        assert!(
+            !is.select(&edge.input(), usize::MAX).is_empty(),
+            "a new camera"
+        );
+    }
+
+    /// §4.3.3's 6 pixels, NLD_IS's own minimum when set, in place of every criterion's.
+    #[test]
+    fn the_thesis_minimum_of_six_pixels_holds_for_nld_is() {
+        let mut edge = Synthetic::new(4, 64, Shading::ShadowEdge);
+        let thesis = CriterionSettings {
+            nld_is_min_leaf_pixels: Some(6),
+            ..Default::default()
+        };
+        let select = |edge: &Synthetic, settings: &CriterionSettings| {
+            NldIs::new(settings, Metric::Thesis).select(&edge.input(), usize::MAX)
+        };
+        edge.visible.leaves.iter_mut().for_each(|v| v.pixels = 5);
+        assert!(select(&edge, &thesis).is_empty(), "5 pixels are too few");
+        assert!(!select(&edge, &CriterionSettings::default()).is_empty());
+        edge.visible.leaves.iter_mut().for_each(|v| v.pixels = 6);
+        assert!(!select(&edge, &thesis).is_empty(), "6 pixels are enough");
     }
 
     /// A round before the first triangles are shown sees a blank image: it selects nothing and

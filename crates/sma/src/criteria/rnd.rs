@@ -5,14 +5,15 @@
 //!
 //! A leaf is offered once per camera, and only if it covers `min_leaf_pixels`; a pass that
 //! offered something is followed by another (at most one new pass per call, so it sees the mesh
-//! refined meanwhile), one that offered nothing ends the criterion's work for the camera.
+//! refined meanwhile), one that offered nothing ends the criterion's work for the camera. With
+//! `Passes::One` (the thesis profile) the first pass ends it, as §4.3.1 does.
 
 use std::collections::HashSet;
 
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
-use super::{Criterion, CriterionInput, CriterionKind, CriterionSettings};
+use super::{Criterion, CriterionInput, CriterionKind, CriterionSettings, Passes};
 use crate::mesh::NodeId;
 use crate::mesh::fast_hash::FastHash;
 
@@ -21,6 +22,7 @@ pub struct Rnd {
     rng: Pcg64Mcg,
     fraction: f32,
     min_leaf_pixels: u32,
+    passes: Passes,
     /// Picks of the pass under way.
     picks: u64,
     /// The pass under way offered a leaf.
@@ -35,6 +37,7 @@ impl Rnd {
             rng: Pcg64Mcg::seed_from_u64(seed),
             fraction: settings.rnd_fraction,
             min_leaf_pixels: settings.min_leaf_pixels,
+            passes: settings.passes,
             picks: 0,
             found: false,
             offered: HashSet::default(),
@@ -69,7 +72,8 @@ impl Criterion for Rnd {
         let mut out = Vec::new();
         while out.len() < max && image > 0 {
             if self.picks >= budget {
-                if !(may_start && self.found) {
+                let again = self.found && self.passes == Passes::UntilDry;
+                if !(may_start && again) {
                     break;
                 }
                 (self.picks, self.found, may_start) = (0, false, false);
@@ -134,5 +138,26 @@ mod tests {
         // The refined mesh has new leaves to offer.
         scene.refine_and_shade(&first);
         assert!(!rnd.select(&scene.input(), 1000).is_empty());
+    }
+
+    /// §4.3.1: one pass of picks per camera, however much it found.
+    #[test]
+    fn one_pass_ends_the_work_for_the_camera() {
+        let mut scene = Synthetic::new(4, 64, Shading::Flat);
+        let settings = CriterionSettings {
+            rnd_fraction: 0.01,
+            passes: Passes::One,
+            ..Default::default()
+        };
+        let mut rnd = Rnd::new(&settings, 3);
+        let first = rnd.select(&scene.input(), 1000);
+        assert!(!first.is_empty());
+        scene.refine_and_shade(&first);
+        assert!(
+            rnd.select(&scene.input(), 1000).is_empty(),
+            "no second pass"
+        );
+        rnd.reset();
+        assert!(!rnd.select(&scene.input(), 1000).is_empty(), "a new camera");
     }
 }

@@ -84,7 +84,7 @@ fn on_segment(a: Vec3, b: Vec3, p: Vec3, q: Vec3) -> bool {
 }
 
 /// Conforming triangulation, area per base, angle bound, leaf count.
-pub(super) fn check(mesh: &SubdivisionMesh, scene: &Mesh) -> Result<(), TestCaseError> {
+pub(crate) fn check(mesh: &SubdivisionMesh, scene: &Mesh) -> Result<(), TestCaseError> {
     let leaves: Vec<NodeId> = mesh.leaves().collect();
     prop_assert_eq!(leaves.len(), mesh.leaf_count());
     let mut edges: HashMap<_, (u32, Vec3, Vec3)> = HashMap::new();
@@ -167,7 +167,7 @@ pub(super) fn coarsen_all(mesh: &mut SubdivisionMesh, scene: &Mesh) -> Result<()
 
 /// Applies a step to the leaves a viewer shows: it replaces only leaves shown, adds only new
 /// ones, and covers exactly the area it replaces.
-fn apply(
+pub(crate) fn apply(
     shown: &mut BTreeSet<NodeId>,
     step: &RefinementStep,
     mesh: &SubdivisionMesh,

@@ -1,145 +1,53 @@
-//! From one viewer's visible set to what it should be shown and what must be shaded
-//! (DESIGN.md §3 steps 4–6, §5, §7).
-
-use std::collections::HashSet;
+//! From one viewer's visible set to what must still be shaded (DESIGN.md §3 step 5, §5, §7):
+//! every visible sample's needs, each on a rung of the quality ladder (`ladder`) and with its
+//! urgency, for the request queue (`requests`) to order and batch. What the viewer is shown of
+//! the same set is `targets`.
 
 use glam::Vec3;
 use protocol::Side;
 use protocol::renderer_link::{Quality, SampleKey, ShadePoint};
+use scene::Scene;
 
+use super::ladder::Qualities;
+use super::need::{Need, Urgency};
 use super::pending::PendingRefinement;
-use super::requests::{Need, Urgency};
 use crate::cache::ShadingCache;
-use crate::mesh::{NodeId, SubdivisionMesh};
+use crate::config::ScheduleConfig;
+use crate::mesh::SubdivisionMesh;
 use crate::sample::DisplayMap;
-use crate::visibility::{LeafView, side_facing};
+use crate::visibility::LeafView;
 
-/// The nodes to show for a visible set: each visible leaf, except that a new leaf of a pending
-/// refinement group stands for the leaves the group replaced (seen from the eye's side), so the
-/// closure swaps in only when complete.
-pub fn targets(
-    view: &LeafView,
-    pending: &PendingRefinement,
-    mesh: &SubdivisionMesh,
-    eye: Vec3,
-) -> Vec<(NodeId, Side)> {
-    let mut seen_groups = HashSet::new();
-    let mut out = Vec::with_capacity(view.visible.leaves.len());
-    for v in &view.visible.leaves {
-        match pending.group_of(v.leaf) {
-            None => out.push((v.leaf, v.side)),
-            Some(g) if seen_groups.insert(g) => {
-                let group = pending.group(g).expect("a leaf's group is pending");
-                out.extend(
-                    group
-                        .replaced_leaves
-                        .iter()
-                        .map(|&r| (r, side_facing(mesh, r, eye))),
-                );
-            }
-            Some(_) => {}
-        }
-    }
-    out
+/// What planning holds for the whole run: the quality ladder, how far a view-dependent sample's
+/// eye may move, and which base triangles have a view-dependent material.
+#[derive(Clone, Debug)]
+pub struct PlanRules {
+    pub qualities: Qualities,
+    pub aging: Aging,
+    /// Per base triangle.
+    pub view_dependent: Vec<bool>,
 }
 
-/// The quality ladder of progressive shading (DESIGN.md §5, §7): a cheap direct-light sample
-/// first where it is cheaper than the scene's; then an early rung, a quarter of the scene's paths
-/// at its depth; then the scene's quality, which the early rung's paths count toward (same depth:
-/// they accumulate); then four times the paths at each further rung, up to `cap_paths`.
-///
-/// The early rung is what new vertices of a refinement step get, and what a direct-light sample
-/// is upgraded to first: a refinement round waits for its samples, and at a quarter of the paths
-/// the rounds that find the picture's shadow edges and light pools come four times as fast. The
-/// noise-aware criteria weigh the early samples' larger noise (DESIGN.md §4), and every shown
-/// sample is still brought to the scene's quality, whatever its noise shows, as a top-up
-/// (`Urgency::TopUp`: refinement does not wait for it, but it gets a share of the paths) once
-/// the viewer has a tone map.
-#[derive(Clone, Copy, Debug)]
-pub struct Qualities {
-    pub first: Quality,
-    pub early: Quality,
-    pub full: Quality,
-    pub cap_paths: u32,
-}
-
-/// Paths grow by this factor from one rung to the next: each rung halves the standard error.
-const RUNG_FACTOR: u32 = 4;
-
-/// The fewest paths of an early rung: below it a sample's variance, which the criteria and the
-/// stopping rule read, says too little.
-const EARLY_MIN_PATHS: u32 = 8;
-
-impl Qualities {
-    /// Without `early_rung`, the early rung is the scene's quality itself.
-    pub fn new(full: Quality, cap_paths: u32, early_rung: bool) -> Self {
-        let first = if Quality::DIRECT.rank() < full.rank() {
-            Quality::DIRECT
-        } else {
-            full
+impl PlanRules {
+    pub fn new(config: &ScheduleConfig, scene: &Scene) -> PlanRules {
+        let quality = scene.settings.quality;
+        let full = Quality {
+            paths: quality.paths,
+            bounces: config.bounces.or(quality.bounces),
         };
-        let early_paths = full.paths / RUNG_FACTOR;
-        let early = if early_rung && early_paths >= EARLY_MIN_PATHS {
-            Quality {
-                paths: early_paths,
-                bounces: full.bounces,
-            }
+        let qualities = if config.ladder {
+            Qualities::new(full, config.max_paths, config.early_rung)
         } else {
-            full
+            Qualities::fixed(full)
         };
-        Qualities {
-            first,
-            early,
-            full,
-            cap_paths: cap_paths.max(full.paths),
+        PlanRules {
+            qualities,
+            aging: Aging {
+                max_angle_rad: config.view_angle_deg.to_radians(),
+            },
+            view_dependent: (0..scene.mesh.triangles.len())
+                .map(|t| scene.material_of(t).is_view_dependent())
+                .collect(),
         }
-    }
-
-    /// What a shown sample below the scene's quality is upgraded with: (paths traced, total
-    /// reached). One at the scene's depth gets the paths that make up the scene's quality; one
-    /// at another depth (direct light) is replaced by an early-rung sample.
-    pub fn upgrade(&self, cached: Quality) -> (Quality, Quality) {
-        if cached.bounces == self.full.bounces && cached.paths < self.full.paths {
-            let added = Quality {
-                paths: self.full.paths - cached.paths,
-                bounces: self.full.bounces,
-            };
-            (added, self.full)
-        } else {
-            (self.early, self.early)
-        }
-    }
-
-    /// Whether a sample's variance may be believed: from the first rung above the scene's
-    /// quality (or the cap). A variance read from the scene's 64 paths may miss what is rare,
-    /// a path that finds a small bright opening, and call the sample settled: bracara VT reached
-    /// its stated end at 31–35 s and mean FLIP 0.035–0.036 in 6 of 8 60-s runs that believed
-    /// it, where the other two went on to 0.032; with this rule it went on to 0.032 (43 s).
-    pub fn trusts(&self, cached: Quality) -> bool {
-        cached.paths
-            >= self
-                .full
-                .paths
-                .saturating_mul(RUNG_FACTOR)
-                .min(self.cap_paths)
-    }
-
-    /// For a sample at the scene's depth with `paths` so far: the paths the next rung adds and
-    /// the total it reaches; `None` at the cap or off the scene's depth.
-    pub fn next_rung(&self, cached: Quality) -> Option<(Quality, Quality)> {
-        if cached.bounces != self.full.bounces || cached.paths >= self.cap_paths {
-            return None;
-        }
-        let mut total = self.full.paths.max(1);
-        while total <= cached.paths {
-            total = total.saturating_mul(RUNG_FACTOR);
-        }
-        let total = total.min(self.cap_paths);
-        let step = |paths| Quality {
-            paths,
-            bounces: self.full.bounces,
-        };
-        Some((step(total - cached.paths), step(total)))
     }
 }
 
@@ -174,10 +82,7 @@ pub struct NeedsInput<'a> {
     pub pending: &'a PendingRefinement,
     pub mesh: &'a SubdivisionMesh,
     pub cache: &'a ShadingCache,
-    /// Whether a base triangle's material is view-dependent.
-    pub view_dependent: &'a [bool],
-    pub qualities: Qualities,
-    pub aging: Aging,
+    pub rules: &'a PlanRules,
     /// Set once the viewer has a tone map: its noisy samples get more paths (lowest urgency).
     pub more_paths: Option<MorePaths>,
 }
@@ -260,6 +165,7 @@ fn need_key(
     }
     let mv = input.mesh.vertex(key.vertex);
     let view_dependent = input
+        .rules
         .view_dependent
         .get(mv.base_triangle as usize)
         .copied()
@@ -271,7 +177,7 @@ fn need_key(
         side: key.side,
         eye: view_dependent.then(|| input.eye.to_array()),
     };
-    let qualities = &input.qualities;
+    let qualities = &input.rules.qualities;
     let mut push = |(quality, target), urgency, new_eye| {
         out.push(Need {
             point,
@@ -287,7 +193,10 @@ fn need_key(
         None if refining => push(early, Urgency::Refinement, false),
         None => {
             push((qualities.first, qualities.first), Urgency::Missing, false);
-            push(early, Urgency::Better, false);
+            // Without a cheaper first sample (a fixed quality) the first is the upgrade.
+            if qualities.first != qualities.early {
+                push(early, Urgency::Better, false);
+            }
         }
         // An early-rung sample's paths up to the scene's quality come as a top-up
         // (`more_paths`), which refinement does not wait for: were they `Better`, every round's new
@@ -299,7 +208,9 @@ fn need_key(
                 push(qualities.upgrade(s.quality), Urgency::Better, false);
             }
         }
-        Some(s) if s.view_dependent && input.aging.is_stale(mv.position, s.eye, input.eye) => {
+        Some(s)
+            if s.view_dependent && input.rules.aging.is_stale(mv.position, s.eye, input.eye) =>
+        {
             push(early, Urgency::Better, true);
         }
         Some(_) => {}
@@ -323,9 +234,9 @@ fn more_paths(
     let error = sample.estimate().displayed(display).standard_error;
     // Below the scene's quality (an early-rung sample) it gets its paths whatever its noise
     // shows: a variance read from a quarter of the paths may miss what is rare.
-    let below_scene_quality = sample.quality.rank() < input.qualities.full.rank();
+    let below_scene_quality = sample.quality.rank() < input.rules.qualities.full.rank();
     // Nor is a quiet variance believed before the first rung above it (`Qualities::trusts`).
-    let untrusted = !input.qualities.trusts(sample.quality);
+    let untrusted = !input.rules.qualities.trusts(sample.quality);
     let urgency = if below_scene_quality {
         Urgency::TopUp
     } else if error > more.threshold || untrusted {
@@ -335,7 +246,7 @@ fn more_paths(
     } else {
         return;
     };
-    let Some((quality, target)) = input.qualities.next_rung(sample.quality) else {
+    let Some((quality, target)) = input.rules.qualities.next_rung(sample.quality) else {
         return;
     };
     let mv = input.mesh.vertex(key.vertex);
@@ -361,9 +272,21 @@ fn more_paths(
 
 #[cfg(test)]
 mod tests {
+    use std::collections::HashSet;
+
     use super::*;
     use crate::cache::CachedSample;
+    use crate::mesh::NodeId;
     use crate::visible_set::{VisibleLeaf, VisibleSet};
+
+    /// The interactive preset's ladder up to 1024 paths, for `bases` diffuse base triangles.
+    fn rules(bases: usize) -> PlanRules {
+        PlanRules {
+            qualities: Qualities::new(Quality::INTERACTIVE, 1024, true),
+            aging: Aging { max_angle_rad: 0.1 },
+            view_dependent: vec![false; bases],
+        }
+    }
 
     /// The needs of one visible triangle whose three samples are at the scene's quality with
     /// `luminance_variance` over their paths.
@@ -377,9 +300,25 @@ mod tests {
         luminance_variance: f32,
         more: Option<MorePaths>,
     ) -> Vec<Need> {
+        needs_of_one_leaf_with(&rules(2), Some(quality), luminance_variance, more)
+    }
+
+    /// As [`needs_of_one_leaf`], under `rules`, the samples at `quality` (None: not cached).
+    fn needs_of_one_leaf_with(
+        rules: &PlanRules,
+        quality: Option<Quality>,
+        luminance_variance: f32,
+        more: Option<MorePaths>,
+    ) -> Vec<Need> {
         let mesh = SubdivisionMesh::new(&crate::mesh::grid_mesh(1), Default::default());
         let mut cache = ShadingCache::new(1 << 20);
-        for vertex in mesh.node(0).vertices {
+        for vertex in mesh
+            .node(0)
+            .vertices
+            .into_iter()
+            .filter(|_| quality.is_some())
+        {
+            let quality = quality.expect("filtered");
             let key = SampleKey {
                 vertex,
                 side: Side::Front,
@@ -415,9 +354,7 @@ mod tests {
             pending: &PendingRefinement::default(),
             mesh: &mesh,
             cache: &cache,
-            view_dependent: &[false; 2],
-            qualities: Qualities::new(Quality::INTERACTIVE, 1024, true),
-            aging: Aging { max_angle_rad: 0.1 },
+            rules,
             more_paths: more,
         })
     }
@@ -450,9 +387,7 @@ mod tests {
             pending: &PendingRefinement::default(),
             mesh: &mesh,
             cache: &cache,
-            view_dependent: &vec![false; mesh.base_count()],
-            qualities: Qualities::new(Quality::INTERACTIVE, 1024, true),
-            aging: Aging { max_angle_rad: 0.1 },
+            rules: &rules(mesh.base_count()),
             more_paths: None,
         });
         let mut seen = HashSet::new();
@@ -472,6 +407,40 @@ mod tests {
         }
         // 16 vertices, each missing: a direct-light sample and an early-rung one.
         assert_eq!(needs.len(), 2 * 16);
+    }
+
+    /// The thesis profile's fixed quality: a missing sample's one need is the scene's quality
+    /// preset, and a sample at it needs nothing more, however noisy.
+    #[test]
+    fn without_the_ladder_a_sample_gets_the_scene_quality_at_once_and_nothing_more() {
+        use crate::config::{Profile, SmaConfig};
+        let scene = scene::load("cornell").expect("the built-in Cornell box");
+        let config = SmaConfig::default().with_profile(Profile::Thesis).unwrap();
+        let rules = PlanRules::new(&config.schedule, &scene);
+        let preset = Quality {
+            paths: scene.settings.quality.paths,
+            bounces: scene.settings.quality.bounces,
+        };
+        let missing = needs_of_one_leaf_with(&rules, None, 0.0, None);
+        assert_eq!(missing.len(), 3, "one need per sample: {missing:?}");
+        assert!(
+            missing.iter().all(|n| n.urgency == Urgency::Missing
+                && n.quality == preset
+                && n.target == preset)
+        );
+        let noisy = MorePaths {
+            l_white: 1.0,
+            threshold: 1.0 / 255.0,
+            polish: true,
+        };
+        for more in [None, Some(noisy)] {
+            let needs = needs_of_one_leaf_with(&rules, Some(preset), 4.0, more);
+            assert!(needs.is_empty(), "{needs:?}");
+        }
+        // The ladder of today, for contrast: a direct-light sample first.
+        let today = PlanRules::new(&SmaConfig::default().schedule, &scene);
+        let first = needs_of_one_leaf_with(&today, None, 0.0, None);
+        assert!(first.iter().any(|n| n.quality == Quality::DIRECT));
     }
 
     #[test]
@@ -539,49 +508,5 @@ mod tests {
         assert_eq!(trusted(1e-6, false), []);
         assert_eq!(trusted(1e-6, true), [Urgency::Polish; 3]);
         assert_eq!(trusted(400.0, false), [Urgency::Paths; 3]);
-    }
-
-    #[test]
-    fn direct_light_is_upgraded_to_the_early_rung_whose_paths_then_count_toward_the_scene_quality()
-    {
-        let q = Qualities::new(Quality::INTERACTIVE, 1024, true);
-        let at = |paths, bounces| Quality { paths, bounces };
-        assert_eq!(q.early, at(16, Some(2)));
-        assert_eq!(q.upgrade(at(16, Some(0))), (q.early, q.early));
-        assert_eq!(
-            q.upgrade(at(16, Some(2))),
-            (at(48, Some(2)), at(64, Some(2)))
-        );
-        let few = Qualities::new(at(16, Some(1)), 1024, true);
-        assert_eq!(few.early, few.full, "no early rung under eight paths");
-        let off = Qualities::new(Quality::INTERACTIVE, 1024, false);
-        assert_eq!(off.early, off.full);
-        assert_eq!(off.upgrade(at(16, Some(0))), (off.full, off.full));
-    }
-
-    #[test]
-    fn the_ladder_climbs_by_four_at_the_scene_depth_up_to_its_cap() {
-        let q = Qualities::new(Quality::INTERACTIVE, 1024, true);
-        let at = |paths, bounces| Quality { paths, bounces };
-        assert_eq!(q.first, Quality::DIRECT);
-        assert_eq!(
-            q.next_rung(at(64, Some(2))),
-            Some((at(192, Some(2)), at(256, Some(2))))
-        );
-        assert_eq!(
-            q.next_rung(at(256, Some(2))),
-            Some((at(768, Some(2)), at(1024, Some(2))))
-        );
-        assert_eq!(q.next_rung(at(1024, Some(2))), None, "at the cap");
-        assert_eq!(
-            q.next_rung(at(16, Some(0))),
-            None,
-            "direct light is upgraded, not climbed"
-        );
-        let capped = Qualities::new(Quality::INTERACTIVE, 500, true);
-        assert_eq!(
-            capped.next_rung(at(256, Some(2))),
-            Some((at(244, Some(2)), at(500, Some(2))))
-        );
     }
 }

@@ -1,56 +1,156 @@
 //! Refinement rounds and the luminance image (DESIGN.md §3 step 6, §4, §6): a criterion's
 //! selections split into pending groups, groups committed once their visible leaves are shaded,
-//! coarsening of what no viewer has seen lately, and the Gouraud luminance image that image-space
-//! criteria read.
+//! coarsening of what no viewer has seen lately and of what a split showed to be uniform
+//! (`uniformity`), and the Gouraud luminance image that image-space criteria read. Each step
+//! says what it changed; the schedule tells the viewers and the queue.
 
 use std::collections::{HashMap, HashSet};
 
 use anyhow::Context;
 
-use super::Schedule;
+use super::coarsening::Coarsening;
+use super::pending::PendingRefinement;
+use super::uniformity::{JudgedView, UniformMerge};
+use super::viewers::Viewer;
+use crate::cache::ShadingCache;
+use crate::config::ScheduleConfig;
 use crate::criteria::{CriterionInput, LuminanceImage};
-use crate::mesh::NodeId;
+use crate::mesh::{NodeId, SubdivisionMesh};
 use crate::viewer_link::ViewerId;
+use crate::visibility::{LeafView, LuminancePass, Visibility};
+use protocol::renderer_link::Quality;
 
-impl Schedule {
+/// Empty criterion calls in a row after which a viewer's refinement counts as exhausted (enough
+/// for `nld-os` to step S_ref from its start down to S_min with the default settings).
+const EMPTY_CALLS_BEFORE_EXHAUSTED: usize = 32;
+
+/// Refinement's state: the steps waiting for their samples, what coarsening watches, and the
+/// rounds so far.
+#[derive(Debug)]
+pub struct Refinement {
+    /// Refinement and coarsening steps waiting for their samples.
+    pub pending: PendingRefinement,
+    coarsening: Coarsening,
+    /// Coarsening by uniformity (thesis §6), when on.
+    uniform: UniformMerge,
+    /// Rounds so far: the resting viewers take turns (`turns::refinement_candidate`).
+    pub rounds: usize,
+    /// R: selections per round (§4.3.5).
+    max_selections: usize,
+    /// No leaf covering fewer pixels is split.
+    min_split_pixels: u32,
+}
+
+/// What one round did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Round {
+    /// The criterion found nothing more for the view; `newly_dry` when it had found something
+    /// before (its samples may now get more paths: the queue is stale).
+    Exhausted { newly_dry: bool },
+    /// Every selected leaf was too small to split.
+    TooSmall,
+    /// Leaves were split: every view's leaves changed.
+    Refined,
+}
+
+impl Refinement {
+    pub fn new(base_count: usize, config: &ScheduleConfig) -> Refinement {
+        Refinement {
+            pending: PendingRefinement::default(),
+            coarsening: Coarsening::new(base_count, config.coarsen_after_passes),
+            uniform: UniformMerge::new(config),
+            rounds: 0,
+            max_selections: config.max_selections,
+            min_split_pixels: config.min_split_pixels,
+        }
+    }
+
+    /// Marks what a view shows as seen at `frame` (coarsening spares it).
+    pub fn seen(&mut self, mesh: &SubdivisionMesh, view: &LeafView, frame: u64) {
+        self.coarsening.seen(mesh, &view.visible, frame);
+    }
+
     /// Collapses subdivision out of every view for long (DESIGN.md §4, thesis §6) before the
     /// passes, so they see the coarser mesh; steps wait in the pending groups like refinement
     /// steps until what they expose is shaded. Not while refinement steps wait, whose leaves
-    /// they could remove.
-    pub(super) fn coarsen_stale(&mut self) {
+    /// they could remove. Returns whether the leaves changed.
+    pub fn coarsen_stale(&mut self, mesh: &mut SubdivisionMesh, frame: u64) -> bool {
         if !self.pending.is_empty() {
-            return;
+            return false;
         }
-        let steps = self.coarsening.collapse_stale(&mut self.mesh, self.frame);
+        let steps = self.coarsening.collapse_stale(mesh, frame);
         if steps.is_empty() {
-            return;
+            return false;
         }
         tracing::debug!(
             steps = steps.len(),
-            leaves = self.mesh.leaf_count(),
+            leaves = mesh.leaf_count(),
             refined_bases = self.coarsening.refined_bases(),
             "coarsened what no viewer has seen lately"
         );
         self.pending.add(steps);
-        for viewer in self.viewers.values_mut() {
-            viewer.wait.leaves_changed();
-        }
+        true
     }
 
-    /// Commits every pending group none of whose visible new leaves lacks a sample.
-    pub(super) fn commit_ready_groups(&mut self) {
+    /// Whether a pass of coarsening by uniformity is due (it is on, and samples or views came
+    /// since the last one).
+    pub fn merge_due(&self) -> bool {
+        self.uniform.is_due()
+    }
+
+    /// New samples or views: a parent undecided before may be decided now.
+    pub fn merge_input(&mut self) {
+        self.uniform.new_input();
+    }
+
+    /// Parents merged back by uniformity since the start.
+    pub fn uniform_merges(&self) -> u64 {
+        self.uniform.merges()
+    }
+
+    /// Merges back what the views show to be uniform (thesis §6, `uniformity`); the steps wait
+    /// in the pending groups like coarsening's. Not while refinement steps wait, whose leaves
+    /// they could remove. Returns whether the leaves changed.
+    pub fn merge_uniform(
+        &mut self,
+        views: &[JudgedView],
+        mesh: &mut SubdivisionMesh,
+        cache: &ShadingCache,
+        trusted: &dyn Fn(Quality) -> bool,
+    ) -> bool {
+        if !self.pending.is_empty() {
+            return false;
+        }
+        let steps = self.uniform.pass(views, mesh, cache, trusted);
+        if steps.is_empty() {
+            return false;
+        }
+        tracing::debug!(
+            steps = steps.len(),
+            leaves = mesh.leaf_count(),
+            merged_uniform = self.uniform.merges(),
+            "merged uniform subdivision back"
+        );
+        self.pending.add(steps);
+        true
+    }
+
+    /// Commits every pending group none of whose visible new leaves lacks a sample; returns
+    /// whether any was.
+    pub fn commit_ready<'a>(
+        &mut self,
+        views: impl Iterator<Item = &'a LeafView>,
+        mesh: &SubdivisionMesh,
+        cache: &ShadingCache,
+    ) -> bool {
         if self.pending.is_empty() {
-            return;
+            return false;
         }
         let mut waiting = HashSet::new();
-        for view in self.viewers.values().filter_map(|v| v.view.as_ref()) {
+        for view in views {
             for v in &view.visible.leaves {
                 if let Some(g) = self.pending.group_of(v.leaf)
-                    && self
-                        .cache
-                        .missing_keys(&self.mesh, v.leaf, v.side)
-                        .next()
-                        .is_some()
+                    && cache.missing_keys(mesh, v.leaf, v.side).next().is_some()
                 {
                     waiting.insert(g);
                 }
@@ -63,52 +163,48 @@ impl Schedule {
             .filter(|g| !waiting.contains(g))
             .collect();
         if ready.is_empty() {
-            return;
+            return false;
         }
         for g in ready {
             self.pending.commit(g);
         }
-        for viewer in self.viewers.values_mut() {
-            viewer.wait.new_input();
-        }
-        self.owed.groups_committed();
+        true
     }
 
-    /// Empty criterion calls in a row after which a viewer's refinement counts as exhausted (enough
-    /// for `nld-os` to step S_ref from its start down to S_min with the default settings).
-    const EMPTY_CALLS_BEFORE_EXHAUSTED: usize = 32;
-
-    /// One refinement round for one viewer (DESIGN.md §3 step 6, §6).
-    pub(super) fn refine_round(&mut self, id: ViewerId) -> anyhow::Result<()> {
-        self.refine_turn += 1;
-        let image = self.luminance_image(id)?;
-        let viewer = self.viewers.get_mut(&id).expect("candidate exists");
+    /// One refinement round for one viewer, which has a view (DESIGN.md §3 step 6, §6), with
+    /// the luminance image of what it shows when its criterion needs one.
+    pub fn round(
+        &mut self,
+        id: ViewerId,
+        viewer: &mut Viewer,
+        image: Option<LuminanceImage>,
+        mesh: &mut SubdivisionMesh,
+        cache: &ShadingCache,
+    ) -> Round {
+        self.rounds += 1;
         let view = viewer.view.as_ref().expect("candidate has a view");
         let input = CriterionInput {
-            mesh: &self.mesh,
-            cache: &self.cache,
+            mesh,
+            cache,
             visible: &view.visible,
             l_white: viewer
                 .last_l_white
-                .unwrap_or_else(|| self.cache.l_white(&self.mesh, &view.visible)),
+                .unwrap_or_else(|| cache.l_white(mesh, &view.visible)),
             image: image.as_ref(),
         };
         // A criterion may answer an empty call and still have more to give: `nld-os` lowers
         // S_ref one step after a pass that selects nothing (§4.3.4). Only a run of empty calls
         // means it has nothing left for this view.
-        let selected = (0..Self::EMPTY_CALLS_BEFORE_EXHAUSTED)
-            .map(|_| viewer.criterion.select(&input, self.config.max_selections))
+        let selected = (0..EMPTY_CALLS_BEFORE_EXHAUSTED)
+            .map(|_| viewer.criterion.select(&input, self.max_selections))
             .find(|s| !s.is_empty())
             .unwrap_or_default();
         if selected.is_empty() {
             viewer.wait.exhausted();
-            if !viewer.criterion_dry {
-                viewer.criterion_dry = true;
-                // Its samples may now get more paths.
-                self.owed.queue_changed();
-            }
+            let newly_dry = !viewer.criterion_dry;
+            viewer.criterion_dry = true;
             tracing::debug!(viewer = id, "criterion found nothing more to refine");
-            return Ok(());
+            return Round::Exhausted { newly_dry };
         }
         viewer.criterion_dry = false;
         let pixels: HashMap<NodeId, u32> = view
@@ -117,14 +213,15 @@ impl Schedule {
             .iter()
             .map(|v| (v.leaf, v.pixels))
             .collect();
-        let min_pixels = self.config.min_split_pixels;
+        let min_pixels = self.min_split_pixels;
         let too_small = |leaf: NodeId| pixels.get(&leaf).is_none_or(|&p| p < min_pixels);
-        // A resumable criterion may still hold a leaf that coarsening has removed since.
+        // A resumable criterion may still hold a leaf that coarsening has removed since; a
+        // parent merged by uniformity is not split again on the samples that merged it.
         let selected: Vec<NodeId> = selected
             .into_iter()
-            .filter(|&l| self.mesh.is_leaf(l))
+            .filter(|&l| mesh.is_leaf(l) && self.uniform.allows(l, mesh, cache))
             .collect();
-        let steps = self.mesh.refine(&selected, &too_small);
+        let steps = mesh.refine(&selected, &too_small);
         if steps.is_empty() {
             // Every selected leaf was too small; criteria offer a leaf once per view, so the
             // next round moves on to others.
@@ -133,7 +230,7 @@ impl Schedule {
                 selected = selected.len(),
                 "selected leaves too small"
             );
-            return Ok(());
+            return Round::TooSmall;
         }
         tracing::debug!(
             viewer = id,
@@ -141,48 +238,43 @@ impl Schedule {
             steps = steps.len(),
             "refinement round"
         );
-        self.coarsening.refined(&self.mesh, &steps);
+        self.coarsening.refined(mesh, &steps);
         self.pending.add(steps);
-        for viewer in self.viewers.values_mut() {
-            viewer.wait.leaves_changed();
-        }
-        Ok(())
+        Round::Refined
     }
+}
 
-    /// The Gouraud luminance image of what `id` shows, when its criterion needs one.
-    fn luminance_image(&mut self, id: ViewerId) -> anyhow::Result<Option<LuminanceImage>> {
-        let viewer = &self.viewers[&id];
-        let (Some(view), Some(camera)) = (&viewer.view, &viewer.camera) else {
-            return Ok(None);
-        };
-        if !viewer.criterion.needs_image() {
-            return Ok(None);
-        }
-        let triangles: Vec<_> = viewer
-            .display
-            .shown_triangles()
-            .map(|(node, rgb)| {
-                (
-                    self.mesh.leaf_positions(node),
-                    rgb.map(conventions::luminance),
-                )
-            })
-            .collect();
-        let pass_view = self.visibility.view(camera);
-        let lum = self
-            .luminance
-            .render(self.visibility.gpu(), &triangles, &pass_view)
-            .context("luminance pass")?;
-        let ids = view
-            .pixel_leaves
-            .iter()
-            .map(|l| l.unwrap_or(LuminanceImage::NONE))
-            .collect();
-        Ok(Some(LuminanceImage {
-            width: camera.width,
-            height: camera.height,
-            luminance: lum,
-            ids,
-        }))
+/// The Gouraud luminance image of what `viewer` shows, when its criterion needs one.
+pub fn luminance_image(
+    viewer: &Viewer,
+    mesh: &SubdivisionMesh,
+    visibility: &Visibility,
+    luminance: &mut LuminancePass,
+) -> anyhow::Result<Option<LuminanceImage>> {
+    let (Some(view), Some(camera)) = (&viewer.view, &viewer.camera) else {
+        return Ok(None);
+    };
+    if !viewer.criterion.needs_image() {
+        return Ok(None);
     }
+    let triangles: Vec<_> = viewer
+        .shown
+        .shown_triangles()
+        .map(|(node, rgb)| (mesh.leaf_positions(node), rgb.map(conventions::luminance)))
+        .collect();
+    let pass_view = visibility.view(camera);
+    let lum = luminance
+        .render(visibility.gpu(), &triangles, &pass_view)
+        .context("luminance pass")?;
+    let ids = view
+        .pixel_leaves
+        .iter()
+        .map(|l| l.unwrap_or(LuminanceImage::NONE))
+        .collect();
+    Ok(Some(LuminanceImage {
+        width: camera.width,
+        height: camera.height,
+        luminance: lum,
+        ids,
+    }))
 }

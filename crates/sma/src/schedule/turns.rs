@@ -1,10 +1,12 @@
-//! The order of a turn's decisions (see the module documentation of `schedule`), as plain
-//! functions of the schedule's state and the time, so they are tested with a fake clock and a
-//! fake pool: when the request queue is re-planned and fed, which viewer may refine, and when the
-//! loop must wake for a camera coming to rest.
+//! The decisions of a turn (see the module documentation of `schedule`), as plain functions of
+//! the schedule's state and the time that return what to do, so they are tested with a fake
+//! clock: when the request queue is re-planned and fed ([`Feed`]), which viewer may refine, and
+//! when the loop must wake for a camera coming to rest. The schedule carries them out. What the
+//! paces allow is decided apart, in `pace`.
 
 use std::time::{Duration, Instant};
 
+use super::pace::Allowed;
 use super::waits::{Owed, ViewWait};
 use crate::viewer_link::ViewerId;
 
@@ -48,6 +50,9 @@ pub struct RefineGate {
     pub rest: Duration,
     /// No round before this: the rounds' pace (`ScheduleConfig::round_share`).
     pub next_round_at: Option<Instant>,
+    /// A pass of coarsening by uniformity is due (`uniformity`): it comes with a round, so a
+    /// viewer whose criterion found nothing more still takes its turn for it.
+    pub merge_due: bool,
 }
 
 /// The viewer whose turn it is to refine at `now`, if refinement may run: never while a pass is
@@ -71,7 +76,10 @@ pub fn refinement_candidate(
     let ready: Vec<ViewerId> = viewers
         .iter()
         .filter(|v| {
-            v.has_view && !v.paused && !v.wait.is_exhausted() && now >= v.rests_at(gate.rest)
+            v.has_view
+                && !v.paused
+                && (!v.wait.is_exhausted() || gate.merge_due)
+                && now >= v.rests_at(gate.rest)
         })
         .map(|v| v.id)
         .collect();
@@ -86,53 +94,55 @@ pub fn next_rest(gate: &RefineGate, viewers: &[TurnView], now: Instant) -> Optio
     }
     viewers
         .iter()
-        .filter(|v| v.has_view && !v.paused && !v.wait.is_exhausted())
+        .filter(|v| v.has_view && !v.paused && (!v.wait.is_exhausted() || gate.merge_due))
         .map(|v| v.rests_at(gate.rest).max(gate.next_round_at.unwrap_or(now)))
         .filter(|&t| t > now)
         .min()
 }
 
-/// Whether a turn has something to do without any new event.
-pub fn has_work_now(owed: Owed, viewers: &[TurnView], candidate: Option<ViewerId>) -> bool {
-    owed.any() || viewers.iter().any(|v| v.wait.needs_pass()) || candidate.is_some()
+/// Whether a turn has something to do without any new event: work owed that no pace defers, a
+/// pass, or a refinement round.
+pub fn has_work_now(
+    owed: Owed,
+    allowed: &Allowed,
+    viewers: &[TurnView],
+    candidate: Option<ViewerId>,
+) -> bool {
+    owed.replan()
+        || allowed.replan_soon.now()
+        || allowed.sync.now()
+        || viewers.iter().any(|v| v.wait.needs_pass())
+        || candidate.is_some()
 }
 
-/// The request queue and the renderer pool, as feeding them sees them.
-pub trait Feed {
-    /// Needs queued, not yet sent.
-    fn queued(&self) -> usize;
-    /// Rebuilds the queue from the visible sets and the cache.
-    fn replan(&mut self);
-    /// Whether a re-plan that may wait is due (its pace).
-    fn replan_due(&self) -> bool;
-    /// Sends batches while the pool has room (dropping needs satisfied meanwhile).
-    fn submit(&mut self);
+/// How a turn re-plans the request queue and feeds the renderers, which the schedule carries
+/// out in this order: a re-plan first if `replan`, then batches to the pool while it has room
+/// (dropping queued needs that answers have satisfied meanwhile), then, if
+/// `replan_if_drained` and that left the queue empty, a re-plan and batches again.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Feed {
+    pub replan: bool,
+    pub replan_if_drained: bool,
 }
 
 /// Re-plans when owed at once, when owed soon and its pace allows, or when the queue ran dry
-/// while new input came, and keeps the renderers fed. Submitting drops queued needs that answers have satisfied meanwhile; a queue emptied that
-/// way is re-planned at once, before the viewers are told what is outstanding, so an epoch never
-/// reports needs that no longer exist (nor misses new ones). Returns what is still owed.
-pub fn feed(mut owed: Owed, queue: &mut impl Feed) -> Owed {
-    let planned = owed.replan()
-        || (owed.replan_soon() && queue.replan_due())
-        || (queue.queued() == 0 && owed.resync());
-    if planned {
-        queue.replan();
-        owed.replanned();
+/// while a sync is due, and keeps the renderers fed. A queue that submitting empties is
+/// re-planned at once when a sync is due, before the viewers are told what is outstanding, so
+/// an epoch never reports needs that no longer exist (nor misses new ones). A sync deferred by
+/// its pace asks for neither: the next turn that syncs re-plans first.
+pub fn feed(owed: Owed, allowed: &Allowed, queued: usize) -> Feed {
+    let sync = allowed.sync.now();
+    let replan = owed.replan() || allowed.replan_soon.now() || (queued == 0 && sync);
+    Feed {
+        replan,
+        replan_if_drained: !replan && sync,
     }
-    queue.submit();
-    if !planned && owed.resync() && queue.queued() == 0 {
-        queue.replan();
-        owed.replanned();
-        queue.submit();
-    }
-    owed
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::schedule::pace::Timing;
 
     /// A clock that moves only when told.
     struct FakeClock(Instant);
@@ -154,6 +164,7 @@ mod tests {
             queue_low: 256,
             rest: Duration::from_millis(100),
             next_round_at: None,
+            merge_due: false,
         }
     }
 
@@ -240,7 +251,12 @@ mod tests {
             refinement_candidate(&gate(), &viewers, 0, clock.now()),
             None
         );
-        assert!(has_work_now(Owed::default(), &viewers, None));
+        assert!(has_work_now(
+            Owed::default(),
+            &all_allowed(Owed::default()),
+            &viewers,
+            None
+        ));
     }
 
     #[test]
@@ -285,97 +301,134 @@ mod tests {
             .map(|round| refinement_candidate(&gate(), &viewers, round, clock.now()))
             .collect();
         assert_eq!(picks, [Some(1), Some(2), Some(1), Some(2)]);
-        assert!(!has_work_now(Owed::default(), &viewers, None));
+        assert!(!has_work_now(
+            Owed::default(),
+            &all_allowed(Owed::default()),
+            &viewers,
+            None
+        ));
     }
 
-    /// A fake pool behind a fake queue: it records what feeding did, in order.
-    #[derive(Default)]
-    struct FakePool {
-        queued: usize,
-        /// Needs a re-plan finds.
-        needs: usize,
-        /// Needs that answers satisfied meanwhile: dropped at the next submit.
-        satisfied: usize,
-        /// A re-plan that may wait is due.
-        due: bool,
-        calls: Vec<&'static str>,
+    #[test]
+    fn an_exhausted_viewer_takes_its_turn_for_a_due_merge_pass_and_only_at_rest() {
+        let mut clock = FakeClock(Instant::now());
+        let mut exhausted = resting(1, clock.now());
+        exhausted.wait = ViewWait::Input;
+        let due = RefineGate {
+            merge_due: true,
+            ..gate()
+        };
+        assert_eq!(
+            refinement_candidate(&gate(), &[exhausted], 0, clock.now()),
+            None
+        );
+        assert_eq!(
+            refinement_candidate(&due, &[exhausted], 0, clock.now()),
+            None
+        );
+        assert_eq!(
+            next_rest(&due, &[exhausted], clock.now()),
+            Some(clock.now() + Duration::from_millis(100))
+        );
+        clock.advance(100);
+        assert_eq!(
+            refinement_candidate(&due, &[exhausted], 0, clock.now()),
+            Some(1)
+        );
+        let paused = TurnView {
+            paused: true,
+            ..exhausted
+        };
+        assert_eq!(refinement_candidate(&due, &[paused], 0, clock.now()), None);
     }
 
-    impl Feed for FakePool {
-        fn queued(&self) -> usize {
-            self.queued
+    /// Nothing deferred: everything owed may run now.
+    fn all_allowed(owed: Owed) -> Allowed {
+        let timing = |owed| if owed { Timing::Now } else { Timing::NotOwed };
+        Allowed {
+            sync: timing(owed.resync()),
+            replan_soon: timing(owed.replan_soon()),
         }
-        fn replan(&mut self) {
-            self.queued = self.needs;
-            self.calls.push("replan");
-        }
-        fn replan_due(&self) -> bool {
-            self.due
-        }
-        fn submit(&mut self) {
-            self.queued = self.queued.saturating_sub(self.satisfied);
-            self.satisfied = 0;
-            self.calls.push("submit");
-        }
+    }
+
+    /// Deferred by a pace.
+    fn later() -> Timing {
+        Timing::Deferred(Instant::now() + Duration::from_secs(1))
     }
 
     #[test]
     fn a_replan_that_may_wait_waits_for_its_pace() {
         let mut owed = Owed::default();
         owed.queue_changed();
-        let mut pool = FakePool {
-            queued: 3,
-            needs: 5,
-            ..Default::default()
+        let deferred = Allowed {
+            replan_soon: later(),
+            ..all_allowed(owed)
         };
-        let owed = feed(owed, &mut pool);
-        assert_eq!(pool.calls, ["submit"]);
-        assert!(owed.replan_soon(), "still owed");
-        pool.due = true;
-        let owed = feed(owed, &mut pool);
-        assert_eq!(pool.calls, ["submit", "replan", "submit"]);
-        assert!(!owed.any());
+        let nothing = Feed {
+            replan: false,
+            replan_if_drained: false,
+        };
+        assert_eq!(feed(owed, &deferred, 3), nothing, "only submits");
+        assert!(!has_work_now(owed, &deferred, &[], None));
+        assert!(feed(owed, &all_allowed(owed), 3).replan);
+        assert!(has_work_now(owed, &all_allowed(owed), &[], None));
     }
 
     #[test]
-    fn an_owed_replan_comes_before_submitting() {
+    fn an_owed_replan_comes_before_submitting_whatever_the_paces() {
         let mut owed = Owed::default();
         owed.views_changed();
-        let mut pool = FakePool {
-            needs: 5,
-            ..Default::default()
+        let deferred = Allowed {
+            sync: later(),
+            replan_soon: Timing::NotOwed,
         };
-        let owed = feed(owed, &mut pool);
-        assert_eq!(pool.calls, ["replan", "submit"]);
-        assert!(
-            !owed.replan() && owed.resync(),
-            "the viewers' sync is paid apart"
-        );
+        let fed = feed(owed, &deferred, 3);
+        assert!(fed.replan && !fed.replan_if_drained);
+        assert!(has_work_now(owed, &deferred, &[], None));
     }
 
     #[test]
     fn a_queue_emptied_by_answers_is_replanned_before_the_viewers_are_told() {
         let mut owed = Owed::default();
         owed.samples_arrived();
-        let mut pool = FakePool {
-            queued: 3,
-            satisfied: 3,
-            needs: 7,
-            ..Default::default()
+        let allowed = all_allowed(owed);
+        assert_eq!(
+            feed(owed, &allowed, 3),
+            Feed {
+                replan: false,
+                replan_if_drained: true,
+            },
+            "submitting may empty it"
+        );
+        assert!(feed(owed, &allowed, 0).replan, "already empty");
+    }
+
+    #[test]
+    fn a_deferred_sync_is_owed_still_and_asks_for_no_replan() {
+        let mut owed = Owed::default();
+        owed.samples_arrived();
+        let deferred = Allowed {
+            sync: later(),
+            ..all_allowed(owed)
         };
-        let owed = feed(owed, &mut pool);
-        assert_eq!(pool.calls, ["submit", "replan", "submit"]);
-        assert_eq!(pool.queued, 7);
-        assert!(owed.resync(), "the viewers are still owed their update");
+        for queued in [0, 3] {
+            assert_eq!(
+                feed(owed, &deferred, queued),
+                Feed {
+                    replan: false,
+                    replan_if_drained: false,
+                }
+            );
+        }
+        assert!(owed.resync());
+        assert!(!has_work_now(owed, &deferred, &[], None));
     }
 
     #[test]
     fn nothing_owed_only_submits() {
-        let mut pool = FakePool {
-            queued: 3,
-            ..Default::default()
-        };
-        assert_eq!(feed(Owed::default(), &mut pool), Owed::default());
-        assert_eq!(pool.calls, ["submit"]);
+        let owed = Owed::default();
+        let fed = feed(owed, &all_allowed(owed), 3);
+        assert!(!fed.replan && !fed.replan_if_drained);
+        assert!(!has_work_now(owed, &all_allowed(owed), &[], None));
     }
 }

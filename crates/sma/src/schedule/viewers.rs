@@ -1,19 +1,22 @@
 //! Per-viewer state and the epoch sync (DESIGN.md §3 step 4, §8): what each viewer sees and holds,
-//! its criterion, and bringing it up to date with `Remove`/`Insert`/`Update`, `ToneMap` and the
-//! `Epoch` that closes each consistent update.
+//! its criterion, what its messages change, and bringing it up to date with
+//! `Remove`/`Insert`/`Update`, `ToneMap` and the `Epoch` that closes each consistent update.
 
+use std::collections::BTreeMap;
 use std::time::Instant;
 
-use protocol::viewer_link::{Camera, Epoch, SmaToViewer};
+use protocol::viewer_link::{Camera, Epoch, SmaToViewer, ViewerToSma};
 
-use super::display::Display;
 use super::pending::PendingRefinement;
-use super::plan;
+use super::shown::ShownSet;
+use super::targets::targets;
+use super::turns::TurnView;
 use super::waits::ViewWait;
 use crate::cache::ShadingCache;
-use crate::criteria::Criterion;
+use crate::config::{Profile, ScheduleConfig};
+use crate::criteria::{Criterion, CriterionKind, CriterionSettings, make_criterion};
 use crate::mesh::{NodeId, SubdivisionMesh};
-use crate::viewer_link::Outbox;
+use crate::viewer_link::{Outbox, ViewerEvent, ViewerId};
 use crate::visibility::LeafView;
 
 /// One connected viewer.
@@ -29,7 +32,7 @@ pub struct Viewer {
     answer_pending: Option<u64>,
     pub view: Option<LeafView>,
     targets: Vec<(NodeId, protocol::Side)>,
-    pub display: Display,
+    pub shown: ShownSet,
     pub criterion: Box<dyn Criterion>,
     pub paused: bool,
     /// The criterion's last round for this camera found nothing to subdivide: the view's
@@ -62,7 +65,7 @@ impl Viewer {
             answer_pending: None,
             view: None,
             targets: Vec::new(),
-            display: Display::default(),
+            shown: ShownSet::default(),
             criterion,
             paused: false,
             criterion_dry: false,
@@ -93,9 +96,9 @@ impl Viewer {
         let (Some(view), Some(camera)) = (&self.view, &self.camera) else {
             return;
         };
-        self.targets = plan::targets(view, input.pending, input.mesh, camera.eye_vec());
+        self.targets = targets(view, input.pending, input.mesh, camera.eye_vec());
         let mut messages =
-            self.display
+            self.shown
                 .sync(&self.targets, input.mesh, input.cache, camera.eye_vec());
         let l_white = input.cache.l_white(input.mesh, &view.visible);
         if self.last_l_white != Some(l_white) && l_white > 0.0 {
@@ -104,7 +107,7 @@ impl Viewer {
             messages.push(SmaToViewer::ToneMap { l_white });
         }
         // Truthful: zero only when nothing is asked for and every wanted triangle is shown.
-        let outstanding = input.outstanding_requests + self.display.unshown as u64;
+        let outstanding = input.outstanding_requests + self.shown.unshown as u64;
         let answered = self.answer_pending.take();
         let completion_changed = self.last_outstanding.map(|o| o == 0) != Some(outstanding == 0);
         if messages.is_empty() && answered.is_none() && !completion_changed {
@@ -112,10 +115,10 @@ impl Viewer {
         }
         let epoch = Epoch {
             camera_seq: camera.seq,
-            shown: self.display.shown() as u64,
+            shown: self.shown.len() as u64,
             visible_leaves: view.visible.leaves.len() as u64,
-            inserted: std::mem::take(&mut self.display.inserted),
-            removed: std::mem::take(&mut self.display.removed),
+            inserted: std::mem::take(&mut self.shown.inserted),
+            removed: std::mem::take(&mut self.shown.removed),
             samples: input.samples,
             paths: input.paths,
             outstanding,
@@ -125,5 +128,184 @@ impl Viewer {
             self.send(message);
         }
         self.send(SmaToViewer::Epoch(epoch));
+    }
+}
+
+/// Makes each viewer's criterion, with its own random stream.
+#[derive(Clone, Debug)]
+pub struct Criteria {
+    /// The criterion a viewer starts with.
+    first: CriterionKind,
+    settings: CriterionSettings,
+    seed: u64,
+    /// Refinement at all (off: every viewer is told it is paused).
+    refine: bool,
+    /// Which criteria a viewer may ask for, and what runs for each (`Profile::criterion`).
+    profile: Profile,
+}
+
+impl Criteria {
+    /// A criterion's noise-aware significance floor is the schedule's `display_error`, and its
+    /// samples settle at the ladder's cap: the stated end (DESIGN.md §5) asks samples and leaves
+    /// for the same precision, one display step.
+    pub fn new(config: &ScheduleConfig) -> Criteria {
+        Criteria {
+            first: config.criterion,
+            settings: CriterionSettings {
+                display_error: config.display_error,
+                max_paths: config.max_paths,
+                ..config.criterion_settings
+            },
+            seed: config.seed,
+            refine: config.refine,
+            profile: config.profile,
+        }
+    }
+
+    /// A criterion of `kind` for viewer `id`.
+    fn make(&self, kind: CriterionKind, id: ViewerId) -> Box<dyn Criterion> {
+        make_criterion(kind, &self.settings, self.seed ^ id)
+    }
+
+    fn refinement_state(&self, viewer: &Viewer) -> SmaToViewer {
+        SmaToViewer::Refinement {
+            criterion: viewer.criterion.kind().name().to_string(),
+            paused: viewer.paused || !self.refine,
+        }
+    }
+}
+
+/// What a viewer's event changes beyond that viewer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Heard {
+    Nothing,
+    /// A viewer left: the queue holds needs of its view.
+    Left,
+    /// A viewer's camera moved.
+    CameraMoved,
+}
+
+/// Every connected viewer, by id.
+#[derive(Default)]
+pub struct Viewers {
+    by_id: BTreeMap<ViewerId, Viewer>,
+}
+
+impl Viewers {
+    pub fn is_empty(&self) -> bool {
+        self.by_id.is_empty()
+    }
+
+    pub fn len(&self) -> usize {
+        self.by_id.len()
+    }
+
+    pub fn get(&self, id: ViewerId) -> Option<&Viewer> {
+        self.by_id.get(&id)
+    }
+
+    pub fn get_mut(&mut self, id: ViewerId) -> Option<&mut Viewer> {
+        self.by_id.get_mut(&id)
+    }
+
+    pub fn iter(&self) -> impl Iterator<Item = &Viewer> {
+        self.by_id.values()
+    }
+
+    pub fn iter_mut(&mut self) -> impl Iterator<Item = &mut Viewer> {
+        self.by_id.values_mut()
+    }
+
+    /// Every viewer's current view.
+    pub fn views(&self) -> impl Iterator<Item = &LeafView> {
+        self.iter().filter_map(|v| v.view.as_ref())
+    }
+
+    /// Whether a visibility pass is owed to anyone.
+    pub fn need_pass(&self) -> bool {
+        self.iter().any(|v| v.wait.needs_pass())
+    }
+
+    /// The leaves changed, or K samples came: every viewer with a camera needs a pass.
+    pub fn leaves_changed(&mut self) {
+        self.iter_mut().for_each(|v| v.wait.leaves_changed());
+    }
+
+    /// New input for every viewer's criterion (samples, committed groups).
+    pub fn new_input(&mut self) {
+        self.iter_mut().for_each(|v| v.wait.new_input());
+    }
+
+    /// The viewers as the turn order sees them.
+    pub fn turn_views(&self) -> Vec<TurnView> {
+        self.by_id
+            .iter()
+            .map(|(&id, v)| TurnView {
+                id,
+                has_view: v.view.is_some(),
+                paused: v.paused,
+                wait: v.wait,
+                camera_at: v.camera_at,
+                camera_replaced: v.camera_replaced,
+            })
+            .collect()
+    }
+
+    /// A viewer joined, left or sent a message (DESIGN.md §8).
+    pub fn on_event(&mut self, event: ViewerEvent, criteria: &Criteria) -> Heard {
+        match event {
+            ViewerEvent::Joined { id, outbox } => {
+                let viewer = Viewer::new(outbox, criteria.make(criteria.first, id));
+                viewer.send(criteria.refinement_state(&viewer));
+                self.by_id.insert(id, viewer);
+                Heard::Nothing
+            }
+            ViewerEvent::Left { id } => {
+                self.by_id.remove(&id);
+                Heard::Left
+            }
+            ViewerEvent::Message { id, message } => self.on_message(id, message, criteria),
+        }
+    }
+
+    fn on_message(&mut self, id: ViewerId, message: ViewerToSma, criteria: &Criteria) -> Heard {
+        let Some(viewer) = self.by_id.get_mut(&id) else {
+            return Heard::Nothing;
+        };
+        let heard = match message {
+            ViewerToSma::Camera(camera) => {
+                viewer.camera_moved(camera);
+                Heard::CameraMoved
+            }
+            ViewerToSma::SetCriterion { name } => {
+                // Under the thesis profile `nld-os` runs as `nld-os-thesis` (the `Refinement`
+                // reply names it) and `nld-px` is refused: the viewer keeps its criterion.
+                match criteria.profile.criterion_named(&name) {
+                    Ok(kind) => {
+                        viewer.criterion = criteria.make(kind, id);
+                        viewer.wait.new_input();
+                    }
+                    Err(refused) => {
+                        tracing::warn!(viewer = id, %name, %refused, "criterion refused");
+                        viewer.send(SmaToViewer::Error {
+                            message: refused.to_string(),
+                        });
+                    }
+                }
+                Heard::Nothing
+            }
+            ViewerToSma::Pause => {
+                viewer.paused = true;
+                Heard::Nothing
+            }
+            ViewerToSma::Resume => {
+                viewer.paused = false;
+                Heard::Nothing
+            }
+            // The viewer's link keeps these to itself (`viewer_link::serve`).
+            ViewerToSma::Bye | ViewerToSma::Pong { .. } => return Heard::Nothing,
+        };
+        viewer.send(criteria.refinement_state(viewer));
+        heard
     }
 }

@@ -128,22 +128,6 @@ impl Owed {
         self.resync = false;
     }
 
-    /// The same debts with the viewers' sync left for a later turn (it is rate-limited).
-    pub fn resync_later(self) -> Owed {
-        Owed {
-            resync: false,
-            ..self
-        }
-    }
-
-    /// The same debts with a re-plan that may wait left for a later turn (it is paced).
-    pub fn replan_later(self) -> Owed {
-        Owed {
-            replan_soon: false,
-            ..self
-        }
-    }
-
     pub fn any(self) -> bool {
         self.replan || self.replan_soon || self.resync
     }
@@ -202,7 +186,6 @@ mod tests {
         owed.synced();
         owed.queue_changed();
         assert!(!owed.replan() && owed.replan_soon() && !owed.resync());
-        assert!(!owed.replan_later().any());
         owed.groups_committed();
         owed.replanned();
         assert!(!owed.replan_soon() && owed.resync());

@@ -118,7 +118,7 @@ struct Rays {
 
 impl Rays {
     fn new(camera: &Pinhole) -> Rays {
-        let t = (0.5 * camera.fov_y_deg.to_radians()).tan();
+        let t = camera.half_height();
         let (w, h) = (camera.width.max(1) as f32, camera.height.max(1) as f32);
         let r = camera.rotation;
         Rays {

@@ -44,7 +44,7 @@ mod weld;
 #[cfg(test)]
 mod hard_cases;
 #[cfg(test)]
-mod invariants;
+pub(crate) mod invariants;
 #[cfg(test)]
 pub(crate) mod test_meshes;
 

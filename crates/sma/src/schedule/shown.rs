@@ -1,6 +1,7 @@
-//! What one viewer holds, and the diff that keeps it in step (DESIGN.md §3 step 4, §5, §8):
-//! `Remove` for what left, `Insert` for what came in with all three samples cached, `Update` for
-//! a shown triangle whose samples got better. The caller closes the batch with an `Epoch`.
+//! The triangles one viewer is shown, and the diff that keeps them in step (DESIGN.md §3 step 4,
+//! §5, §8): `Remove` for what left, `Insert` for what came in with all three samples cached,
+//! `Update` for a shown triangle whose samples got better. The caller closes the batch with an
+//! `Epoch`.
 
 use std::collections::HashMap;
 
@@ -13,12 +14,13 @@ use crate::mesh::fast_hash::FastHash;
 use crate::mesh::{NodeId, SubdivisionMesh};
 use crate::visible_set::shown_id;
 
+/// What one viewer is shown, as this process last sent it.
 #[derive(Debug, Default)]
-pub struct Display {
+pub struct ShownSet {
     /// Shown triangles, the radiance last sent for each, and the sync that last wanted it (ids
     /// made by this process: the fast hasher; a sync walks every visible leaf several times a
     /// second).
-    shown: HashMap<TriangleId, Shown, FastHash>,
+    shown: HashMap<TriangleId, Entry, FastHash>,
     /// Syncs so far: what a sync does not stamp with its own count has left the view.
     syncs: u64,
     /// Δins and Δrem since the last epoch.
@@ -28,14 +30,16 @@ pub struct Display {
     pub unshown: usize,
 }
 
+/// One shown triangle.
 #[derive(Clone, Copy, Debug)]
-struct Shown {
+struct Entry {
     radiance: [[f32; 3]; 3],
     wanted_at: u64,
 }
 
-impl Display {
-    pub fn shown(&self) -> usize {
+impl ShownSet {
+    /// Triangles shown.
+    pub fn len(&self) -> usize {
         self.shown.len()
     }
 
@@ -67,7 +71,7 @@ impl Display {
                 (None, Some(radiance)) => {
                     self.shown.insert(
                         id,
-                        Shown {
+                        Entry {
                             radiance,
                             wanted_at: sync,
                         },
@@ -157,30 +161,27 @@ mod tests {
         let mesh = SubdivisionMesh::new(&grid_mesh(2), Default::default());
         let mut cache = ShadingCache::new(1 << 20);
         let eye = Vec3::new(1.0, 1.0, 3.0);
-        let mut display = Display::default();
+        let mut shown = ShownSet::default();
         let front = |nodes: &[NodeId]| -> Vec<(NodeId, Side)> {
             nodes.iter().map(|&n| (n, Side::Front)).collect()
         };
-        let none = display.sync(&front(&[0, 1, 2]), &mesh, &cache, eye);
-        assert!(
-            none.is_empty() && display.unshown == 3,
-            "nothing cached yet"
-        );
+        let none = shown.sync(&front(&[0, 1, 2]), &mesh, &cache, eye);
+        assert!(none.is_empty() && shown.unshown == 3, "nothing cached yet");
         cache_all(&mesh, &mut cache, 0.5);
-        let first = display.sync(&front(&[0, 1, 2]), &mesh, &cache, eye);
+        let first = shown.sync(&front(&[0, 1, 2]), &mesh, &cache, eye);
         assert_eq!(kinds(&first), [("insert", 3)]);
-        assert_eq!((display.shown(), display.unshown), (3, 0));
+        assert_eq!((shown.len(), shown.unshown), (3, 0));
         assert!(
-            display
+            shown
                 .sync(&front(&[0, 1, 2]), &mesh, &cache, eye)
                 .is_empty()
         );
-        let moved = display.sync(&front(&[1, 2, 3, 4]), &mesh, &cache, eye);
+        let moved = shown.sync(&front(&[1, 2, 3, 4]), &mesh, &cache, eye);
         assert_eq!(kinds(&moved), [("remove", 1), ("insert", 2)]);
         let mut brighter = ShadingCache::new(1 << 20);
         cache_all(&mesh, &mut brighter, 0.9);
-        let changed = display.sync(&front(&[1, 2, 3, 4]), &mesh, &brighter, eye);
+        let changed = shown.sync(&front(&[1, 2, 3, 4]), &mesh, &brighter, eye);
         assert_eq!(kinds(&changed), [("update", 4)]);
-        assert_eq!((display.inserted, display.removed), (5, 1));
+        assert_eq!((shown.inserted, shown.removed), (5, 1));
     }
 }

@@ -13,6 +13,7 @@ use protocol::{ProtocolError, Role, SceneIdentity, split_tcp};
 use tokio::net::TcpStream;
 use tokio::sync::{mpsc, oneshot, watch};
 
+use crate::config::Profile;
 use crate::criteria::CriterionKind;
 
 mod outbox;
@@ -302,12 +303,12 @@ pub fn scene_identity(scene: &scene::Scene) -> SceneIdentity {
 }
 
 /// What a viewer learns of `scene` first (it has no scene of its own, DESIGN.md §2): its name,
-/// fingerprint, textures on or off, bounds, viewpoints, and the criteria, the one viewers start
-/// with first.
-pub fn scene_info(scene: &scene::Scene, active: CriterionKind) -> SceneInfo {
+/// fingerprint, textures on or off, bounds, viewpoints, and the criteria `profile` offers, the
+/// one viewers start with first.
+pub fn scene_info(scene: &scene::Scene, active: CriterionKind, profile: Profile) -> SceneInfo {
     let (lo, hi) = scene.mesh.bounds();
     let criteria = std::iter::once(active)
-        .chain(CriterionKind::ALL.into_iter().filter(|&k| k != active))
+        .chain(profile.criteria().into_iter().filter(|&k| k != active))
         .map(|k| k.name().to_string())
         .collect();
     SceneInfo {

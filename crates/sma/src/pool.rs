@@ -31,6 +31,7 @@ use tokio::net::TcpListener;
 use tokio::sync::{Notify, mpsc, watch};
 use tokio::time::Instant;
 
+use crate::clock::sleep_until;
 use backlog::{Backlog, Queued};
 use busy::BusyMeter;
 use link::{Dialed, LinkEvent};
@@ -38,9 +39,12 @@ use rate::Rate;
 
 /// A batch rejected or answered badly this many times is given back to the schedule as failed.
 const MAX_ATTEMPTS: u32 = 3;
-/// Batches the schedule may have handed over and no renderer taken yet: the schedule keeps a
-/// backlog of a fraction of a second, so this is never reached by a sane farm.
-const BACKLOG_BATCHES: usize = 4096;
+/// Batches per renderer that may wait in the backlog beyond those the renderers hold, whatever
+/// their size: a bound on what a withdrawal hands back (the schedule keeps to it, through
+/// [`PoolHandle::most_batches`]) and on what the pool holds for the schedule (it refuses past
+/// it). The schedule sizes the backlog in seconds of the renderers' capacity, a fraction of a
+/// second (DESIGN.md §3), so this bounds it only where batches are very short.
+const BACKLOG_BATCHES_PER_RENDERER: usize = 64;
 /// News from the link tasks waiting for the dispatcher.
 const LINK_QUEUE: usize = 256;
 
@@ -82,6 +86,13 @@ pub enum PoolEvent {
 
 pub use backlog::Lane;
 
+/// The most batches handed over to the pool and not yet answered, with `renderers` answering
+/// (counted as one when none is): the `depth` each holds, and [`BACKLOG_BATCHES_PER_RENDERER`]
+/// more waiting in the backlog.
+fn most_batches(depth: usize, renderers: usize) -> usize {
+    (depth.max(1) + BACKLOG_BATCHES_PER_RENDERER) * renderers.max(1)
+}
+
 /// The schedule's side of the pool.
 #[derive(Clone)]
 pub struct PoolHandle {
@@ -89,15 +100,28 @@ pub struct PoolHandle {
     /// Wakes the dispatcher when a batch is handed over.
     submitted: Arc<Notify>,
     busy: Arc<Mutex<BusyMeter>>,
+    /// Batches in flight per renderer (`PoolConfig::depth`).
+    depth: usize,
+    /// The backlog's bound: [`most_batches`] with every renderer the pool may serve answering
+    /// (those dialed, and those the renderer port admits). A schedule that keeps to
+    /// [`PoolHandle::most_batches`] never reaches it: what waits in the backlog is part of what
+    /// it handed over, and no more renderers answer than the pool may serve.
+    max_backlog: usize,
 }
 
 impl PoolHandle {
+    /// The most batches the schedule may have handed over and not had answered, with
+    /// `renderers` answering.
+    pub fn most_batches(&self, renderers: usize) -> usize {
+        most_batches(self.depth, renderers)
+    }
+
     /// Queues a batch in its lane of the backlog; it is dispatched as soon as a renderer has
     /// room. A full backlog gives the batch back, for the schedule to ask again later.
     pub fn submit(&self, batch: ShadeBatch, lane: Lane) -> Result<(), ShadeBatch> {
         {
             let mut backlog = lock(&self.backlog);
-            if backlog.len() >= BACKLOG_BATCHES {
+            if backlog.len() >= self.max_backlog {
                 return Err(batch);
             }
             backlog.push_back(batch, lane);
@@ -136,6 +160,13 @@ pub fn spawn(
     joining: Option<TcpListener>,
     shutdown: watch::Receiver<bool>,
 ) -> PoolHandle {
+    let joined = if joining.is_some() {
+        config.renderer_port.max_connections
+    } else {
+        0
+    };
+    let depth = config.depth;
+    let max_backlog = most_batches(config.depth, config.renderers.len() + joined);
     let backlog = Arc::new(Mutex::new(Backlog::default()));
     let submitted = Arc::new(Notify::new());
     let (link_tx, link_rx) = mpsc::channel(LINK_QUEUE);
@@ -176,6 +207,8 @@ pub fn spawn(
         backlog,
         submitted,
         busy,
+        depth,
+        max_backlog,
     }
 }
 
@@ -471,12 +504,6 @@ impl Dispatcher {
         }
         self.answering = connected;
         self.news.push_back(PoolEvent::Renderers { connected });
-    }
-}
-
-async fn sleep_until(at: Option<Instant>) {
-    if let Some(at) = at {
-        tokio::time::sleep_until(at).await;
     }
 }
 

@@ -1,0 +1,528 @@
+//! The event loop of the SMA (DESIGN.md §3, thesis §2.2, §4.1): one owner of the mesh, the
+//! cache, the visibility passes and every viewer's state, fed by two channels (viewers, renderer
+//! pool). Each turn it first takes every waiting event, then, in this order:
+//!
+//! 1. visibility for viewers whose camera changed (or whose leaves changed), two levels;
+//! 2. refinement groups whose visible new leaves are all shaded are committed;
+//! 3. the request queue is re-planned when the visible sets or the cache changed, and batches
+//!    go to the pool while it has room (a queue that empties because answers satisfied it is
+//!    re-planned at once);
+//! 4. each viewer is brought up to date (`Remove`/`Insert`/`Update`, `ToneMap`, `Epoch`), the
+//!    epoch counting what is truly outstanding after step 3;
+//! 5. only then, when no camera is waiting, the queue is short and a viewer's camera rests, one
+//!    refinement round of at most R selections runs (first, where it is on and samples or views
+//!    came since the last, a pass of coarsening by uniformity, [`uniformity`]); its passes come
+//!    at the next turn, after any camera that arrived meanwhile. A camera change so interrupts
+//!    refinement at once.
+//!
+//! It runs on its own thread: the visibility passes block for milliseconds (software
+//! rasterizer), and must not stall the tasks serving viewers and renderers.
+//!
+//! The schedule reads one way: [`turns`] decides what a turn does and returns it, [`pace`] decides
+//! what of the work that may wait runs now, and this module carries both out. Its state is
+//! grouped in named parts: the viewers ([`viewers`]: per-viewer state, their messages, the epoch
+//! sync, and what each is shown, [`shown`] and [`targets`]), refinement ([`refinement`], with
+//! [`pending`] steps, [`coarsening`] and [`uniformity`]), the request queue ([`plan`] makes each
+//! view's needs, [`need`], on the quality [`ladder`]; [`requests`] orders and batches them), the
+//! answers from the pool ([`answers`]), what the work owes and waits for ([`waits`]), the paces,
+//! and the counters behind `Stats` ([`counters`]).
+
+mod answers;
+mod coarsening;
+mod counters;
+mod ladder;
+mod need;
+mod pace;
+mod pending;
+mod plan;
+mod refinement;
+mod requests;
+mod shown;
+mod targets;
+mod turns;
+mod uniformity;
+mod viewers;
+mod waits;
+
+use std::time::Instant;
+
+use anyhow::Context;
+use protocol::renderer_link::Quality;
+use protocol::viewer_link::SmaToViewer;
+use scene::Scene;
+use tokio::sync::{mpsc, watch};
+
+use crate::cache::ShadingCache;
+use crate::clock::sleep_until;
+use crate::config::ScheduleConfig;
+use crate::mesh::SubdivisionMesh;
+use crate::pool::{Lane, PoolEvent, PoolHandle};
+use crate::viewer_link::{ViewerEvent, ViewerId};
+use crate::visibility::{Gpu, LuminancePass, Visibility, carry_over};
+use answers::Answers;
+use counters::{Counters, Gauges, Work};
+use pace::{Allowed, Paces};
+use plan::{MorePaths, NeedsInput, PlanRules};
+use refinement::{Refinement, Round};
+use requests::{BatchLimit, Requests};
+use turns::RefineGate;
+use uniformity::JudgedView;
+use viewers::{Criteria, Heard, SyncInput, Viewer, Viewers};
+use waits::Owed;
+
+pub struct Schedule {
+    config: ScheduleConfig,
+    mesh: SubdivisionMesh,
+    cache: ShadingCache,
+    /// Visibility passes so far: the frame a sample or a base triangle was last seen in.
+    frame: u64,
+    visibility: Visibility,
+    luminance: LuminancePass,
+    refinement: Refinement,
+    /// The quality ladder and what else the plan of every view's needs holds for the run.
+    rules: PlanRules,
+    requests: Requests,
+    pool: PoolHandle,
+    /// Renderers answering, as the pool last said.
+    renderers: usize,
+    answers: Answers,
+    viewers: Viewers,
+    criteria: Criteria,
+    /// What the next turn owes the queue and the viewers.
+    owed: Owed,
+    paces: Paces,
+    counters: Counters,
+}
+
+impl Schedule {
+    pub fn new(
+        config: ScheduleConfig,
+        scene: &Scene,
+        mesh: SubdivisionMesh,
+        gpu: Gpu,
+        pool: PoolHandle,
+    ) -> Schedule {
+        let now = Instant::now();
+        let luminance = LuminancePass::new(&gpu);
+        let visibility = Visibility::new(gpu, &mesh, scene.mesh.bounds());
+        Schedule {
+            refinement: Refinement::new(mesh.base_count(), &config),
+            rules: PlanRules::new(&config, scene),
+            cache: ShadingCache::new(config.cache_budget_bytes)
+                .with_l_white_outliers(config.l_white_outliers),
+            requests: Requests::new(config.seed, config.top_up_share),
+            criteria: Criteria::new(&config),
+            paces: Paces::new(config.round_share, now),
+            config,
+            mesh,
+            frame: 0,
+            visibility,
+            luminance,
+            pool,
+            renderers: 0,
+            answers: Answers::default(),
+            viewers: Viewers::default(),
+            owed: Owed::default(),
+            counters: Counters::new(now),
+        }
+    }
+
+    pub fn adapter(&self) -> String {
+        self.visibility.gpu().describe()
+    }
+
+    /// Runs until shutdown or until both channels close.
+    pub async fn run(
+        mut self,
+        mut viewers: mpsc::Receiver<ViewerEvent>,
+        mut pool: mpsc::Receiver<PoolEvent>,
+        mut shutdown: watch::Receiver<bool>,
+    ) -> anyhow::Result<()> {
+        let mut stats = tokio::time::interval(self.config.stats_every);
+        loop {
+            let (work_now, wake_at) = self.waiting_for();
+            tokio::select! {
+                biased;
+                _ = shutdown.changed() => return Ok(()),
+                event = viewers.recv() => match event {
+                    Some(event) => self.on_viewer_event(event),
+                    None => return Ok(()),
+                },
+                Some(event) = pool.recv() => self.on_pool_event(event),
+                _ = stats.tick() => {}
+                _ = sleep_until(wake_at), if wake_at.is_some() => {}
+                _ = std::future::ready(()), if work_now => {}
+            }
+            while let Ok(event) = viewers.try_recv() {
+                self.on_viewer_event(event);
+            }
+            while let Ok(event) = pool.try_recv() {
+                self.on_pool_event(event);
+            }
+            self.turn()?;
+            // By the clock, not only on the tick: while work keeps this loop busy, the
+            // runtime's timers are not polled and the tick came seconds late.
+            if self.counters.stats_due(self.config.stats_every) {
+                self.report_stats();
+            }
+        }
+    }
+
+    fn on_viewer_event(&mut self, event: ViewerEvent) {
+        match self.viewers.on_event(event, &self.criteria) {
+            Heard::Nothing => {}
+            Heard::Left => self.owed.queue_changed(),
+            Heard::CameraMoved => self.paces.camera_moved(Instant::now()),
+        }
+    }
+
+    fn on_pool_event(&mut self, event: PoolEvent) {
+        match event {
+            PoolEvent::Shaded { batch, radiance } => {
+                self.requests.finished(&batch);
+                let answered = self.answers.shaded(
+                    &batch,
+                    &radiance,
+                    &self.rules.view_dependent,
+                    self.frame,
+                    &mut self.cache,
+                );
+                if answered.points > 0 {
+                    self.refinement.merge_input();
+                }
+                if self.counters.answered(answered) {
+                    self.viewers.new_input();
+                }
+                self.owed.samples_arrived();
+            }
+            PoolEvent::Failed { batch, reason } => {
+                tracing::warn!(batch = batch.batch_id, %reason, "batch failed; its samples will be asked again");
+                self.requests.finished(&batch);
+                self.owed.queue_changed();
+            }
+            PoolEvent::Renderers { connected } => self.renderers = connected,
+        }
+    }
+
+    /// One turn after the events (see the module documentation).
+    fn turn(&mut self) -> anyhow::Result<()> {
+        if self.counters.since_pass >= self.config.revisit_samples {
+            self.viewers.leaves_changed();
+        }
+        let frame = self.frame;
+        self.run_passes()?;
+        self.commit_ready_groups();
+        let allowed = self.allowed(self.frame != frame);
+        let feed = turns::feed(self.owed, &allowed, self.requests.queued());
+        if feed.replan {
+            self.replan();
+        }
+        self.submit_batches();
+        if feed.replan_if_drained && self.requests.queued() == 0 {
+            self.replan();
+            self.submit_batches();
+        }
+        if allowed.sync.now() {
+            self.timed(Work::Sync, Self::sync_viewers);
+        }
+        if let Some(id) = self.refinement_candidate(Instant::now()) {
+            self.timed(Work::Round, |s| s.refine_round(id))?;
+        }
+        self.note_convergence();
+        Ok(())
+    }
+
+    /// What of the work owed its pace allows now (`pass_ran`: the viewers see a new view at once).
+    fn allowed(&self, pass_ran: bool) -> Allowed {
+        self.paces.allowed(self.owed, pass_ran, Instant::now())
+    }
+
+    /// Runs `work`, counts its time, and spaces the next run of paced work by it.
+    fn timed<T>(&mut self, work: Work, run: impl FnOnce(&mut Self) -> T) -> T {
+        let start = Instant::now();
+        let out = run(self);
+        let spent = start.elapsed();
+        self.paces.ran(work, start, spent);
+        self.counters.costs.add(work, spent);
+        out
+    }
+
+    /// The stated end of DESIGN.md §5 for every viewer: its criterion finds nothing to subdivide
+    /// and no sample is wanted (every visible one is below the displayed-error threshold or at
+    /// the ladder's cap), nothing is in flight and no refinement step waits.
+    fn note_convergence(&mut self) {
+        let converged = !self.viewers.is_empty()
+            && self.viewers.iter().all(|v| {
+                // Without refinement no criterion runs: there is nothing to subdivide.
+                let dry = v.criterion_dry || !self.config.refine;
+                v.view.is_some() && dry && !v.wait.needs_pass()
+            })
+            && self.requests.outstanding() == 0
+            && self.refinement.pending.is_empty()
+            && !self.owed.any();
+        self.counters.converged(converged);
+    }
+
+    fn run_passes(&mut self) -> anyhow::Result<()> {
+        if !self.viewers.need_pass() {
+            return Ok(());
+        }
+        let start = Instant::now();
+        self.frame += 1;
+        if self.refinement.coarsen_stale(&mut self.mesh, self.frame) {
+            self.viewers.leaves_changed();
+        }
+        let mut drew = false;
+        // Every K samples the views are drawn afresh (thesis §4.1's revisit): a carried view
+        // differs from a drawn one by slivers the rasteriser's sub-pixel grid decides, and the
+        // redraw keeps them from adding up over hundreds of rounds. (Single 20-s runs on
+        // bracara VT, mean FLIP at 20 s: 0.0369 carried throughout, 0.0360 with this redraw,
+        // 0.0355 with every view drawn; within the runs' spread, so not a measured cure.)
+        let redraw = self.counters.since_pass >= self.config.revisit_samples;
+        for viewer in self.viewers.iter_mut().filter(|v| v.wait.needs_pass()) {
+            viewer.wait.pass_done();
+            let Some(camera) = &viewer.camera else {
+                continue;
+            };
+            // The camera unchanged, only the leaves did (a round, coarsening): the view is
+            // carried over, exact but for slivers, without drawing (`visibility::carry_over`).
+            let carried = viewer
+                .view
+                .take()
+                .filter(|view| !redraw && view.camera.as_ref() == Some(camera))
+                .and_then(|view| carry_over(view, &self.mesh, camera));
+            let view = match carried {
+                Some(view) => view,
+                None => {
+                    drew = true;
+                    self.visibility
+                        .leaf_view(&self.mesh, camera)
+                        .context("visibility pass")?
+                }
+            };
+            viewer.view = Some(view);
+        }
+        // Every viewer's view counts as seen now, not only those just re-run: while one viewer
+        // walks, what another one rests on is neither evicted nor coarsened.
+        for view in self.viewers.views() {
+            self.cache
+                .touch_visible(&self.mesh, &view.visible, self.frame);
+            self.refinement.seen(&self.mesh, view, self.frame);
+        }
+        if drew {
+            self.counters.since_pass = 0;
+        }
+        self.cache.evict(self.frame, &|_| false);
+        self.owed.views_changed();
+        self.refinement.merge_input();
+        let work = if drew { Work::Pass } else { Work::CarryOver };
+        self.counters.costs.add(work, start.elapsed());
+        Ok(())
+    }
+
+    /// Commits every pending group whose visible new leaves are shaded: the viewers see new
+    /// leaves, new input for their criteria.
+    fn commit_ready_groups(&mut self) {
+        let views = self.viewers.views();
+        if self.refinement.commit_ready(views, &self.mesh, &self.cache) {
+            self.viewers.new_input();
+            self.owed.groups_committed();
+        }
+    }
+
+    /// Rebuilds the request queue from the visible sets and the cache.
+    fn replan(&mut self) {
+        self.timed(Work::Replan, Self::replan_requests);
+        self.owed.replanned();
+    }
+
+    fn replan_requests(&mut self) {
+        // What the backlog holds was batched under the old plan; the new one batches it again
+        // in the new order (a camera move must not wait behind the old view's backlog).
+        for batch in self.pool.withdraw() {
+            self.requests.finished(&batch);
+        }
+        let mut needs = Vec::new();
+        for viewer in self.viewers.iter() {
+            let (Some(view), Some(camera)) = (&viewer.view, &viewer.camera) else {
+                continue;
+            };
+            needs.extend(plan::needs(&NeedsInput {
+                view,
+                eye: camera.eye_vec(),
+                pending: &self.refinement.pending,
+                mesh: &self.mesh,
+                cache: &self.cache,
+                rules: &self.rules,
+                more_paths: self.more_paths_for(viewer),
+            }));
+        }
+        self.requests.replan(needs);
+    }
+
+    /// Every shown view gets more paths where its noise shows, below every other need: they
+    /// keep the renderers busy between refinement rounds and passes (DESIGN.md §3, §5). While
+    /// its criterion still refines, its quieter samples too, last of all (`Urgency::Polish`).
+    /// Without the quality ladder (the thesis's fixed-quality samples) none.
+    fn more_paths_for(&self, viewer: &Viewer) -> Option<MorePaths> {
+        if !self.config.ladder {
+            return None;
+        }
+        Some(MorePaths {
+            l_white: viewer.last_l_white?,
+            threshold: self.config.display_error,
+            polish: self.config.refine && !viewer.criterion_dry,
+        })
+    }
+
+    fn sync_viewers(&mut self) {
+        let input = SyncInput {
+            mesh: &self.mesh,
+            cache: &self.cache,
+            pending: &self.refinement.pending,
+            outstanding_requests: self.requests.outstanding() as u64,
+            samples: self.counters.samples,
+            paths: self.counters.paths,
+        };
+        for viewer in self.viewers.iter_mut() {
+            viewer.sync(&input);
+        }
+        self.owed.synced();
+    }
+
+    /// Keeps each renderer holding `batches_per_renderer` batches, and the pool's backlog
+    /// holding `renderer_backlog` of the renderers' measured capacity beyond them, within the
+    /// pool's bound in batches (`PoolHandle::most_batches`): the backlog is sent while this
+    /// thread is busy with a pass or a refinement round (DESIGN.md §3: rest time goes to the
+    /// renderers).
+    fn submit_batches(&mut self) {
+        let held = self.config.batches_per_renderer.max(1) * self.renderers.max(1);
+        let most = self.pool.most_batches(self.renderers);
+        let backlog = self.config.renderer_backlog.as_secs_f64();
+        let limit = BatchLimit {
+            points: self.config.batch_points,
+            paths: self.config.batch_paths,
+        };
+        loop {
+            let in_flight = self.requests.batches_in_flight();
+            let backlog_full = self.pool.backlog_seconds().is_none_or(|s| s >= backlog);
+            if in_flight >= most || (in_flight >= held && backlog_full) {
+                break;
+            }
+            let Some(batch) = self.requests.next_batch(limit, &self.cache) else {
+                break;
+            };
+            let lane = if self.requests.is_urgent(batch.batch_id) {
+                Lane::Urgent
+            } else {
+                Lane::Background
+            };
+            // A full backlog gives the batch back: its samples are asked for again later.
+            if let Err(batch) = self.pool.submit(batch, lane) {
+                self.requests.finished(&batch);
+                self.owed.queue_changed();
+                break;
+            }
+        }
+    }
+
+    /// What refinement as a whole waits for at this instant.
+    fn refine_gate(&self) -> RefineGate {
+        RefineGate {
+            refine: self.config.refine,
+            groups_pending: !self.refinement.pending.is_empty(),
+            outstanding: self.requests.outstanding_before_paths(),
+            queue_low: self.config.queue_low,
+            rest: self.config.rest,
+            next_round_at: self.paces.next_round_at(self.requests.queued() > 0),
+            merge_due: self.config.refine && self.refinement.merge_due(),
+        }
+    }
+
+    /// The viewer whose turn it is to refine at `now`, if refinement may run.
+    fn refinement_candidate(&self, now: Instant) -> Option<ViewerId> {
+        let views = self.viewers.turn_views();
+        turns::refinement_candidate(&self.refine_gate(), &views, self.refinement.rounds, now)
+    }
+
+    /// One refinement round for viewer `id`: the viewers learn of its new leaves, the queue
+    /// that the criterion ran dry. A due pass of coarsening by uniformity comes first; where it
+    /// merged, the round ends there: the views are owed a pass.
+    fn refine_round(&mut self, id: ViewerId) -> anyhow::Result<()> {
+        if self.refinement.merge_due() && self.merge_uniform() {
+            self.viewers.leaves_changed();
+            return Ok(());
+        }
+        let viewer = self.viewers.get(id).expect("candidate exists");
+        if viewer.wait.is_exhausted() {
+            // Its turn came for the merge pass only (`RefineGate::merge_due`).
+            return Ok(());
+        }
+        let image =
+            refinement::luminance_image(viewer, &self.mesh, &self.visibility, &mut self.luminance)?;
+        let viewer = self.viewers.get_mut(id).expect("candidate exists");
+        match self
+            .refinement
+            .round(id, viewer, image, &mut self.mesh, &self.cache)
+        {
+            Round::Exhausted { newly_dry: true } => self.owed.queue_changed(),
+            Round::Refined => self.viewers.leaves_changed(),
+            Round::Exhausted { newly_dry: false } | Round::TooSmall => {}
+        }
+        Ok(())
+    }
+
+    /// Coarsening by uniformity over every view shown with a tone map (thesis §6, DESIGN.md
+    /// §4): a sample has settled from the rung whose variance the ladder believes, at the
+    /// scene's depth. Returns whether the leaves changed.
+    fn merge_uniform(&mut self) -> bool {
+        let views: Vec<JudgedView> = self
+            .viewers
+            .iter()
+            .filter_map(|v| {
+                Some(JudgedView {
+                    visible: &v.view.as_ref()?.visible,
+                    l_white: v.last_l_white?,
+                })
+            })
+            .collect();
+        let qualities = self.rules.qualities;
+        let trusted = |q: Quality| q.bounces == qualities.full.bounces && qualities.trusts(q);
+        self.refinement
+            .merge_uniform(&views, &mut self.mesh, &self.cache, &trusted)
+    }
+
+    /// Whether a turn has work without any new event, and else when to wake: a camera coming to
+    /// rest, a round's pace, or a sync or a re-plan its pace put off.
+    fn waiting_for(&self) -> (bool, Option<Instant>) {
+        let now = Instant::now();
+        let (views, gate) = (self.viewers.turn_views(), self.refine_gate());
+        let allowed = self.paces.allowed(self.owed, false, now);
+        let candidate = turns::refinement_candidate(&gate, &views, self.refinement.rounds, now);
+        let wake = [turns::next_rest(&gate, &views, now), allowed.wake_at()];
+        (
+            turns::has_work_now(self.owed, &allowed, &views, candidate),
+            wake.into_iter().flatten().min(),
+        )
+    }
+
+    fn report_stats(&mut self) {
+        let gauges = Gauges {
+            renderer_busy: self.pool.take_busy(),
+            renderers: self.renderers,
+            viewers: self.viewers.len(),
+            leaves: self.mesh.leaf_count(),
+            cached_samples: self.cache.len(),
+            cache_bytes: self.cache.bytes(),
+            mesh_bytes: self.mesh.heap_bytes(),
+            queued: self.requests.queued(),
+            in_flight: self.requests.in_flight_keys(),
+            pending_steps: self.refinement.pending.len(),
+            uniform_merges: self.refinement.uniform_merges(),
+        };
+        let stats = self.counters.report(gauges);
+        for viewer in self.viewers.iter() {
+            viewer.send(SmaToViewer::Stats(stats));
+        }
+    }
+}
