@@ -16,7 +16,7 @@ use protocol::renderer_link::{
     FromRenderer, Quality, SampleKey, ShadeBatch, ShadePoint, ToRenderer,
 };
 use protocol::viewer_link::{Camera, SmaToViewer, ViewerToSma};
-use protocol::{Hello, Role, Side, split_tcp};
+use protocol::{Hello, Role, SceneIdentity, Side, split_tcp};
 use protocol::{MessageReader, WireMessage};
 use sma::visibility::Gpu;
 use testkit::child::{Process, Server, start_renderer_with, start_sma, strings};
@@ -311,8 +311,7 @@ async fn a_frame_stalled_halfway_is_cut_off_by_the_sma_and_by_the_renderer() {
     assert!(told.contains("stalled"), "{told}");
 
     // An SMA that does the same to a renderer.
-    let fingerprint = scene::load(SCENE).unwrap().fingerprint;
-    let hello = Hello::new(Role::Sma, Some(fingerprint));
+    let hello = Hello::new(Role::Sma, Some(identity()));
     let (mut reader, _writer) = stalled::<FromRenderer>(&r.addr.to_string(), &hello).await;
     let told = tokio::time::timeout(WAIT, reader.recv())
         .await
@@ -329,8 +328,7 @@ async fn a_renderer_refuses_more_batches_than_it_holds() {
     let log = dir.path().join("r.log");
     let flags = strings(&["--max-batches", "2"]);
     let r = start_renderer_with(exe(), SCENE, Some(1), &flags, Some(&log)).unwrap();
-    let fingerprint = scene::load(SCENE).unwrap().fingerprint;
-    let (mut reader, mut writer) = renderer_link(&r.addr.to_string(), fingerprint).await;
+    let (mut reader, mut writer) = renderer_link(&r.addr.to_string(), identity()).await;
     for batch_id in 1..=6 {
         let batch = heavy_batch(batch_id);
         writer.send(&ToRenderer::ShadeBatch(batch)).await.unwrap();
@@ -358,14 +356,23 @@ async fn a_renderer_refuses_more_batches_than_it_holds() {
     );
 }
 
+/// The scene as an SMA that loaded `SCENE` says it in the handshake.
+fn identity() -> SceneIdentity {
+    let scene = scene::load(SCENE).unwrap();
+    SceneIdentity {
+        fingerprint: scene.fingerprint,
+        textures: scene.settings.textures.enabled,
+    }
+}
+
 /// A link to a renderer as an SMA, after the handshake.
 async fn renderer_link(
     addr: &str,
-    fingerprint: protocol::Fingerprint,
+    ours: SceneIdentity,
 ) -> (TcpReader<FromRenderer>, TcpWriter<ToRenderer>) {
     let stream = TcpStream::connect(addr).await.unwrap();
     let (mut reader, mut writer) = split_tcp(stream, DEFAULT_MAX_FRAME);
-    let hello = Hello::new(Role::Sma, Some(fingerprint));
+    let hello = Hello::new(Role::Sma, Some(ours));
     connect_handshake(&mut reader, &mut writer, hello, Role::Renderer)
         .await
         .unwrap();

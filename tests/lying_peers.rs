@@ -7,7 +7,7 @@
 use std::path::Path;
 use std::time::Duration;
 
-use protocol::{Hello, PROTOCOL_VERSION, Role};
+use protocol::{Hello, PROTOCOL_VERSION, Role, SceneIdentity};
 use sma::visibility::Gpu;
 use testkit::child::{Process, start_server, start_sma, strings};
 use testkit::gpu::gpu_or_skip;
@@ -45,21 +45,36 @@ fn system(sma_flags: &[&str]) -> (Process, String, Process, String) {
     (renderer.process, r, sma.process, s)
 }
 
-/// What each lie says, and what its refusal must name.
-fn lies(honest: Role, wrong: Role, fingerprint: Option<[u8; 32]>) -> Vec<(Vec<u8>, &'static str)> {
+/// What each lie says, and what its refusal must name. An honest peer says `says` of its scene;
+/// `actual` is the scene the server has loaded.
+fn lies(
+    honest: Role,
+    wrong: Role,
+    says: Option<SceneIdentity>,
+    actual: SceneIdentity,
+) -> Vec<(Vec<u8>, &'static str)> {
     let other_version = Hello {
         version: PROTOCOL_VERSION + 1,
-        ..Hello::new(honest, fingerprint)
+        ..Hello::new(honest, says)
+    };
+    let other_scene = SceneIdentity {
+        fingerprint: [0x5a; 32],
+        ..actual
+    };
+    let other_textures = SceneIdentity {
+        textures: !actual.textures,
+        ..actual
     };
     vec![
-        (
-            hello_frame(&Hello::new(wrong, fingerprint)),
-            "unexpected role",
-        ),
+        (hello_frame(&Hello::new(wrong, says)), "unexpected role"),
         (hello_frame(&other_version), "version mismatch"),
         (
-            hello_frame(&Hello::new(honest, Some([0x5a; 32]))),
+            hello_frame(&Hello::new(honest, Some(other_scene))),
             "fingerprint mismatch",
+        ),
+        (
+            hello_frame(&Hello::new(honest, Some(other_textures))),
+            "textures mismatch",
         ),
         (
             large_frame_announcement(),
@@ -90,12 +105,15 @@ async fn lying_peers_are_cut_off_with_a_reason_while_a_real_viewer_is_served() {
     let (_renderer, renderer_addr, _sma, sma_addr) = system(&["--handshake-deadline-ms", "300"]);
     let mut viewer = Probe::connect(&sma_addr).await.unwrap();
     let camera = viewer.view("main", 64, 64).await.unwrap();
-    let fingerprint = viewer.scene.fingerprint;
+    let ours = SceneIdentity {
+        fingerprint: viewer.scene.fingerprint,
+        textures: viewer.scene.textures,
+    };
     tokio::join!(
-        refused_with_reasons(&sma_addr, lies(Role::Viewer, Role::Renderer, None)),
+        refused_with_reasons(&sma_addr, lies(Role::Viewer, Role::Renderer, None, ours)),
         refused_with_reasons(
             &renderer_addr,
-            lies(Role::Sma, Role::Viewer, Some(fingerprint))
+            lies(Role::Sma, Role::Viewer, Some(ours), ours)
         ),
     );
     // The SMA's own link to the renderer and the viewer went on through all of it.

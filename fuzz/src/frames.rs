@@ -14,18 +14,21 @@ use protocol::connection::{
 use protocol::frame::{decode, encode};
 use protocol::renderer_link::{FromRenderer, ToRenderer};
 use protocol::viewer_link::{SmaToViewer, ViewerToSma};
-use protocol::{Hello, ProtocolError, Role, WireMessage};
+use protocol::{Hello, ProtocolError, Role, SceneIdentity, WireMessage};
 
 /// The maximum frame of the readers here. The services' (64 MiB, DESIGN.md §8) would let every
 /// input that announces a large frame reserve that much, which costs the fuzzer more than the
 /// decoding; the size check is the same comparison at any maximum, and inputs stay far below both.
 pub const MAX_FRAME: usize = 64 * 1024;
 
-/// The fingerprint the renderer side of the handshake has loaded.
-pub const RENDERER_FINGERPRINT: [u8; 32] = [7; 32];
+/// The scene the renderer side of the handshake has loaded.
+pub const RENDERER_SCENE: SceneIdentity = SceneIdentity {
+    fingerprint: [7; 32],
+    textures: false,
+};
 
 /// The handshake as each accepting and each connecting side runs it, on the input as what the
-/// peer said: the renderer accepting an SMA (fingerprint checked), the SMA accepting a viewer,
+/// peer said: the renderer accepting an SMA (scene checked), the SMA accepting a viewer,
 /// the SMA connecting to a renderer and a viewer connecting to the SMA. True when one of them
 /// accepted the peer.
 pub fn handshake(data: &[u8]) -> bool {
@@ -36,7 +39,7 @@ pub fn handshake(data: &[u8]) -> bool {
             &mut writer,
             Role::Renderer,
             Role::Sma,
-            SceneCheck::Same(RENDERER_FINGERPRINT),
+            SceneCheck::Same(RENDERER_SCENE),
         )
         .await
         .is_ok();
@@ -47,12 +50,12 @@ pub fn handshake(data: &[u8]) -> bool {
             Role::Sma,
             Role::Viewer,
             // The SMA's scene, only told: a viewer has none to check.
-            SceneCheck::Tell(RENDERER_FINGERPRINT),
+            SceneCheck::Tell(RENDERER_SCENE),
         )
         .await
         .is_ok();
         let (mut reader, mut writer) = endpoints::<FromRenderer>(data);
-        let hello = Hello::new(Role::Sma, Some(RENDERER_FINGERPRINT));
+        let hello = Hello::new(Role::Sma, Some(RENDERER_SCENE));
         let sma_connects = connect_handshake(&mut reader, &mut writer, hello, Role::Renderer)
             .await
             .is_ok();

@@ -15,7 +15,8 @@ const CORNELL_MTL: &str = include_str!("../../scenes/cornell.mtl");
 const BRACARA_MTL: &str = include_str!("../../scenes/bracara.mtl");
 
 /// The scene file of the OBJ and MTL targets: every setting that changes how faces are split
-/// and which effects are traced.
+/// and which effects are traced, and textures on, so `map_Kd` statements are read (their files
+/// are missing: each is a warning and its material keeps `Kd`).
 const SCENE_TOML: &str = r#"name = "fuzz"
 obj = "scene.obj"
 crease_angle_deg = 30.0
@@ -26,6 +27,8 @@ angular_diameter_deg = 0.53
 [sky]
 kind = "uniform"
 radiance = [0.5, 0.6, 0.9]
+[textures]
+enabled = true
 "#;
 
 /// The OBJ of the MTL target: a quad per material name of the built-in scenes' MTLs.
@@ -114,4 +117,12 @@ fn check_scene(scene: &Scene) {
         );
         assert!((t.material as usize) < scene.materials.len());
     }
+    assert!(
+        scene.texcoords.is_empty() || scene.texcoords.len() == mesh.triangles.len(),
+        "texture coordinates per triangle, or none"
+    );
+    assert!(
+        scene.texcoords.iter().flatten().all(|uv| uv.is_finite()),
+        "finite texture coordinates"
+    );
 }

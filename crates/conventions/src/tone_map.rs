@@ -61,6 +61,17 @@ pub fn srgb_encode(x: f32) -> f32 {
     }
 }
 
+/// Linear value of an sRGB-encoded one in 0..1 (clamped): the inverse of [`srgb_encode`], for
+/// texels, which image files store encoded (DESIGN.md §5).
+pub fn srgb_decode(x: f32) -> f32 {
+    let x = x.clamp(0.0, 1.0);
+    if x <= 0.040_45 {
+        x / 12.92
+    } else {
+        ((x + 0.055) / 1.055).powf(2.4)
+    }
+}
+
 /// 8-bit sRGB of a display value in 0..1, rounded.
 pub fn srgb8(x: f32) -> u8 {
     (srgb_encode(x) * 255.0 + 0.5) as u8
@@ -69,6 +80,17 @@ pub fn srgb8(x: f32) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn srgb_decode_inverts_the_8_bit_encoding() {
+        for code in 0..=255u8 {
+            assert_eq!(srgb8(srgb_decode(f32::from(code) / 255.0)), code);
+        }
+        assert_eq!(srgb_decode(0.0), 0.0);
+        assert!((srgb_decode(1.0) - 1.0).abs() < 1e-6);
+        // Mid-grey as stored (128) is about a fifth of white in linear terms.
+        assert!((srgb_decode(128.0 / 255.0) - 0.2158605).abs() < 1e-6);
+    }
 
     #[test]
     fn white_maps_to_one_and_colour_ratios_are_kept() {

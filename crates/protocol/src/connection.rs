@@ -16,8 +16,8 @@ use tokio_util::codec::{FramedRead, FramedWrite, LengthDelimitedCodec};
 use crate::admission::HANDSHAKE_MAX_FRAME;
 use crate::error::ProtocolError;
 use crate::frame::{FrameDecoder, WireMessage, codec, decode, decode_message, encode};
-use crate::handshake::{Hello, HelloReply, PROTOCOL_VERSION, Role, check_fingerprint};
-use crate::types::Fingerprint;
+use crate::handshake::{Hello, HelloReply, PROTOCOL_VERSION, Role, check_scene};
+use crate::types::SceneIdentity;
 
 /// Reads typed messages `M`, one per frame.
 pub struct MessageReader<R, M> {
@@ -162,26 +162,26 @@ pub fn split_tcp<In: WireMessage, Out: Serialize>(
     )
 }
 
-/// Connecting side: sends `Hello`, waits for the reply. Returns the peer's fingerprint.
+/// Connecting side: sends `Hello`, waits for the reply. Returns the peer's scene.
 pub async fn connect_handshake<R, W, In, Out>(
     reader: &mut MessageReader<R, In>,
     writer: &mut MessageWriter<W, Out>,
     hello: Hello,
     expected_peer: Role,
-) -> Result<Option<Fingerprint>, ProtocolError>
+) -> Result<Option<SceneIdentity>, ProtocolError>
 where
     R: AsyncRead + Unpin,
     W: AsyncWrite + Unpin,
     In: WireMessage,
     Out: Serialize,
 {
-    let ours = hello.fingerprint;
+    let ours = hello.scene;
     writer.send_as(&hello).await?;
     match recv_handshake_frame::<_, _, HelloReply>(reader).await? {
         HelloReply::Welcome {
             role,
             version,
-            fingerprint,
+            scene,
         } => {
             if version != PROTOCOL_VERSION {
                 return Err(ProtocolError::VersionMismatch {
@@ -195,34 +195,34 @@ where
                     found: role,
                 });
             }
-            check_fingerprint(ours.as_ref(), fingerprint.as_ref())?;
-            Ok(fingerprint)
+            check_scene(ours.as_ref(), scene.as_ref())?;
+            Ok(scene)
         }
         HelloReply::Refused { reason } => Err(ProtocolError::Refused(reason)),
     }
 }
 
-/// What the accepting side of a handshake does with the scene fingerprints (DESIGN.md §8).
+/// What the accepting side of a handshake does with the scenes' identities (DESIGN.md §8).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SceneCheck {
-    /// The peer must have loaded this same scene (the renderer link).
-    Same(Fingerprint),
+    /// The peer must have loaded this same scene, textures on or off alike (the renderer link).
+    Same(SceneIdentity),
     /// The peer has no scene of its own (a viewer): this one is only told, in the reply.
-    Tell(Fingerprint),
+    Tell(SceneIdentity),
 }
 
 impl SceneCheck {
-    fn ours(self) -> Fingerprint {
+    fn ours(self) -> SceneIdentity {
         match self {
-            SceneCheck::Same(fp) | SceneCheck::Tell(fp) => fp,
+            SceneCheck::Same(scene) | SceneCheck::Tell(scene) => scene,
         }
     }
 
     /// A viewer need not name a scene, but one that names another scene than ours is lying.
-    fn check(&self, theirs: Option<&Fingerprint>) -> Result<(), ProtocolError> {
+    fn check(&self, theirs: Option<&SceneIdentity>) -> Result<(), ProtocolError> {
         match (self, theirs) {
-            (SceneCheck::Same(ours), theirs) => check_fingerprint(Some(ours), theirs),
-            (SceneCheck::Tell(ours), Some(theirs)) => check_fingerprint(Some(ours), Some(theirs)),
+            (SceneCheck::Same(ours), theirs) => check_scene(Some(ours), theirs),
+            (SceneCheck::Tell(ours), Some(theirs)) => check_scene(Some(ours), Some(theirs)),
             (SceneCheck::Tell(_), None) => Ok(()),
         }
     }
@@ -318,7 +318,7 @@ where
 {
     let checked = hello.and_then(|hello| {
         hello.check_identity(expected_peer)?;
-        scene.check(hello.fingerprint.as_ref())?;
+        scene.check(hello.scene.as_ref())?;
         Ok(hello)
     });
     let hello = match checked {
@@ -336,7 +336,7 @@ where
         .send_as(&HelloReply::Welcome {
             role: our_role,
             version: PROTOCOL_VERSION,
-            fingerprint: Some(scene.ours()),
+            scene: Some(scene.ours()),
         })
         .await?;
     Ok(hello)

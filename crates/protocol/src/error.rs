@@ -33,6 +33,12 @@ pub enum ProtocolError {
     RoleMismatch { expected: Role, found: Role },
     #[error("scene fingerprint mismatch: ours {ours}, peer's {theirs}")]
     FingerprintMismatch { ours: String, theirs: String },
+    #[error(
+        "scene textures mismatch: ours {}, peer's {}",
+        on_off(*ours),
+        on_off(*theirs)
+    )]
+    TexturesMismatch { ours: bool, theirs: bool },
     #[error("no handshake within {deadline:?}")]
     HandshakeTimeout { deadline: std::time::Duration },
     #[error("peer refused: {0}")]
@@ -53,6 +59,10 @@ impl ProtocolError {
                     | std::io::ErrorKind::ConnectionAborted
             ))
     }
+}
+
+fn on_off(on: bool) -> &'static str {
+    if on { "on" } else { "off" }
 }
 
 /// Short hex form of a fingerprint for messages.

@@ -1,15 +1,16 @@
 //! The first frame on every link: magic, protocol version, role and, on the renderer link, the
-//! scene fingerprint (DESIGN.md §8). A viewer has no scene: it learns it from `SceneInfo`.
+//! scene's identity: its fingerprint and whether its textures are on (DESIGN.md §5, §8). A viewer
+//! has no scene: it learns it from `SceneInfo`.
 
 use serde::{Deserialize, Serialize};
 
 use crate::error::{ProtocolError, short_hex};
-use crate::types::Fingerprint;
+use crate::types::SceneIdentity;
 
 /// "WKTH": walkthrough.
 pub const MAGIC: [u8; 4] = *b"WKTH";
 /// Bumped on any incompatible change of a message.
-pub const PROTOCOL_VERSION: u16 = 6;
+pub const PROTOCOL_VERSION: u16 = 7;
 
 /// Who is speaking.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -26,7 +27,7 @@ pub struct Hello {
     pub version: u16,
     pub role: Role,
     /// The scene the sender has loaded; `None` for a viewer.
-    pub fingerprint: Option<Fingerprint>,
+    pub scene: Option<SceneIdentity>,
 }
 
 /// Sent back by the accepting side.
@@ -35,7 +36,7 @@ pub enum HelloReply {
     Welcome {
         role: Role,
         version: u16,
-        fingerprint: Option<Fingerprint>,
+        scene: Option<SceneIdentity>,
     },
     Refused {
         reason: String,
@@ -43,12 +44,12 @@ pub enum HelloReply {
 }
 
 impl Hello {
-    pub fn new(role: Role, fingerprint: Option<Fingerprint>) -> Hello {
+    pub fn new(role: Role, scene: Option<SceneIdentity>) -> Hello {
         Hello {
             magic: MAGIC,
             version: PROTOCOL_VERSION,
             role,
-            fingerprint,
+            scene,
         }
     }
 
@@ -74,18 +75,25 @@ impl Hello {
     }
 }
 
-/// Both sides must have loaded the same scene when one of them expects it.
-pub fn check_fingerprint(
-    ours: Option<&Fingerprint>,
-    theirs: Option<&Fingerprint>,
+/// Both sides must have loaded the same scene when one of them expects it: textures on or off
+/// alike (said first, as the likelier slip), then the same fingerprint.
+pub fn check_scene(
+    ours: Option<&SceneIdentity>,
+    theirs: Option<&SceneIdentity>,
 ) -> Result<(), ProtocolError> {
     match (ours, theirs) {
-        (Some(a), Some(b)) if a != b => Err(ProtocolError::FingerprintMismatch {
-            ours: short_hex(a),
-            theirs: short_hex(b),
+        (Some(a), Some(b)) if a.textures != b.textures => Err(ProtocolError::TexturesMismatch {
+            ours: a.textures,
+            theirs: b.textures,
         }),
+        (Some(a), Some(b)) if a.fingerprint != b.fingerprint => {
+            Err(ProtocolError::FingerprintMismatch {
+                ours: short_hex(&a.fingerprint),
+                theirs: short_hex(&b.fingerprint),
+            })
+        }
         (Some(a), None) => Err(ProtocolError::FingerprintMismatch {
-            ours: short_hex(a),
+            ours: short_hex(&a.fingerprint),
             theirs: "none".into(),
         }),
         _ => Ok(()),

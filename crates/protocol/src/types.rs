@@ -9,8 +9,19 @@ pub type Vec3f = [f32; 3];
 /// Linear RGB radiance (W·sr⁻¹·m⁻², per channel).
 pub type Rgb = [f32; 3];
 
-/// A 256-bit scene fingerprint (BLAKE3 of scene file, geometry and materials).
+/// A 256-bit scene fingerprint (BLAKE3 of scene file, geometry and materials, and with textures
+/// on, of the textures and their coordinates).
 pub type Fingerprint = [u8; 32];
+
+/// Which scene a process has loaded, as the handshake compares it (DESIGN.md §8): its
+/// fingerprint, and whether its textures are on (DESIGN.md §5). The fingerprint covers the
+/// textures setting too; it travels beside it so that a refusal can say which one differs, and
+/// renderer, SMA and viewer never disagree on it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SceneIdentity {
+    pub fingerprint: Fingerprint,
+    pub textures: bool,
+}
 
 /// Which side of a surface, relative to its vertex's canonical normal (DESIGN.md §5): surfaces are
 /// two-sided, so a vertex seen from both sides carries one sample per side.

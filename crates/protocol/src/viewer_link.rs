@@ -92,6 +92,9 @@ pub struct SceneInfo {
     pub sky: SkyInfo,
     /// The quality the scene's samples aim at (paths per sample, bounce depth; DESIGN.md §7).
     pub quality: Quality,
+    /// Whether the scene's textures are on (DESIGN.md §5): part of the scene's identity, which
+    /// the SMA and its renderers have agreed on at their handshake.
+    pub textures: bool,
 }
 
 /// The scene's sky as the renderer lights with it: radiance over the upper hemisphere (+Y up,

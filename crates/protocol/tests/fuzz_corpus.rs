@@ -18,7 +18,7 @@ use protocol::viewer_link::{
     Camera, Epoch, Recolour, SceneInfo, ShownTriangle, SkyInfo, SmaToViewer, Stats, SunInfo,
     ViewerToSma,
 };
-use protocol::{Hello, HelloReply, PROTOCOL_VERSION, Role, Side};
+use protocol::{Hello, HelloReply, PROTOCOL_VERSION, Role, SceneIdentity, Side};
 use serde::Serialize;
 
 const TARGETS: [(&str, corpus::Target); 3] = [
@@ -88,14 +88,30 @@ fn seeds<M: Serialize>(direction: &str, named: &[(&str, M)]) -> Vec<(String, Vec
 }
 
 fn handshake_seeds() -> Vec<(String, Vec<u8>)> {
-    let fp = Some(frames::RENDERER_FINGERPRINT);
+    let fp = Some(frames::RENDERER_SCENE);
     let hellos = [
         ("sma", Hello::new(Role::Sma, fp)),
         ("viewer", Hello::new(Role::Viewer, None)),
         ("rejected-renderer", Hello::new(Role::Renderer, fp)),
         (
             "rejected-other-fingerprint",
-            Hello::new(Role::Sma, Some([1; 32])),
+            Hello::new(
+                Role::Sma,
+                Some(SceneIdentity {
+                    fingerprint: [1; 32],
+                    ..frames::RENDERER_SCENE
+                }),
+            ),
+        ),
+        (
+            "rejected-other-textures",
+            Hello::new(
+                Role::Sma,
+                Some(SceneIdentity {
+                    textures: true,
+                    ..frames::RENDERER_SCENE
+                }),
+            ),
         ),
         (
             "rejected-bad-magic",
@@ -112,10 +128,10 @@ fn handshake_seeds() -> Vec<(String, Vec<u8>)> {
             },
         ),
     ];
-    let welcome = |role, fingerprint| HelloReply::Welcome {
+    let welcome = |role, scene| HelloReply::Welcome {
         role,
         version: PROTOCOL_VERSION,
-        fingerprint,
+        scene,
     };
     let replies = [
         ("welcome-renderer", welcome(Role::Renderer, fp)),
@@ -267,6 +283,7 @@ fn viewer_link_seeds() -> Vec<(String, Vec<u8>)> {
                     paths: 64,
                     bounces: Some(2),
                 },
+                textures: false,
             }),
         ),
         (

@@ -1,7 +1,6 @@
 //! A malformed, truncated, oversized or unknown frame, and a wrong handshake, are error values with
 //! the exact variant asserted: never a panic.
 
-use protocol::ProtocolError;
 use protocol::connection::{
     MessageReader, MessageWriter, SceneCheck, accept_handshake, connect_handshake,
 };
@@ -9,6 +8,7 @@ use protocol::frame::decode;
 use protocol::handshake::{Hello, MAGIC, PROTOCOL_VERSION, Role};
 use protocol::renderer_link::{FromRenderer, ToRenderer};
 use protocol::viewer_link::{SmaToViewer, ViewerToSma};
+use protocol::{ProtocolError, SceneIdentity};
 use tokio::io::{AsyncWriteExt, duplex};
 
 const MAX: usize = 1024;
@@ -109,10 +109,18 @@ async fn writer_refuses_a_message_larger_than_the_maximum() {
     ));
 }
 
-/// Runs a handshake between a connecting `hello` and an accepting renderer with fingerprint `ours`.
+/// The untextured scene whose fingerprint is 32 × `byte`.
+fn scene(byte: u8) -> SceneIdentity {
+    SceneIdentity {
+        fingerprint: [byte; 32],
+        textures: false,
+    }
+}
+
+/// Runs a handshake between a connecting `hello` and an accepting renderer of scene `ours`.
 async fn handshake(
     hello: Hello,
-    ours: [u8; 32],
+    ours: SceneIdentity,
 ) -> (Result<(), ProtocolError>, Result<(), ProtocolError>) {
     let (a, b) = duplex(1 << 16);
     let (ar, aw) = tokio::io::split(a);
@@ -135,13 +143,13 @@ async fn handshake(
 
 #[tokio::test]
 async fn matching_handshake_succeeds() {
-    let (s, c) = handshake(Hello::new(Role::Sma, Some([1; 32])), [1; 32]).await;
+    let (s, c) = handshake(Hello::new(Role::Sma, Some(scene(1))), scene(1)).await;
     assert!(s.is_ok() && c.is_ok(), "{s:?} {c:?}");
 }
 
 #[tokio::test]
 async fn wrong_fingerprint_is_refused_on_both_sides() {
-    let (s, c) = handshake(Hello::new(Role::Sma, Some([2; 32])), [1; 32]).await;
+    let (s, c) = handshake(Hello::new(Role::Sma, Some(scene(2))), scene(1)).await;
     assert!(
         matches!(s, Err(ProtocolError::FingerprintMismatch { .. })),
         "{s:?}"
@@ -152,15 +160,52 @@ async fn wrong_fingerprint_is_refused_on_both_sides() {
     );
 }
 
+/// A peer with the same scene but its textures on where ours are off (or the reverse) is refused,
+/// saying so: the fingerprints differ as well, the textures are named first.
+#[tokio::test]
+async fn other_textures_are_refused_on_both_sides() {
+    let textured = SceneIdentity {
+        textures: true,
+        ..scene(3)
+    };
+    for (theirs, ours) in [(textured, scene(1)), (scene(1), textured)] {
+        let (s, c) = handshake(Hello::new(Role::Sma, Some(theirs)), ours).await;
+        assert!(
+            matches!(
+                s,
+                Err(ProtocolError::TexturesMismatch {
+                    ours: a,
+                    theirs: b
+                }) if a == ours.textures && b == theirs.textures
+            ),
+            "{s:?}"
+        );
+        assert!(
+            matches!(c, Err(ProtocolError::Refused(ref r)) if r.contains("textures mismatch")),
+            "{c:?}"
+        );
+    }
+    // Both textured, other textures: another fingerprint.
+    let other = SceneIdentity {
+        textures: true,
+        ..scene(4)
+    };
+    let (s, _) = handshake(Hello::new(Role::Sma, Some(other)), textured).await;
+    assert!(
+        matches!(s, Err(ProtocolError::FingerprintMismatch { .. })),
+        "{s:?}"
+    );
+}
+
 #[tokio::test]
 async fn wrong_magic_is_refused() {
     let hello = Hello {
         magic: *b"HTTP",
         version: PROTOCOL_VERSION,
         role: Role::Sma,
-        fingerprint: Some([1; 32]),
+        scene: Some(scene(1)),
     };
-    let (s, c) = handshake(hello, [1; 32]).await;
+    let (s, c) = handshake(hello, scene(1)).await;
     assert!(
         matches!(s, Err(ProtocolError::BadMagic { found }) if &found == b"HTTP"),
         "{s:?}"
@@ -174,9 +219,9 @@ async fn wrong_version_is_refused() {
         magic: MAGIC,
         version: PROTOCOL_VERSION + 1,
         role: Role::Sma,
-        fingerprint: Some([1; 32]),
+        scene: Some(scene(1)),
     };
-    let (s, _) = handshake(hello, [1; 32]).await;
+    let (s, _) = handshake(hello, scene(1)).await;
     assert!(
         matches!(
             s,
@@ -191,7 +236,7 @@ async fn wrong_version_is_refused() {
 
 #[tokio::test]
 async fn wrong_role_is_refused() {
-    let (s, _) = handshake(Hello::new(Role::Viewer, Some([1; 32])), [1; 32]).await;
+    let (s, _) = handshake(Hello::new(Role::Viewer, Some(scene(1))), scene(1)).await;
     assert!(
         matches!(
             s,

@@ -4,7 +4,7 @@ use proptest::prelude::*;
 use protocol::frame::{decode, encode};
 use protocol::handshake::{Hello, HelloReply, Role};
 use protocol::renderer_link::*;
-use protocol::types::{Bounds, Side, Viewpoint};
+use protocol::types::{Bounds, SceneIdentity, Side, Viewpoint};
 use protocol::viewer_link::*;
 
 fn finite() -> impl Strategy<Value = f32> {
@@ -158,10 +158,19 @@ fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
             prop::collection::vec(viewpoint(), 0..4),
             prop::collection::vec("[a-z-]{1,8}", 0..4),
             sky(),
-            (1u32..1024, prop::option::of(0u32..8))
+            (1u32..1024, prop::option::of(0u32..8), any::<bool>())
         )
             .prop_map(
-                |(name, fingerprint, min, max, viewpoints, criteria, sky, (paths, bounces))| {
+                |(
+                    name,
+                    fingerprint,
+                    min,
+                    max,
+                    viewpoints,
+                    criteria,
+                    sky,
+                    (paths, bounces, textures),
+                )| {
                     SmaToViewer::SceneInfo(SceneInfo {
                         name,
                         fingerprint,
@@ -170,6 +179,7 @@ fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
                         criteria,
                         sky,
                         quality: Quality { paths, bounces },
+                        textures,
                     })
                 }
             ),
@@ -233,10 +243,11 @@ proptest! {
     #[test]
     fn viewer_updates(msg in to_viewer()) { prop_assert_eq!(round_trip(&msg), msg); }
     #[test]
-    fn hellos(r in role(), fp in proptest::option::of(any::<[u8; 32]>())) {
-        let hello = Hello::new(r, fp);
+    fn hellos(r in role(), scene in proptest::option::of((any::<[u8; 32]>(), any::<bool>()))) {
+        let scene = scene.map(|(fingerprint, textures)| SceneIdentity { fingerprint, textures });
+        let hello = Hello::new(r, scene);
         prop_assert_eq!(round_trip(&hello), hello);
-        let welcome = HelloReply::Welcome { role: r, version: 3, fingerprint: fp };
+        let welcome = HelloReply::Welcome { role: r, version: 3, scene };
         prop_assert_eq!(round_trip(&welcome), welcome);
     }
 }

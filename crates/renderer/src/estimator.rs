@@ -119,7 +119,7 @@ pub(crate) fn path_radiance(
     let mut depth = Depth::START;
     let mut direction_u = first_bounce;
     for _ in 0..MAX_DEPTH {
-        let bsdf = world.bsdf(s.triangle);
+        let bsdf = &world.bsdf_at(&s);
         let origin = world.offset.origin(s.position, s.normal);
         let u = direction_u.take().unwrap_or_else(|| uniform2(rng));
         let next = continuation(world, bsdf, &s, wo, max_bounces, depth, throughput, u, rng);

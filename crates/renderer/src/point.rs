@@ -74,7 +74,7 @@ pub fn front_point_hit_by(
 }
 
 /// Barycentric weights of vertices 1 and 2 for `q` in the plane of (a, b, c).
-fn barycentrics(q: Vec3, a: Vec3, b: Vec3, c: Vec3) -> [f32; 2] {
+pub(crate) fn barycentrics(q: Vec3, a: Vec3, b: Vec3, c: Vec3) -> [f32; 2] {
     let (e1, e2, d) = (b - a, c - a, q - a);
     let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
     let (d1, d2) = (d.dot(e1), d.dot(e2));

@@ -182,7 +182,7 @@ impl Wave {
         let i = p as usize;
         let (s, wo, throughput) = (self.surface[i], self.wo[i], self.throughput[i]);
         let rng = &mut rngs[self.stream[i] as usize];
-        let bsdf = world.bsdf(s.triangle);
+        let bsdf = &world.bsdf_at(&s);
         let origin = world.offset.origin(s.position, s.normal);
         let u = self.first_bounce[i].take().unwrap_or_else(|| uniform2(rng));
         let next = continuation(

@@ -1,5 +1,6 @@
 //! What the estimator needs of a scene, prepared once: the BVH, the lights the scene calls for,
-//! each material's scattering, unit face normals and the origin offsetter.
+//! each material's scattering (its albedo read from its texture per point, where it has one),
+//! unit face normals and the origin offsetter.
 //!
 //! The world works in a **local frame**: the scene moved by a round origin near its centre
 //! ([`World::to_local`]), so a scene far from the world origin (coordinates around 1e5, where f32
@@ -12,6 +13,7 @@
 //! need [`World::to_local`].
 
 use glam::{DVec3, Vec3};
+use protocol::SceneIdentity;
 use scene::{Effects, Scene};
 
 use crate::bvh::{BuildPreset, Hit, PACKET_RAYS, SceneBvh};
@@ -20,6 +22,7 @@ use crate::estimator::Estimator;
 use crate::lights::Lights;
 use crate::material::Bsdf;
 use crate::offset::Offsetter;
+use crate::point::barycentrics;
 use crate::strata::FirstBounce;
 
 /// A point on a surface, on the side being shaded.
@@ -111,6 +114,15 @@ impl World {
         conventions::camera::relative_to(p, self.origin)
     }
 
+    /// The scene as the handshake compares it: fingerprint and textures on or off (DESIGN.md
+    /// §5, §8).
+    pub fn identity(&self) -> SceneIdentity {
+        SceneIdentity {
+            fingerprint: self.scene.fingerprint,
+            textures: self.scene.settings.textures.enabled,
+        }
+    }
+
     pub fn effects(&self) -> Effects {
         self.scene.effects
     }
@@ -119,8 +131,21 @@ impl World {
         self.face_normals.len()
     }
 
-    pub fn bsdf(&self, triangle: u32) -> &Bsdf {
-        &self.bsdfs[self.scene.mesh.triangles[triangle as usize].material as usize]
+    /// How the surface at `s` scatters: its material's, with the albedo read from the material's
+    /// texture at `s` where it has one (DESIGN.md §5), at every vertex of every path alike.
+    #[inline]
+    pub(crate) fn bsdf_at(&self, s: &Surface) -> Bsdf {
+        let t = s.triangle as usize;
+        let material = self.scene.mesh.triangles[t].material as usize;
+        let bsdf = self.bsdfs[material];
+        if self.scene.materials[material].diffuse_map.is_none() {
+            return bsdf;
+        }
+        let [a, b, c] = self.scene.mesh.triangle_positions(t);
+        Bsdf {
+            kd: self.scene.albedo_at(t, barycentrics(s.position, a, b, c)),
+            ..bsdf
+        }
     }
 
     pub fn face_normal(&self, triangle: u32) -> Vec3 {

@@ -7,7 +7,7 @@ use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{connect_as_sma, recv};
+use common::{connect_as_sma, identity, recv};
 use protocol::Side;
 use protocol::renderer_link::{
     FromRenderer, Quality, SampleKey, ShadeBatch, ShadePoint, ToRenderer,
@@ -37,8 +37,8 @@ async fn serve_answers_and_stops_on_ctrl_c() {
         .expect("address line")
         .to_string();
 
-    let fingerprint = scene::load("cornell").unwrap().fingerprint;
-    let (mut r, mut w) = connect_as_sma(&addr, fingerprint).await.unwrap();
+    let cornell = identity(&scene::load("cornell").unwrap());
+    let (mut r, mut w) = connect_as_sma(&addr, cornell).await.unwrap();
     let point = ShadePoint {
         key: SampleKey {
             vertex: 0,

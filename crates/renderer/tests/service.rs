@@ -84,7 +84,7 @@ async fn start(world: Arc<World>) -> Server {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn batches_match_the_in_process_estimator_and_bad_frames_are_answered() {
     let world = Arc::new(test_world());
-    let fp = world.scene.fingerprint;
+    let fp = world.identity();
     let server = start(Arc::clone(&world)).await;
 
     // Several batches in flight at once on one link; replies come per batch, in any order.
@@ -169,7 +169,7 @@ async fn batches_match_the_in_process_estimator_and_bad_frames_are_answered() {
 
     // A peer with another scene is refused at the handshake.
     let mut other = fp;
-    other[0] ^= 1;
+    other.fingerprint[0] ^= 1;
     assert!(matches!(
         connect_as_sma(server.addr, other).await,
         Err(ProtocolError::Refused(_))
@@ -190,13 +190,13 @@ async fn batches_match_the_in_process_estimator_and_bad_frames_are_answered() {
 /// peer would.
 async fn connect_raw(
     addr: std::net::SocketAddr,
-    fingerprint: [u8; 32],
+    scene: protocol::SceneIdentity,
 ) -> (TcpReader<FromRenderer>, OwnedWriteHalf) {
     let stream = TcpStream::connect(addr).await.unwrap();
     let (rh, mut wh) = stream.into_split();
     let mut r = MessageReader::new(rh, DEFAULT_MAX_FRAME);
     let mut w = MessageWriter::<_, ToRenderer>::new(&mut wh, DEFAULT_MAX_FRAME);
-    handshake_as_sma(&mut r, &mut w, fingerprint).await.unwrap();
+    handshake_as_sma(&mut r, &mut w, scene).await.unwrap();
     drop(w);
     (r, wh)
 }

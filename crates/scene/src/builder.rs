@@ -4,7 +4,7 @@
 
 use std::collections::HashMap;
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 use crate::effects::analyse_effects;
 use crate::error::SceneError;
@@ -18,7 +18,11 @@ pub struct SceneBuilder {
     materials: Vec<Material>,
     positions: Vec<Vec3>,
     triangles: Vec<Triangle>,
+    /// One per triangle; all (0, 0) until a triangle is given texture coordinates.
+    texcoords: Vec<[Vec2; 3]>,
+    any_texcoords: bool,
     warnings: Vec<String>,
+    notes: Vec<String>,
 }
 
 impl SceneBuilder {
@@ -28,7 +32,10 @@ impl SceneBuilder {
             materials: Vec::new(),
             positions: Vec::new(),
             triangles: Vec::new(),
+            texcoords: Vec::new(),
+            any_texcoords: false,
             warnings: Vec::new(),
+            notes: Vec::new(),
         }
     }
 
@@ -45,6 +52,14 @@ impl SceneBuilder {
     /// A triangle, counter-clockwise as seen from the side an emitter shines to.
     pub fn triangle(&mut self, vertices: [u32; 3], material: u32) {
         self.triangles.push(Triangle { vertices, material });
+        self.texcoords.push([Vec2::ZERO; 3]);
+    }
+
+    /// A triangle with texture coordinates at its corners (in the order of `vertices`).
+    pub fn textured_triangle(&mut self, vertices: [u32; 3], material: u32, uv: [Vec2; 3]) {
+        self.triangle(vertices, material);
+        *self.texcoords.last_mut().expect("just pushed") = uv;
+        self.any_texcoords = true;
     }
 
     /// Something the scene's user should know (a missing MTL, say), kept in the report.
@@ -52,6 +67,13 @@ impl SceneBuilder {
     pub fn warn(&mut self, warning: String) {
         tracing::warn!("{}: {warning}", self.settings.name);
         self.warnings.push(warning);
+    }
+
+    /// Something loading did that is worth knowing but needs no action (a texture downscaled),
+    /// kept in the report and logged.
+    pub fn note(&mut self, note: String) {
+        tracing::info!("{}: {note}", self.settings.name);
+        self.notes.push(note);
     }
 
     /// Validates and finishes the scene: bit-identical positions are welded (so adjacency does
@@ -63,33 +85,40 @@ impl SceneBuilder {
         self.check_references()?;
         let (positions, welded) = weld(&self.positions);
         let mut kept = Vec::with_capacity(self.triangles.len());
-        for t in &self.triangles {
+        let mut texcoords = Vec::new();
+        for (t, uv) in self.triangles.iter().zip(&self.texcoords) {
             let vertices = t.vertices.map(|v| welded[v as usize]);
             if !is_degenerate(vertices.map(|v| positions[v as usize])) {
                 kept.push(Triangle {
                     vertices,
                     material: t.material,
                 });
+                if self.any_texcoords {
+                    texcoords.push(*uv);
+                }
             }
         }
         if kept.is_empty() {
             return Err(SceneError::Empty);
         }
+        // Splitting keeps the triangles' order, so `texcoords` stays parallel to them.
         let split = split_vertices(&positions, &kept, self.settings.crease_angle_deg);
         let effects = analyse_effects(&self.settings, &self.materials, &split.mesh);
-        let fingerprint = fingerprint(&self.settings, &split.mesh, &self.materials);
+        let fingerprint = fingerprint(&self.settings, &split.mesh, &self.materials, &texcoords);
         let report = LoadReport {
             dropped_triangles: self.triangles.len() - kept.len(),
             source_vertices: self.positions.len(),
             material_split_vertices: split.material_splits,
             crease_split_vertices: split.crease_splits,
             warnings: self.warnings,
+            notes: self.notes,
         };
         Ok(Scene {
             name: self.settings.name.clone(),
             settings: self.settings,
             mesh: split.mesh,
             materials: self.materials,
+            texcoords,
             effects,
             fingerprint,
             report,

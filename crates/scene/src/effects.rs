@@ -26,8 +26,7 @@ pub fn analyse_effects(settings: &SceneSettings, materials: &[Material], mesh: &
         sun,
         sky,
         area_lights,
-        interreflection: (sun || sky || area_lights)
-            && used.iter().any(|m| m.kd.max_element() > 0.0),
+        interreflection: (sun || sky || area_lights) && used.iter().any(|m| m.reflects_diffusely()),
         glossy: used.iter().any(|m| m.scattering == Scattering::Glossy),
         mirror: used.iter().any(|m| m.scattering == Scattering::Mirror),
     }

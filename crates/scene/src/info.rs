@@ -6,6 +6,24 @@ use std::fmt::Write as _;
 use crate::fingerprint::hex;
 use crate::model::Scene;
 
+/// "off", or "on" with the albedo rule and how many materials have a texture.
+fn textures(scene: &Scene) -> String {
+    let t = &scene.settings.textures;
+    if !t.enabled {
+        return "off".into();
+    }
+    let textured = scene
+        .materials
+        .iter()
+        .filter(|m| m.diffuse_map.is_some())
+        .count();
+    format!(
+        "on, albedo {}, {textured} of {} materials textured",
+        t.albedo.name(),
+        scene.materials.len()
+    )
+}
+
 pub fn describe(scene: &Scene) -> String {
     let (lo, hi) = scene.mesh.bounds();
     let r = &scene.report;
@@ -28,7 +46,11 @@ pub fn describe(scene: &Scene) -> String {
         r.dropped_triangles
     );
     let _ = writeln!(out, "effects      {}", scene.effects);
+    let _ = writeln!(out, "textures     {}", textures(scene));
     let _ = writeln!(out, "fingerprint  {}", hex(&scene.fingerprint));
+    for n in &r.notes {
+        let _ = writeln!(out, "note         {n}");
+    }
     for w in &r.warnings {
         let _ = writeln!(out, "warning      {w}");
     }

@@ -4,9 +4,10 @@
 //! (thesis §4.1) and at creases, so each vertex has one canonical normal (DESIGN.md §5). Positions
 //! of split copies stay bit-identical, so geometry stays crack-free.
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 use crate::settings::SceneSettings;
+use crate::texture::DiffuseMap;
 
 /// How a material scatters light (DESIGN.md §7).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -22,7 +23,7 @@ pub enum Scattering {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
     pub name: String,
-    /// Diffuse albedo (MTL `Kd`); texture maps are ignored (DESIGN.md §5).
+    /// Diffuse albedo (MTL `Kd`); with a `diffuse_map`, what its albedo rule makes of it.
     pub kd: Vec3,
     /// Emitted radiance (MTL `Ke`), one-sided: toward the face's counter-clockwise normal.
     pub ke: Vec3,
@@ -33,6 +34,8 @@ pub struct Material {
     /// MTL `illum`.
     pub illum: u32,
     pub scattering: Scattering,
+    /// MTL `map_Kd`, when the scene's textures are on and the file loaded (DESIGN.md §5).
+    pub diffuse_map: Option<DiffuseMap>,
 }
 
 impl Material {
@@ -46,6 +49,7 @@ impl Material {
             ns: 0.0,
             illum: 1,
             scattering: Scattering::Diffuse,
+            diffuse_map: None,
         }
     }
 
@@ -86,7 +90,24 @@ impl Material {
             ns,
             illum,
             scattering,
+            diffuse_map: None,
         }
+    }
+
+    /// The diffuse albedo at texture coordinates `uv`: `Kd` without a texture, else what the
+    /// map's albedo rule makes of `Kd` and the texel there.
+    #[inline]
+    pub fn albedo_at(&self, uv: Vec2) -> Vec3 {
+        match &self.diffuse_map {
+            None => self.kd,
+            Some(map) => map.albedo(self.kd, uv),
+        }
+    }
+
+    /// Whether the diffuse lobe can reflect anything: a non-black `Kd`, or a texture (whose
+    /// texels the rule `texture` uses alone).
+    pub fn reflects_diffusely(&self) -> bool {
+        self.kd.max_element() > 0.0 || self.diffuse_map.is_some()
     }
 
     pub fn is_emitter(&self) -> bool {
@@ -170,6 +191,8 @@ pub struct LoadReport {
     pub material_split_vertices: usize,
     pub crease_split_vertices: usize,
     pub warnings: Vec<String>,
+    /// What loading did that needs no action (a texture downscaled to the cap).
+    pub notes: Vec<String>,
 }
 
 /// A loaded, validated scene.
@@ -179,8 +202,13 @@ pub struct Scene {
     pub settings: SceneSettings,
     pub mesh: Mesh,
     pub materials: Vec<Material>,
+    /// Texture coordinates of each triangle's corners, in `mesh.triangles`' order (OBJ `vt`;
+    /// (0, 0) for a face without them), or empty when the source has none. Kept per corner, so
+    /// a seam in the texture splits no vertex: the mesh's vertices are shading samples'.
+    pub texcoords: Vec<[Vec2; 3]>,
     pub effects: Effects,
-    /// BLAKE3 over scene settings, geometry and materials: equal scenes, equal fingerprints.
+    /// BLAKE3 over scene settings, geometry and materials, and with textures on, over their
+    /// bytes and the texture coordinates: equal scenes, equal fingerprints.
     pub fingerprint: [u8; 32],
     pub report: LoadReport,
 }
@@ -188,5 +216,24 @@ pub struct Scene {
 impl Scene {
     pub fn material_of(&self, t: usize) -> &Material {
         &self.materials[self.mesh.triangles[t].material as usize]
+    }
+
+    /// Texture coordinates at barycentric weights `[u, v]` of corners 1 and 2 of triangle `t`.
+    #[inline]
+    pub fn texcoord_at(&self, t: usize, [u, v]: [f32; 2]) -> Vec2 {
+        match self.texcoords.get(t) {
+            Some([a, b, c]) => *a * (1.0 - u - v) + *b * u + *c * v,
+            None => Vec2::ZERO,
+        }
+    }
+
+    /// Diffuse albedo at barycentric weights `[u, v]` of triangle `t`.
+    #[inline]
+    pub fn albedo_at(&self, t: usize, bary: [f32; 2]) -> Vec3 {
+        let material = self.material_of(t);
+        match material.diffuse_map {
+            None => material.kd,
+            Some(_) => material.albedo_at(self.texcoord_at(t, bary)),
+        }
     }
 }

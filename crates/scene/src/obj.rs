@@ -1,16 +1,18 @@
-//! OBJ/MTL loading with tobj (DESIGN.md §7): positions and faces, materials from `Kd`, `Ke`,
-//! `Ks`, `Ns` and `illum`; texture maps and file normals are ignored (DESIGN.md §5 defines the
-//! canonical normal from the faces).
+//! OBJ/MTL loading with tobj (DESIGN.md §7): positions, faces and their texture coordinates,
+//! materials from `Kd`, `Ke`, `Ks`, `Ns` and `illum`, and with the scene's textures on, `map_Kd`
+//! (DESIGN.md §5). File normals are ignored (DESIGN.md §5 defines the canonical normal from the
+//! faces); so are the other maps (`map_d` cut-outs, bump maps).
 
 use std::cell::Cell;
 use std::collections::HashMap;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 use crate::builder::SceneBuilder;
 use crate::error::SceneError;
+use crate::map_kd::MapLoader;
 use crate::model::{Material, Scene};
 use crate::obj_check::{check_mtl, check_obj};
 use crate::scene_file::{SceneFiles, read_text};
@@ -28,8 +30,9 @@ pub fn load_obj(
 ) -> Result<Scene, SceneError> {
     let text = read_text(files, path)?;
     let summary = check_obj(path, &text)?;
+    let textures = settings.textures.clone();
     let mut builder = SceneBuilder::new(settings);
-    let libraries =
+    let (libraries, folders) =
         read_material_libraries(files, path, &summary.material_libraries, &mut builder)?;
     let options = tobj::LoadOptions {
         triangulate: true,
@@ -65,9 +68,37 @@ pub fn load_obj(
     }
     // Libraries that failed to open were reported as missing and their faces get the default.
     let materials = materials.unwrap_or_default();
-    add_geometry(&mut builder, &models, &materials);
+    let mut converted: Vec<Material> = materials.iter().map(convert_material).collect();
+    // Only the textures of materials some face uses are read (and warned about).
+    let used: Vec<bool> = (0..materials.len())
+        .map(|i| models.iter().any(|m| m.mesh.material_id == Some(i)))
+        .collect();
+    let textured: Vec<usize> = (0..materials.len())
+        .filter(|&i| used[i] && materials[i].diffuse_texture.is_some())
+        .collect();
+    if textures.enabled {
+        let mut loader = MapLoader::new(files, textures.albedo);
+        let obj_dir = path.parent().unwrap_or(Path::new(""));
+        for i in textured {
+            let m = &materials[i];
+            let argument = m.diffuse_texture.as_deref().unwrap_or_default();
+            let dir = folders.get(&m.name).map_or(obj_dir, PathBuf::as_path);
+            converted[i].diffuse_map = loader.load(&m.name, argument, dir, &mut builder);
+        }
+    } else if !textured.is_empty() {
+        builder.note(format!(
+            "{} of the materials in use have a map_Kd texture, not read: the scene's textures \
+             are off ([textures] enabled = false)",
+            textured.len()
+        ));
+    }
+    add_geometry(&mut builder, &models, converted);
     builder.build()
 }
+
+/// The text of each library by its `mtllib` name, and the folder of the library that first
+/// defines each material (its `map_Kd` files are relative to it).
+type Libraries = (HashMap<PathBuf, String>, HashMap<String, PathBuf>);
 
 /// Reads and checks each `mtllib` (relative to the OBJ); a missing one is a warning, not an
 /// error: its faces get the default material.
@@ -76,27 +107,28 @@ fn read_material_libraries(
     obj: &Path,
     names: &[String],
     builder: &mut SceneBuilder,
-) -> Result<HashMap<PathBuf, String>, SceneError> {
+) -> Result<Libraries, SceneError> {
     let dir = obj.parent().unwrap_or(Path::new(""));
     let mut libraries = HashMap::new();
+    let mut folders = HashMap::new();
     for name in names {
         let path = dir.join(name);
         match read_text(files, &path) {
             Ok(text) => {
-                check_mtl(&path, &text)?;
+                let folder = path.parent().unwrap_or(Path::new("")).to_path_buf();
+                for material in check_mtl(&path, &text)? {
+                    folders.entry(material).or_insert_with(|| folder.clone());
+                }
                 libraries.insert(PathBuf::from(name), text);
             }
             Err(e) => builder.warn(format!("{e}; its materials are replaced by a default one")),
         }
     }
-    Ok(libraries)
+    Ok((libraries, folders))
 }
 
-fn add_geometry(builder: &mut SceneBuilder, models: &[tobj::Model], materials: &[tobj::Material]) {
-    let ids: Vec<u32> = materials
-        .iter()
-        .map(|m| builder.material(convert_material(m)))
-        .collect();
+fn add_geometry(builder: &mut SceneBuilder, models: &[tobj::Model], materials: Vec<Material>) {
+    let ids: Vec<u32> = materials.into_iter().map(|m| builder.material(m)).collect();
     let mut fallback = None;
     let mut faces_without_material = 0;
     for model in models {
@@ -115,8 +147,24 @@ fn add_geometry(builder: &mut SceneBuilder, models: &[tobj::Model], materials: &
             first.get_or_insert(id);
         }
         let Some(first) = first else { continue };
-        for t in mesh.indices.chunks_exact(3) {
-            builder.triangle([t[0] + first, t[1] + first, t[2] + first], material);
+        // Texture coordinates come with their own indices, one per corner (`single_index` off),
+        // so corners that share a position but not a `vt` need no vertex of their own.
+        let uv = |k: usize| {
+            let i = 2 * mesh.texcoord_indices[k] as usize;
+            match mesh.texcoords.get(i..i + 2) {
+                Some(&[u, v]) => Vec2::new(u, v),
+                _ => Vec2::ZERO,
+            }
+        };
+        let has_texcoords = mesh.texcoord_indices.len() == mesh.indices.len();
+        for (k, t) in mesh.indices.chunks_exact(3).enumerate() {
+            let vertices = [t[0] + first, t[1] + first, t[2] + first];
+            if has_texcoords {
+                let uvs = [uv(3 * k), uv(3 * k + 1), uv(3 * k + 2)];
+                builder.textured_triangle(vertices, material, uvs);
+            } else {
+                builder.triangle(vertices, material);
+            }
         }
     }
     if faces_without_material > 0 {

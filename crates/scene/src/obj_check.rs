@@ -8,6 +8,7 @@ use std::path::Path;
 use std::str::SplitWhitespace;
 
 use crate::error::SceneError;
+use crate::map_kd;
 
 /// What the OBJ refers to, found while checking it.
 #[derive(Debug, Default)]
@@ -63,11 +64,15 @@ pub fn check_obj(file: &Path, text: &str) -> Result<ObjSummary, SceneError> {
     Ok(summary)
 }
 
-pub fn check_mtl(file: &Path, text: &str) -> Result<(), SceneError> {
+/// Checks an MTL file; returns the names of the materials it defines, in order.
+pub fn check_mtl(file: &Path, text: &str) -> Result<Vec<String>, SceneError> {
+    let mut materials = Vec::new();
     for (at, line, mut words) in numbered_lines(file, text) {
         match words.next() {
-            Some("newmtl") => {
-                at.rest(line, "newmtl")?;
+            Some("newmtl") => materials.push(at.rest(line, "newmtl")?),
+            // Options and file name, as the loader will read them (DESIGN.md §5).
+            Some("map_Kd") => {
+                map_kd::parse(&at.rest(line, "map_Kd")?).map_err(|e| at.syntax(&e))?;
             }
             Some("Ka" | "Kd" | "Ks" | "Ke") => {
                 let rgb = at.finite_numbers(&mut words, 3, 3)?;
@@ -87,7 +92,7 @@ pub fn check_mtl(file: &Path, text: &str) -> Result<(), SceneError> {
             _ => {}
         }
     }
-    Ok(())
+    Ok(materials)
 }
 
 /// Each line of `text` with its place in `file` (numbered from 1) and its words.
@@ -322,14 +327,22 @@ mod tests {
                     "t.mtl:2: illum needs an integer 0-255",
                 ),
                 ("newmtl\n", "t.mtl:1: newmtl needs a name"),
+                ("newmtl a\nmap_Kd  \n", "t.mtl:2: map_Kd needs a name"),
+                (
+                    "newmtl a\nmap_Kd -clamp x.png\n",
+                    "t.mtl:2: map_Kd option -clamp takes on or off",
+                ),
+                (
+                    "newmtl a\nmap_Kd -s 2 2\n",
+                    "t.mtl:2: map_Kd needs a file name after its options",
+                ),
             ],
         );
-        assert!(
-            check_mtl(
-                Path::new("t.mtl"),
-                "newmtl a\nKd 1 1 1\nNs 10\nillum 2\nmap_Kd x.png\n"
-            )
-            .is_ok()
-        );
+        let names = check_mtl(
+            Path::new("t.mtl"),
+            "newmtl a\nKd 1 1 1\nNs 10\nillum 2\nmap_Kd x.png\nnewmtl b c\nmap_Kd -s 2 2 1 -bm 1 -clamp on my x.jpg\n",
+        )
+        .expect("valid");
+        assert_eq!(names, ["a", "b c"]);
     }
 }

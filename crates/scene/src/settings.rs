@@ -19,6 +19,10 @@
 //! paths = 64
 //! bounces = 2
 //!
+//! [textures]
+//! enabled = false                  # the default; see `TextureSettings`
+//! albedo = "kd_times_texture"      # "kd_times_texture" | "texture"
+//!
 //! [[viewpoint]]
 //! name = "S1"
 //! eye = [...]; target = [...]; up = [0, 1, 0]; fov_y_deg = 60
@@ -46,6 +50,45 @@ pub struct SceneSettings {
     pub quality: QualitySetting,
     #[serde(default, rename = "viewpoint")]
     pub viewpoints: Vec<ViewpointSetting>,
+    #[serde(default)]
+    pub textures: TextureSettings,
+}
+
+/// Diffuse textures (MTL `map_Kd`, DESIGN.md §5). Part of the scene's identity: the renderer,
+/// the SMA and the viewer must agree on them (the fingerprint and the handshake carry them).
+///
+/// Off by default: the SMA shades mesh vertices only and the viewer does not yet multiply a
+/// texture in per pixel, so a texture would be point-sampled at the vertices and look blotchy.
+/// Off, `map_Kd` is checked but not read, and every material's albedo is its `Kd`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TextureSettings {
+    #[serde(default)]
+    pub enabled: bool,
+    #[serde(default)]
+    pub albedo: AlbedoRule,
+}
+
+/// How a textured material's albedo follows from its `Kd` and its texel.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AlbedoRule {
+    /// `Kd` × texel, as the MTL specification says.
+    #[default]
+    KdTimesTexture,
+    /// The texel alone: for files whose exporter wrote the texture's mean colour into `Kd`,
+    /// where the product would count that colour twice and come out far too dark.
+    Texture,
+}
+
+impl AlbedoRule {
+    /// The name a scene file gives it.
+    pub fn name(self) -> &'static str {
+        match self {
+            AlbedoRule::KdTimesTexture => "kd_times_texture",
+            AlbedoRule::Texture => "texture",
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

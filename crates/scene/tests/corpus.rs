@@ -126,8 +126,11 @@ fn broken_mtl_files_name_file_and_line() {
             "t.mtl:2: illum needs an integer 0-255",
         ),
         ("newmtl\n", "t.mtl:1: newmtl needs a name"),
-        // Not checked line by line; tobj's own error, without a line.
-        ("newmtl white\nmap_Kd\n", "t.mtl: material parse error"),
+        ("newmtl white\nmap_Kd\n", "t.mtl:2: map_Kd needs a name"),
+        (
+            "newmtl white\nmap_Kd -s x t.png\n",
+            "t.mtl:2: map_Kd option -s needs at least 1 number",
+        ),
     ];
     for (mtl, expected) in cases {
         assert_eq!(

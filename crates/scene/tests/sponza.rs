@@ -104,3 +104,79 @@ fn sponza_views_see_part_of_the_atrium() {
         assert!(*n > 1000 && *n < s.mesh.triangles.len() / 2, "{counts:?}");
     }
 }
+
+/// With its textures off (the default), Sponza keeps the fingerprint it had before textures
+/// existed, so the ground truths cached under it stay valid.
+#[test]
+fn sponza_untextured_keeps_its_fingerprint() {
+    let Some(s) = sponza() else { return };
+    assert_eq!(
+        scene::fingerprint_hex(&s.fingerprint),
+        "e9e59bc551cfdba14d196d8c4eaa6cc6142a571be0000779e5c9803b6d2f3eaa"
+    );
+    assert!(s.materials.iter().all(|m| m.diffuse_map.is_none()));
+}
+
+/// Sponza's `Kd` is its textures' mean colour, not a tint: over the area of its textured faces,
+/// `Kd`'s luminance is 1.05 times the textures' mean (linear) luminance, and the floor's and the
+/// walls' (kamen.jpg, 90 % of that area) 1.02 times it (0.583 and 0.572). `Kd` × texel would
+/// count that colour twice and come out 0.58 times as bright, so `scenes/sponza.toml` takes the
+/// texel alone (`albedo = "texture"`). Run with `--nocapture` for the table per material.
+#[test]
+fn sponza_albedo_rule_follows_its_kd_and_its_textures_mean_colours() {
+    let Some(_) = sponza() else { return };
+    let toml = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/sponza.toml");
+    let text = std::fs::read_to_string(toml).expect("sponza.toml");
+    assert!(text.contains("albedo = \"texture\""));
+    let on = text.replace("enabled = false", "enabled = true");
+    let files = TomlOverride {
+        path: std::path::PathBuf::from(toml),
+        text: on,
+    };
+    let s = scene::load_scene_file_from(&files, std::path::Path::new(toml)).expect("loads");
+    assert!(s.report.warnings.is_empty(), "{:?}", s.report.warnings);
+    assert_eq!(s.settings.textures.albedo, scene::AlbedoRule::Texture);
+    let mut area = vec![0f64; s.materials.len()];
+    for (t, tri) in s.mesh.triangles.iter().enumerate() {
+        area[tri.material as usize] += f64::from(s.mesh.triangle_area(t));
+    }
+    let luminance = |c: Vec3| f64::from(conventions::luminance(c.to_array()));
+    let (mut kd_sum, mut mean_sum) = (0.0, 0.0);
+    for (m, a) in s.materials.iter().zip(&area) {
+        let Some(map) = &m.diffuse_map else { continue };
+        let mean = map.texture.mean();
+        println!(
+            "{:18} {:14} area {a:7.1}  Kd {:.3} texture mean {:.3}  ratio {:.2}",
+            m.name,
+            map.file,
+            luminance(m.kd),
+            luminance(mean),
+            luminance(m.kd) / luminance(mean)
+        );
+        kd_sum += a * luminance(m.kd);
+        mean_sum += a * luminance(mean);
+        if map.file == "kamen.jpg" {
+            let ratio = luminance(m.kd) / luminance(mean);
+            assert!((ratio - 1.0).abs() < 0.05, "{}: {ratio}", m.name);
+        }
+    }
+    let ratio = kd_sum / mean_sum;
+    println!("area-weighted Kd / texture mean: {ratio:.3}");
+    assert!((0.9..1.2).contains(&ratio), "{ratio}");
+}
+
+/// The disk, but one file's text replaced.
+struct TomlOverride {
+    path: std::path::PathBuf,
+    text: String,
+}
+
+impl scene::SceneFiles for TomlOverride {
+    fn read(&self, path: &std::path::Path) -> std::io::Result<Vec<u8>> {
+        if path == self.path {
+            Ok(self.text.clone().into_bytes())
+        } else {
+            std::fs::read(path)
+        }
+    }
+}

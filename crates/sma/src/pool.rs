@@ -23,7 +23,7 @@ use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use protocol::Fingerprint;
+use protocol::SceneIdentity;
 use protocol::admission::{ConnectionLimit, PortLimits};
 use protocol::liveness::Liveness;
 use protocol::renderer_link::{FromRenderer, Radiance, ShadeBatch};
@@ -52,8 +52,8 @@ const LINK_QUEUE: usize = 256;
 pub struct PoolConfig {
     /// `host:port` of each renderer the SMA dials.
     pub renderers: Vec<String>,
-    /// The scene both sides must have loaded.
-    pub fingerprint: Fingerprint,
+    /// The scene both sides must have loaded, textures on or off alike.
+    pub scene: SceneIdentity,
     /// Batches in flight per renderer: enough to hide a round trip, few enough that a camera
     /// change is not stuck behind stale work.
     pub depth: usize,

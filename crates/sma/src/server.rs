@@ -15,7 +15,9 @@ use crate::config::SmaConfig;
 use crate::mesh::SubdivisionMesh;
 use crate::pool::{self, PoolConfig, PoolEvent};
 use crate::schedule::Schedule;
-use crate::viewer_link::{self, ViewerEvent, ViewerId, ViewerLinkConfig, scene_info};
+use crate::viewer_link::{
+    self, ViewerEvent, ViewerId, ViewerLinkConfig, scene_identity, scene_info,
+};
 use crate::visibility::Gpu;
 
 /// Events waiting for the schedule from the viewers, and from the pool: past this their
@@ -84,7 +86,7 @@ pub async fn start(
     let (pool_tx, pool_rx) = mpsc::channel(EVENT_QUEUE);
     let pool_config = PoolConfig {
         renderers: config.renderers.clone(),
-        fingerprint: scene.fingerprint,
+        scene: scene_identity(&scene),
         depth: config.schedule.batches_per_renderer.max(1),
         max_frame: config.max_frame,
         backoff_min: Duration::from_millis(100),
@@ -97,7 +99,7 @@ pub async fn start(
     let pool = pool::spawn(pool_config, pool_tx, joining, shutdown_rx.clone());
     let link = ViewerLinkConfig {
         scene_info: scene_info(&scene, config.schedule.criterion, config.schedule.profile),
-        fingerprint: scene.fingerprint,
+        scene: scene_identity(&scene),
         max_frame: config.max_frame,
         handshake_deadline: config.viewer_port.handshake_deadline,
         frame_timeout: config.liveness.frame_timeout,

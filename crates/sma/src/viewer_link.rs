@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use protocol::connection::{SceneCheck, TcpWriter, accept_handshake_within, refuse_handshake};
 use protocol::viewer_link::{Camera, SceneInfo, SkyInfo, SmaToViewer, SunInfo, ViewerToSma};
-use protocol::{Fingerprint, ProtocolError, Role, split_tcp};
+use protocol::{ProtocolError, Role, SceneIdentity, split_tcp};
 use tokio::net::TcpStream;
 use tokio::sync::{mpsc, oneshot, watch};
 
@@ -39,7 +39,7 @@ pub enum ViewerEvent {
 #[derive(Clone, Debug)]
 pub struct ViewerLinkConfig {
     pub scene_info: SceneInfo,
-    pub fingerprint: Fingerprint,
+    pub scene: SceneIdentity,
     pub max_frame: usize,
     /// A viewer that has not completed its handshake by then is closed (DESIGN.md §8).
     pub handshake_deadline: Duration,
@@ -155,7 +155,7 @@ pub async fn serve(
         &mut writer,
         Role::Sma,
         Role::Viewer,
-        SceneCheck::Tell(config.fingerprint),
+        SceneCheck::Tell(config.scene),
         config.handshake_deadline,
     );
     if let Err(e) = handshake.await {
@@ -293,9 +293,18 @@ pub fn camera_problem(camera: &Camera) -> Option<String> {
     }
 }
 
+/// The scene as the handshakes compare it: its fingerprint and whether its textures are on
+/// (DESIGN.md §5, §8).
+pub fn scene_identity(scene: &scene::Scene) -> SceneIdentity {
+    SceneIdentity {
+        fingerprint: scene.fingerprint,
+        textures: scene.settings.textures.enabled,
+    }
+}
+
 /// What a viewer learns of `scene` first (it has no scene of its own, DESIGN.md §2): its name,
-/// fingerprint, bounds, viewpoints, and the criteria `profile` offers, the one viewers start
-/// with first.
+/// fingerprint, textures on or off, bounds, viewpoints, and the criteria `profile` offers, the
+/// one viewers start with first.
 pub fn scene_info(scene: &scene::Scene, active: CriterionKind, profile: Profile) -> SceneInfo {
     let (lo, hi) = scene.mesh.bounds();
     let criteria = std::iter::once(active)
@@ -327,6 +336,7 @@ pub fn scene_info(scene: &scene::Scene, active: CriterionKind, profile: Profile)
             paths: scene.settings.quality.paths,
             bounces: scene.settings.quality.bounces,
         },
+        textures: scene.settings.textures.enabled,
     }
 }
 

@@ -58,6 +58,7 @@ fn wall_scene(wall: Material) -> Scene {
             viewpoint("back", [-0.3, 1.2, -4.0], [0.0, 0.8, 0.0]),
             viewpoint("away", [0.3, 1.2, 4.0], [0.3, 1.2, 9.0]),
         ],
+        textures: Default::default(),
     };
     let mut b = SceneBuilder::new(settings);
     let floor = b.material(Material::diffuse("floor", Vec3::splat(0.5)));

@@ -6,7 +6,7 @@ use std::sync::{Arc, Mutex};
 use glam::Vec3;
 use protocol::connection::{SceneCheck, accept_handshake};
 use protocol::renderer_link::{FromRenderer, Quality, Radiance, SampleKey, ShadePoint, ToRenderer};
-use protocol::{Role, Side, split_tcp};
+use protocol::{Role, SceneIdentity, Side, split_tcp};
 use scene::Scene;
 use tokio::net::TcpListener;
 
@@ -55,7 +55,10 @@ async fn serve(listener: TcpListener, scene: Scene, shading: Shading, fault: Fau
     let mut batches = 0;
     while let Ok((stream, _)) = listener.accept().await {
         let (mut reader, mut writer) = split_tcp::<ToRenderer, FromRenderer>(stream, 1 << 26);
-        let fp = SceneCheck::Same(scene.fingerprint);
+        let fp = SceneCheck::Same(SceneIdentity {
+            fingerprint: scene.fingerprint,
+            textures: scene.settings.textures.enabled,
+        });
         if accept_handshake(&mut reader, &mut writer, Role::Renderer, Role::Sma, fp)
             .await
             .is_err()

@@ -8,7 +8,7 @@ use std::time::Duration;
 use protocol::connection::{SceneCheck, accept_handshake};
 use protocol::frame::DEFAULT_MAX_FRAME;
 use protocol::viewer_link::{SceneInfo, SmaToViewer, ViewerToSma};
-use protocol::{Role, split_tcp};
+use protocol::{Role, SceneIdentity, split_tcp};
 use tokio::sync::mpsc as tokio_mpsc;
 
 pub const WAIT: Duration = Duration::from_secs(30);
@@ -112,7 +112,10 @@ async fn serve(
             &mut writer,
             Role::Sma,
             Role::Viewer,
-            SceneCheck::Tell(scene.fingerprint),
+            SceneCheck::Tell(SceneIdentity {
+                fingerprint: scene.fingerprint,
+                textures: scene.textures,
+            }),
         )
         .await
         .is_err()

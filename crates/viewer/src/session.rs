@@ -76,6 +76,7 @@ mod tests {
                 paths: 64,
                 bounces: Some(2),
             },
+            textures: false,
         }
     }
 

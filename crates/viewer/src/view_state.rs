@@ -191,6 +191,7 @@ mod tests {
                 paths: 1,
                 bounces: None,
             },
+            textures: false,
         }
     }
 

@@ -12,13 +12,13 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Duration;
 
+use protocol::ProtocolError;
 use protocol::connection::{
     SceneCheck, TcpReader, TcpWriter, accept_handshake_within, connect_handshake, refuse_handshake,
     split_tcp,
 };
 use protocol::handshake::{Hello, Role};
 use protocol::renderer_link::{FromRenderer, ShadeBatch, ToRenderer};
-use protocol::{Fingerprint, ProtocolError};
 use tokio::net::TcpStream;
 use tokio::sync::{mpsc, watch};
 use tokio::time::Instant;
@@ -37,13 +37,12 @@ pub async fn handle(
     stop: watch::Receiver<bool>,
 ) -> Result<(), ProtocolError> {
     let (mut reader, mut writer) = split_tcp::<ToRenderer, FromRenderer>(stream, service.max_frame);
-    let fingerprint = service.world.scene.fingerprint;
     accept_handshake_within(
         &mut reader,
         &mut writer,
         Role::Renderer,
         Role::Sma,
-        SceneCheck::Same(fingerprint),
+        SceneCheck::Same(service.world.identity()),
         service.port.handshake_deadline,
     )
     .await?;
@@ -51,7 +50,7 @@ pub async fn handle(
 }
 
 /// Joins the SMA at `addr` (its renderer port, DESIGN.md §2): connects, shakes hands as a
-/// renderer with the scene fingerprint, then serves it as if it had connected here.
+/// renderer with the scene's identity, then serves it as if it had connected here.
 pub async fn join(
     addr: &str,
     service: Arc<Service>,
@@ -71,8 +70,7 @@ async fn connect(
 ) -> Result<(TcpReader<ToRenderer>, TcpWriter<FromRenderer>), ProtocolError> {
     let stream = TcpStream::connect(addr).await?;
     let (mut reader, mut writer) = split_tcp(stream, service.max_frame);
-    let fingerprint: Fingerprint = service.world.scene.fingerprint;
-    let hello = Hello::new(Role::Renderer, Some(fingerprint));
+    let hello = Hello::new(Role::Renderer, Some(service.world.identity()));
     connect_handshake(&mut reader, &mut writer, hello, Role::Sma).await?;
     Ok((reader, writer))
 }

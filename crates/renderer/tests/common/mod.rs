@@ -7,7 +7,7 @@ use glam::Vec3;
 use protocol::connection::{TcpReader, TcpWriter, connect_handshake, split_tcp};
 use protocol::frame::DEFAULT_MAX_FRAME;
 use protocol::renderer_link::{FromRenderer, ShadePoint, ToRenderer};
-use protocol::{Fingerprint, Hello, MessageReader, MessageWriter, ProtocolError, Role, Side};
+use protocol::{Hello, MessageReader, MessageWriter, ProtocolError, Role, SceneIdentity, Side};
 use renderer::World;
 use renderer::estimator::Estimator;
 use renderer::point::{front_point_hit_by, surface_of};
@@ -29,6 +29,7 @@ pub fn settings(sun: Option<Sun>, sky: Sky) -> SceneSettings {
             bounces: Some(2),
         },
         viewpoints: Vec::new(),
+        textures: Default::default(),
     }
 }
 
@@ -134,33 +135,35 @@ pub fn mean_and_standard_error(samples: &[f64]) -> (f64, f64) {
     (mean, (var / n).sqrt())
 }
 
-/// The SMA's side of the handshake with a renderer serving the scene of `fingerprint`.
+/// The scene as an SMA that loaded it says it in the handshake.
+pub fn identity(scene: &scene::Scene) -> SceneIdentity {
+    SceneIdentity {
+        fingerprint: scene.fingerprint,
+        textures: scene.settings.textures.enabled,
+    }
+}
+
+/// The SMA's side of the handshake with a renderer serving the scene `ours`.
 pub async fn handshake_as_sma<R, W>(
     r: &mut MessageReader<R, FromRenderer>,
     w: &mut MessageWriter<W, ToRenderer>,
-    fingerprint: Fingerprint,
-) -> Result<Option<Fingerprint>, ProtocolError>
+    ours: SceneIdentity,
+) -> Result<Option<SceneIdentity>, ProtocolError>
 where
     R: AsyncRead + Unpin,
     W: AsyncWrite + Unpin,
 {
-    connect_handshake(
-        r,
-        w,
-        Hello::new(Role::Sma, Some(fingerprint)),
-        Role::Renderer,
-    )
-    .await
+    connect_handshake(r, w, Hello::new(Role::Sma, Some(ours)), Role::Renderer).await
 }
 
-/// A link to the renderer at `addr`, as an SMA of the scene of `fingerprint`.
+/// A link to the renderer at `addr`, as an SMA of the scene `ours`.
 pub async fn connect_as_sma(
     addr: impl ToSocketAddrs,
-    fingerprint: Fingerprint,
+    ours: SceneIdentity,
 ) -> Result<(TcpReader<FromRenderer>, TcpWriter<ToRenderer>), ProtocolError> {
     let stream = TcpStream::connect(addr).await?;
     let (mut r, mut w) = split_tcp::<FromRenderer, ToRenderer>(stream, DEFAULT_MAX_FRAME);
-    handshake_as_sma(&mut r, &mut w, fingerprint).await?;
+    handshake_as_sma(&mut r, &mut w, ours).await?;
     Ok((r, w))
 }
 

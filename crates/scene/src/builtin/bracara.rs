@@ -17,7 +17,7 @@ use glam::{Vec3, vec3};
 use super::shapes::{cuboid, cylinder, gable_roof, polygon, prism, quad};
 use crate::builder::SceneBuilder;
 use crate::model::Material;
-use crate::settings::{QualitySetting, SceneSettings, Sky, Sun, ViewpointSetting};
+use crate::settings::{QualitySetting, SceneSettings, Sky, Sun, TextureSettings, ViewpointSetting};
 
 struct Palette {
     ground: u32,
@@ -386,5 +386,6 @@ fn settings() -> SceneSettings {
             viewpoint("VR", [-1.5, 1.7, 60.0], [0.5, 3.0, -20.0]),
             viewpoint("VT", [-9.0, 1.7, -11.0], [0.0, 6.0, -40.0]),
         ],
+        textures: TextureSettings::default(),
     }
 }

@@ -9,7 +9,7 @@ use glam::{Vec3, vec3};
 use super::shapes::{prism, quad};
 use crate::builder::SceneBuilder;
 use crate::model::Material;
-use crate::settings::{QualitySetting, SceneSettings, Sky, ViewpointSetting};
+use crate::settings::{QualitySetting, SceneSettings, Sky, TextureSettings, ViewpointSetting};
 
 /// Millimetres of the data page to metres.
 fn mm(p: [f32; 3]) -> Vec3 {
@@ -92,5 +92,6 @@ fn settings() -> SceneSettings {
             up: [0.0, 1.0, 0.0],
             fov_y_deg: 39.3,
         }],
+        textures: TextureSettings::default(),
     }
 }

@@ -105,7 +105,7 @@ impl Dialed {
     ) -> Result<(TcpReader<FromRenderer>, TcpWriter<ToRenderer>), ProtocolError> {
         let stream = TcpStream::connect(&self.addr).await?;
         let (mut reader, mut writer) = split_tcp(stream, self.config.max_frame);
-        let hello = Hello::new(Role::Sma, Some(self.config.fingerprint));
+        let hello = Hello::new(Role::Sma, Some(self.config.scene));
         connect_handshake(&mut reader, &mut writer, hello, Role::Renderer).await?;
         Ok((reader, writer))
     }
@@ -184,7 +184,7 @@ async fn serve_joined(
         &mut writer,
         Role::Sma,
         Role::Renderer,
-        SceneCheck::Same(config.fingerprint),
+        SceneCheck::Same(config.scene),
         config.renderer_port.handshake_deadline,
     );
     let name = identity.name.clone();

@@ -37,11 +37,19 @@ fn flat([x, y, z]: [f32; 3]) -> [f32; 3] {
 /// A pool of one stand-in renderer that holds one batch at a time.
 async fn pool_of_one() -> (PoolHandle, mpsc::Receiver<PoolEvent>, watch::Sender<bool>) {
     let scene = scene::load("cornell").expect("the built-in Cornell box");
+    pool_dialing(scene.clone(), &scene).await
+}
+
+/// A pool of the SMA's `scene` dialing one stand-in renderer that has loaded `renderers`.
+async fn pool_dialing(
+    renderers: scene::Scene,
+    scene: &scene::Scene,
+) -> (PoolHandle, mpsc::Receiver<PoolEvent>, watch::Sender<bool>) {
     let (addr, _log) =
-        fake_renderer::start(scene.clone(), |p, _, _, _| flat(p.into()), Fault::None).await;
+        fake_renderer::start(renderers, |p, _, _, _| flat(p.into()), Fault::None).await;
     let config = PoolConfig {
         renderers: vec![addr],
-        fingerprint: scene.fingerprint,
+        scene: crate::viewer_link::scene_identity(scene),
         depth: 1,
         max_frame: 1 << 24,
         backoff_min: Duration::from_millis(50),
@@ -82,6 +90,21 @@ async fn next_answer(events: &mut mpsc::Receiver<PoolEvent>) -> u64 {
             None => panic!("the pool closed"),
         }
     }
+}
+
+/// A renderer whose textures are on where the SMA's are off is refused at every try (the
+/// fingerprints are left equal, so only the textures differ): it never joins the pool.
+#[tokio::test]
+async fn a_renderer_with_other_textures_never_joins() {
+    let scene = scene::load("cornell").expect("the built-in Cornell box");
+    let mut textured = scene.clone();
+    textured.settings.textures.enabled = true;
+    let (_pool, mut events, _shutdown) = pool_dialing(textured, &scene).await;
+    let joined = tokio::time::timeout(Duration::from_millis(1500), until_connected(&mut events));
+    assert!(
+        joined.await.is_err(),
+        "the pool took a renderer with other textures"
+    );
 }
 
 // The test's runtime has one thread: the dispatcher, the link and the stand-in run only while

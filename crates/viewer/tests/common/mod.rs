@@ -29,6 +29,7 @@ pub fn scene() -> SceneInfo {
             paths: 64,
             bounces: Some(2),
         },
+        textures: false,
     }
 }
 

@@ -1,0 +1,245 @@
+//! Diffuse textures (DESIGN.md §5): decoding (PNG and JPEG through `image`, within its limits),
+//! the size cap, sRGB texels read as linear values, and bilinear lookup with wrap or clamp.
+//!
+//! Texels stay as the file's 8-bit sRGB codes (3 bytes each, a quarter of linear floats) and are
+//! converted through a 256-entry table when read. Filtering blends the *linear* values: blending
+//! the codes would darken every edge between a light and a dark texel.
+
+use std::fmt;
+use std::io::Cursor;
+use std::path::Path;
+use std::sync::{Arc, LazyLock};
+
+use glam::{Vec2, Vec3};
+
+use crate::settings::AlbedoRule;
+
+/// The longest side a texture keeps. A larger one is downscaled on load, with a note in the log:
+/// 4096 × 4096 texels are 48 MiB, and the renderer and the SMA each hold every texture.
+pub const MAX_TEXTURE_SIDE: u32 = 4096;
+/// Decoding limits (`image::Limits`): a small file announcing a huge image (a decompression
+/// bomb) fails to decode, and falls back to `Kd` like any other unreadable texture, instead of
+/// taking the machine's memory.
+const MAX_DECODED_SIDE: u32 = 16_384;
+const MAX_DECODE_ALLOC: u64 = 512 << 20;
+
+/// An RGB texture, rows from the top of the image, texels as 8-bit sRGB.
+#[derive(Clone, PartialEq, Eq)]
+pub struct Texture {
+    width: u32,
+    height: u32,
+    /// `3 × (width × y + x)` is texel (x, y)'s red.
+    srgb: Vec<u8>,
+}
+
+/// A decoded texture, and the size of the file's image when it was larger than the cap.
+#[derive(Debug)]
+pub struct Decoded {
+    pub texture: Texture,
+    pub downscaled_from: Option<(u32, u32)>,
+}
+
+/// Texture addressing outside 0..1: MTL's default repeats the image; `-clamp on` holds the edge.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Wrap {
+    Repeat,
+    Clamp,
+}
+
+impl fmt::Debug for Texture {
+    /// The size only: the texels are megabytes.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "Texture({}×{})", self.width, self.height)
+    }
+}
+
+/// Linear value of each 8-bit sRGB code.
+static LINEAR: LazyLock<[f32; 256]> = LazyLock::new(|| {
+    std::array::from_fn(|code| conventions::tone_map::srgb_decode(code as f32 / 255.0))
+});
+
+impl Texture {
+    /// A texture of `width × height` texels given as 8-bit sRGB, row by row from the top.
+    pub fn from_srgb8(width: u32, height: u32, texels: &[[u8; 3]]) -> Texture {
+        assert!(width > 0 && height > 0, "a texture has texels");
+        assert_eq!(texels.len(), width as usize * height as usize);
+        Texture {
+            width,
+            height,
+            srgb: texels.concat(),
+        }
+    }
+
+    /// Decodes an image file's bytes (format by content, else by `name`'s extension) into RGB,
+    /// dropping alpha (cut-outs are not simulated), and downscales it to [`MAX_TEXTURE_SIDE`].
+    pub fn decode(bytes: &[u8], name: &Path) -> Result<Decoded, String> {
+        let mut reader = image::ImageReader::new(Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|e| e.to_string())?;
+        if reader.format().is_none()
+            && let Ok(format) = image::ImageFormat::from_path(name)
+        {
+            reader.set_format(format);
+        }
+        let mut limits = image::Limits::default();
+        limits.max_image_width = Some(MAX_DECODED_SIDE);
+        limits.max_image_height = Some(MAX_DECODED_SIDE);
+        limits.max_alloc = Some(MAX_DECODE_ALLOC);
+        reader.limits(limits);
+        let rgb = reader.decode().map_err(|e| e.to_string())?.into_rgb8();
+        let (width, height) = rgb.dimensions();
+        if width == 0 || height == 0 {
+            return Err("the image has no pixels".into());
+        }
+        let full = Texture {
+            width,
+            height,
+            srgb: rgb.into_raw(),
+        };
+        Ok(full.capped(MAX_TEXTURE_SIDE))
+    }
+
+    /// This texture, box-filtered (in linear values) down to at most `cap` texels a side,
+    /// keeping its aspect ratio.
+    fn capped(self, cap: u32) -> Decoded {
+        let longest = self.width.max(self.height);
+        if longest <= cap {
+            return Decoded {
+                texture: self,
+                downscaled_from: None,
+            };
+        }
+        let scaled = |side: u32| {
+            ((u64::from(side) * u64::from(cap) + u64::from(longest) / 2) / u64::from(longest))
+                .max(1) as u32
+        };
+        let (w, h) = (scaled(self.width), scaled(self.height));
+        // Source rows (columns) `span(i, …)` fall on target row (column) i: the spans partition
+        // the source, so each texel is read once.
+        let span = |i: u32, target: u32, source: u32| {
+            let at = |k: u32| (u64::from(k) * u64::from(source) / u64::from(target)) as u32;
+            at(i)..at(i + 1).max(at(i) + 1)
+        };
+        let mut srgb = Vec::with_capacity(3 * w as usize * h as usize);
+        for ty in 0..h {
+            for tx in 0..w {
+                let mut sum = Vec3::ZERO;
+                let mut count = 0u32;
+                for y in span(ty, h, self.height) {
+                    for x in span(tx, w, self.width) {
+                        sum += self.texel(x, y);
+                        count += 1;
+                    }
+                }
+                let mean = sum / count as f32;
+                srgb.extend(mean.to_array().map(conventions::tone_map::srgb8));
+            }
+        }
+        Decoded {
+            texture: Texture {
+                width: w,
+                height: h,
+                srgb,
+            },
+            downscaled_from: Some((self.width, self.height)),
+        }
+    }
+
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// Texel (x, y) as linear RGB; (0, 0) is the image's top-left.
+    #[inline]
+    pub fn texel(&self, x: u32, y: u32) -> Vec3 {
+        let i = 3 * (y as usize * self.width as usize + x as usize);
+        let lin = &*LINEAR;
+        Vec3::new(
+            lin[self.srgb[i] as usize],
+            lin[self.srgb[i + 1] as usize],
+            lin[self.srgb[i + 2] as usize],
+        )
+    }
+
+    /// Bilinear lookup at texture coordinates `uv` (OBJ's: v grows up the image, so v = 1 is
+    /// the top row), texel centres at half-integers. A non-finite coordinate reads as 0.
+    pub fn lookup(&self, uv: Vec2, wrap: Wrap) -> Vec3 {
+        let (x0, x1, fx) = axis(uv.x, self.width, wrap);
+        let (y0, y1, fy) = axis(1.0 - uv.y, self.height, wrap);
+        let top = self.texel(x0, y0).lerp(self.texel(x1, y0), fx);
+        let bottom = self.texel(x0, y1).lerp(self.texel(x1, y1), fx);
+        top.lerp(bottom, fy)
+    }
+
+    /// The mean linear colour over every texel (for comparing with a material's `Kd`).
+    pub fn mean(&self) -> Vec3 {
+        let mut sum = [0f64; 3];
+        for texel in self.srgb.chunks_exact(3) {
+            for (s, &code) in sum.iter_mut().zip(texel) {
+                *s += f64::from(LINEAR[code as usize]);
+            }
+        }
+        let n = (self.width as f64) * (self.height as f64);
+        Vec3::from(sum.map(|s| (s / n) as f32))
+    }
+}
+
+/// The two texels a coordinate falls between along an axis of `size` texels, and the weight of
+/// the second.
+#[inline]
+fn axis(t: f32, size: u32, wrap: Wrap) -> (u32, u32, f32) {
+    let t = if t.is_finite() { t } else { 0.0 };
+    let n = size as f32;
+    match wrap {
+        Wrap::Repeat => {
+            // rem_euclid first keeps far coordinates (u = 1e6) from losing the fraction.
+            let x = t.rem_euclid(1.0) * n - 0.5;
+            let base = x.floor();
+            let i0 = (base as i64).rem_euclid(i64::from(size)) as u32;
+            let i1 = if i0 + 1 == size { 0 } else { i0 + 1 };
+            (i0, i1, (x - base).clamp(0.0, 1.0))
+        }
+        Wrap::Clamp => {
+            let x = (t.clamp(0.0, 1.0) * n - 0.5).clamp(0.0, n - 1.0);
+            let base = x.floor();
+            let i0 = base as u32;
+            (i0, (i0 + 1).min(size - 1), x - base)
+        }
+    }
+}
+
+/// A material's `map_Kd` as the renderer reads it (DESIGN.md §5).
+#[derive(Clone, Debug, PartialEq)]
+pub struct DiffuseMap {
+    pub texture: Arc<Texture>,
+    /// MTL `-s` and `-o` (u and v; w is for 3D textures): coordinates become `uv × scale +
+    /// offset` before the lookup.
+    pub scale: Vec2,
+    pub offset: Vec2,
+    pub wrap: Wrap,
+    pub rule: AlbedoRule,
+    /// The file as the MTL names it, and BLAKE3 of its bytes (the fingerprint's part).
+    pub file: String,
+    pub source: [u8; 32],
+}
+
+impl DiffuseMap {
+    /// The albedo at texture coordinates `uv` of a material of diffuse colour `kd`.
+    #[inline]
+    pub fn albedo(&self, kd: Vec3, uv: Vec2) -> Vec3 {
+        let texel = self
+            .texture
+            .lookup(uv * self.scale + self.offset, self.wrap);
+        match self.rule {
+            AlbedoRule::KdTimesTexture => kd * texel,
+            AlbedoRule::Texture => texel,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;
