@@ -1,0 +1,156 @@
+//! The SMA's command line: flags, defaults and the profile's settings.
+
+use super::*;
+
+#[test]
+fn flag_defaults_are_the_config_defaults() {
+    let cli = Cli::try_parse_from(["sma", "--renderer", "r:1"]).unwrap();
+    let (from_flags, defaults) = (cli.config().unwrap(), SmaConfig::default());
+    assert_eq!(from_flags.listen, defaults.listen);
+    assert_eq!(from_flags.renderers, ["r:1"]);
+    assert_eq!(from_flags.max_frame, defaults.max_frame);
+    assert_eq!(from_flags.liveness, defaults.liveness);
+    assert_eq!(from_flags.renderer_port, defaults.renderer_port);
+    assert_eq!(from_flags.deadline_factor, defaults.deadline_factor);
+    assert_eq!(from_flags.first_deadline, defaults.first_deadline);
+    assert_eq!(from_flags.viewer_silence, defaults.viewer_silence);
+    assert_eq!(
+        from_flags.viewer_backlog_bytes,
+        defaults.viewer_backlog_bytes
+    );
+    assert_eq!(
+        format!("{:?}", from_flags.schedule),
+        format!("{:?}", defaults.schedule)
+    );
+    assert_eq!(
+        format!("{:?}", from_flags.mesh),
+        format!("{:?}", defaults.mesh)
+    );
+}
+
+#[test]
+fn renderers_are_dialed_or_join_a_renderer_port_but_one_way_is_given() {
+    let cli = Cli::try_parse_from(["sma", "--renderer-listen", "0.0.0.0:7300"]).unwrap();
+    let config = cli.config().unwrap();
+    assert_eq!(config.renderer_listen.as_deref(), Some("0.0.0.0:7300"));
+    assert!(config.renderers.is_empty());
+    assert!(Cli::try_parse_from(["sma"]).is_err());
+}
+
+#[test]
+fn criteria_are_parsed_by_name() {
+    let cli = Cli::try_parse_from(["sma", "--renderer", "r:1", "--criterion", "rnd"]).unwrap();
+    assert_eq!(cli.criterion, CriterionKind::Rnd);
+    assert!(Cli::try_parse_from(["sma", "--renderer", "r:1", "--criterion", "x"]).is_err());
+    let cli = Cli::try_parse_from(["sma", "--renderer", "r:1", "--criterion", "nld-mm"]).unwrap();
+    assert_eq!(cli.criterion, CriterionKind::NldMm);
+}
+
+#[test]
+fn the_neighbour_rule_is_parsed_by_name() {
+    let with = |rule: &str| {
+        Cli::try_parse_from(["sma", "--renderer", "r:1", "--neighbour-rule", rule])
+            .map(|cli| cli.config().unwrap().mesh.neighbour_rule)
+    };
+    assert_eq!(with("thesis").unwrap(), NeighbourRule::Thesis);
+    assert_eq!(with("red-green").unwrap(), NeighbourRule::RedGreen);
+    assert!(with("loop").is_err());
+    let default = Cli::try_parse_from(["sma", "--renderer", "r:1"]).unwrap();
+    assert_eq!(
+        default.config().unwrap().mesh.neighbour_rule,
+        NeighbourRule::RedGreen
+    );
+}
+
+#[test]
+fn merging_by_uniformity_is_switched_on_or_off() {
+    let with = |value: &str| {
+        Cli::try_parse_from(["sma", "--renderer", "r:1", "--merge-uniform", value])
+            .map(|cli| cli.config().unwrap().schedule.merge_uniform)
+    };
+    assert!(with("on").unwrap());
+    assert!(!with("off").unwrap());
+    assert!(with("yes").is_err());
+    let default = Cli::try_parse_from(["sma", "--renderer", "r:1"]).unwrap();
+    assert!(
+        !default.config().unwrap().schedule.merge_uniform,
+        "off until measured"
+    );
+}
+
+#[test]
+fn a_round_share_outside_zero_to_one_is_refused() {
+    let with =
+        |share: &str| Cli::try_parse_from(["sma", "--renderer", "r:1", "--round-share", share]);
+    assert_eq!(
+        with("0.25").unwrap().config().unwrap().schedule.round_share,
+        0.25
+    );
+    for bad in ["0", "-0.1", "1.5", "NaN", "x"] {
+        assert!(with(bad).is_err(), "{bad} accepted");
+    }
+}
+
+fn thesis(flags: &[&str]) -> anyhow::Result<SmaConfig> {
+    let args = ["sma", "--renderer", "r:1", "--profile", "thesis"];
+    Cli::try_parse_from(args.iter().chain(flags))?.config()
+}
+
+#[test]
+fn the_thesis_profile_is_the_config_with_that_profile() {
+    let config = thesis(&[]).unwrap();
+    let want = SmaConfig::default().with_profile(Profile::Thesis).unwrap();
+    assert_eq!(config.schedule.profile, Profile::Thesis);
+    assert_eq!(config.schedule.criterion, CriterionKind::NldOsThesis);
+    assert_eq!(
+        format!("{:?}", config.schedule),
+        format!("{:?}", want.schedule)
+    );
+    assert_eq!(format!("{:?}", config.mesh), format!("{:?}", want.mesh));
+    assert!(Cli::try_parse_from(["sma", "--renderer", "r:1", "--profile", "x"]).is_err());
+}
+
+#[test]
+fn the_thesis_profile_maps_the_noise_aware_criteria_and_refuses_nld_px() {
+    let criterion = |name| thesis(&["--criterion", name]).map(|c| c.schedule.criterion);
+    assert_eq!(criterion("nld-is").unwrap(), CriterionKind::NldIsThesis);
+    assert_eq!(criterion("rnd").unwrap(), CriterionKind::Rnd);
+    assert_eq!(criterion("nld-mm").unwrap(), CriterionKind::NldMm);
+    let refused = criterion("nld-px").unwrap_err().to_string();
+    assert!(
+        refused.contains("nld-px") && refused.contains("thesis (2006)"),
+        "{refused}"
+    );
+}
+
+#[test]
+fn a_flag_given_beside_the_profile_still_wins() {
+    let config = thesis(&[
+        "--neighbour-rule",
+        "red-green",
+        "--l-white-outliers",
+        "0.01",
+        "--coarsen-after-passes",
+        "5",
+    ])
+    .unwrap();
+    assert_eq!(config.mesh.neighbour_rule, NeighbourRule::RedGreen);
+    assert_eq!(config.schedule.l_white_outliers, 0.01);
+    assert_eq!(config.schedule.coarsen_after_passes, 5);
+    assert!(!config.schedule.ladder, "the rest is the thesis's");
+    assert!(thesis(&["--l-white-outliers", "1"]).is_err());
+}
+
+#[test]
+fn work_while_walking_is_on_today_off_under_the_thesis_and_a_flag_sets_it() {
+    let flag = |v| ["sma", "--renderer", "r:1", "--work-while-walking", v];
+    let walks = |c: anyhow::Result<SmaConfig>| c.unwrap().schedule.work_while_walking;
+    assert!(walks(
+        Cli::try_parse_from(["sma", "--renderer", "r:1"])
+            .unwrap()
+            .config()
+    ));
+    assert!(!walks(Cli::try_parse_from(flag("off")).unwrap().config()));
+    assert!(Cli::try_parse_from(flag("yes")).is_err());
+    assert!(!walks(thesis(&[])) && walks(thesis(&["--work-while-walking", "on"])));
+}
