@@ -19,8 +19,9 @@
 //!
 //! Adjacency is by *position*: base vertices are welded into points with a tolerance relative to
 //! the scene size (DESIGN.md §4), across material and crease seams, and an edge is a pair of
-//! points, so any number of faces may share one (non-manifold edges). An edge midpoint gets one
-//! vertex per pair of vertex copies, i.e. one per side of a seam, at one shared position
+//! points, so any number of faces may share one (non-manifold edges). The copies of a point all
+//! take its position, so that leaves meeting there share bit-identical corners. An edge midpoint
+//! gets one vertex per pair of vertex copies, i.e. one per side of a seam, at one shared position
 //! (DESIGN.md §5). Coarsening (thesis §6, future work) undoes red splits when no neighbour is
 //! finer along the parents' edges, re-greening or un-greening what closure then needs; parents
 //! that block each other (a uniformly refined patch) go together in one step, so coarsening
@@ -309,7 +310,13 @@ impl SubdivisionMesh {
         };
         let (vertex_point, point_positions) =
             weld::weld(&mesh.positions, params.weld_tolerance_rel * extent);
-        let vertices = base_vertices(mesh);
+        let mut vertices = base_vertices(mesh);
+        // Copies welded into one point take the point's position: leaves on either side of a
+        // seam then send bit-identical corners, and a viewer draws the seam without a crack
+        // (DESIGN.md §4). They move by at most the weld tolerance (a millionth of the extent).
+        for (vertex, &point) in vertices.iter_mut().zip(&vertex_point) {
+            vertex.position = point_positions[point as usize];
+        }
         let nodes: Vec<Node> = mesh
             .triangles
             .iter()
