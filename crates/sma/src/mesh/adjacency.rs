@@ -202,6 +202,11 @@ impl SubdivisionMesh {
         }
     }
 
+    /// The base triangles that share an edge with base triangle `base` (none for a degenerate one).
+    pub(crate) fn base_neighbours(&self, base: u32) -> impl Iterator<Item = u32> + '_ {
+        (0..3).flat_map(move |k| self.adjacency.across(base, k).iter().map(|&(b, _, _)| b))
+    }
+
     /// The leaves under `id` with an edge overlapping `part` of its edge `k`.
     fn leaves_along(&self, id: NodeId, k: usize, part: Interval, out: &mut Vec<NodeId>) {
         let node = self.node(id);

@@ -1,7 +1,7 @@
 //! The two visibility levels of DESIGN.md §3 (thesis §4.1, "segundo nível de visibilidade"):
 //! level 1 renders the base mesh (uploaded once) and finds the visible base triangles; level 2
-//! renders only the leaves of those and yields the visible set V_t keyed by (leaf, side), with
-//! pixel counts and centroids, and the leaf under every pixel.
+//! renders only the leaves of those (and of their neighbours) and yields the visible set V_t keyed
+//! by (leaf, side), with pixel counts and centroids, and the leaf under every pixel.
 
 use glam::Vec3;
 use protocol::Side;
@@ -88,7 +88,10 @@ impl Visibility {
         let view = self.view(camera);
         let (w, h) = (camera.width, camera.height);
         let bases = self.visible_bases(mesh, camera, &view)?;
-        let submitted: Vec<NodeId> = bases.iter().flat_map(|&b| mesh.leaves_of_base(b)).collect();
+        let submitted: Vec<NodeId> = with_neighbours(mesh, &bases)
+            .into_iter()
+            .flat_map(|b| mesh.leaves_of_base(b))
+            .collect();
         let positions: Vec<[Vec3; 3]> = submitted.iter().map(|&l| mesh.leaf_positions(l)).collect();
         self.leaves.upload(&self.gpu, &positions, view.eye());
         let level2 = self.pass.render(&self.gpu, &self.leaves, &view)?;
@@ -149,6 +152,21 @@ impl Visibility {
         self.level1.truncate(KEPT_LEVEL1);
         Ok(bases)
     }
+}
+
+/// `bases` and the base triangles that share an edge with one of them, in order. Level 1 gives a
+/// pixel centre lying within a rounding of a base edge to either side, and level 2, drawing
+/// other vertices along that edge (the leaves' midpoints), may give it to the other side: were
+/// that base left out, level 2 would see the background there, a crack no leaf of either base
+/// fills (a needle of a base triangle on Sponza beside its neighbour, DESIGN.md §3 step 3).
+fn with_neighbours(mesh: &SubdivisionMesh, bases: &[u32]) -> Vec<u32> {
+    let mut all: Vec<u32> = bases
+        .iter()
+        .flat_map(|&b| std::iter::once(b).chain(mesh.base_neighbours(b)))
+        .collect();
+    all.sort_unstable();
+    all.dedup();
+    all
 }
 
 /// The view of a scene with `bounds`: far reaches the farthest corner of the bounds; near is a
