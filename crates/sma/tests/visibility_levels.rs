@@ -119,8 +119,8 @@ fn carried_against_fresh(carried: &LeafView, fresh: &LeafView) -> (f64, u32) {
     )
 }
 
-/// Every other visible leaf, from the first, until they cover `pixels`; leaves larger than that
-/// are left out.
+/// Every other leaf seen at some pixel, from the first, until they cover `pixels`; guards (seen
+/// at none) and leaves larger than that are left out.
 fn leaves_covering(view: &LeafView, pixels: u32) -> Vec<NodeId> {
     let mut covered = 0;
     view.visible

@@ -1,13 +1,15 @@
 //! The two visibility levels of DESIGN.md §3 (thesis §4.1, "segundo nível de visibilidade"):
 //! level 1 renders the base mesh (uploaded once) and finds the visible base triangles; level 2
 //! renders only the leaves of those (and of their neighbours) and yields the visible set V_t keyed
-//! by (leaf, side), with pixel counts and centroids, and the leaf under every pixel.
+//! by (leaf, side), with pixel counts and centroids, then its guard leaves (`guards`), and the
+//! leaf under every pixel.
 
 use glam::Vec3;
 use protocol::Side;
 use protocol::viewer_link::Camera;
 
 use super::gpu::{Gpu, GpuError};
+use super::guards::add_guards;
 use super::id_pass::{Coverage, IdPass, TriangleBuffer};
 use super::view::View;
 use crate::mesh::{NodeId, SubdivisionMesh};
@@ -79,7 +81,7 @@ impl Visibility {
         scene_view(camera, self.bounds)
     }
 
-    /// Levels 1 and 2 for one camera.
+    /// Levels 1 and 2 for one camera, and the guards of what level 2 sees.
     pub fn leaf_view(
         &mut self,
         mesh: &SubdivisionMesh,
@@ -112,7 +114,7 @@ impl Visibility {
             .iter()
             .map(|&id| id.checked_sub(1).map(|i| submitted[i as usize]))
             .collect();
-        Ok(LeafView {
+        let mut view = LeafView {
             visible: VisibleSet {
                 leaves,
                 width: w,
@@ -123,7 +125,9 @@ impl Visibility {
             camera: Some(camera.clone()),
             visible_bases: bases.len(),
             submitted_leaves: submitted.len(),
-        })
+        };
+        add_guards(&mut view, mesh, camera);
+        Ok(view)
     }
 }
 
