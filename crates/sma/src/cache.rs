@@ -535,6 +535,9 @@ impl ShadingCache {
         let mut lum: Vec<f32> = visible
             .leaves
             .iter()
+            // Guard leaves (`visibility::guards`) are sent but not seen: what lies hidden beside
+            // the view does not set its white.
+            .filter(|v| v.pixels > 0)
             .flat_map(|v| {
                 mesh.node(v.leaf).vertices.map(|vertex| SampleKey {
                     vertex,

@@ -19,12 +19,14 @@
 //!
 //! Adjacency is by *position*: base vertices are welded into points with a tolerance relative to
 //! the scene size (DESIGN.md §4), across material and crease seams, and an edge is a pair of
-//! points, so any number of faces may share one (non-manifold edges). An edge midpoint gets one
-//! vertex per pair of vertex copies, i.e. one per side of a seam, at one shared position
-//! (DESIGN.md §5). Coarsening (thesis §6, future work) undoes red splits when no neighbour is
-//! finer along the parents' edges, re-greening or un-greening what closure then needs; parents
-//! that block each other (a uniformly refined patch) go together in one step, so coarsening
-//! everything, one level per call, gives back the base mesh.
+//! points, so any number of faces may share one (non-manifold edges). The copies of a point all
+//! take its position, so that leaves meeting there share bit-identical corners, and a face with
+//! another's corner inside an edge is cut there (`stitch`). An edge midpoint gets one vertex per
+//! pair of vertex copies, i.e. one per side of a seam, at one shared position (DESIGN.md §5).
+//! Coarsening (thesis §6, future work) undoes red splits when no neighbour is finer along the
+//! parents' edges, re-greening or un-greening what closure then needs; parents that block each
+//! other (a uniformly refined patch) go together in one step, so coarsening everything, one
+//! level per call, gives back the base mesh.
 //!
 //! The thesis's own neighbour rule (§4.2: a neighbour is split 1:4 when the split edge is shorter
 //! than its height on it) is an option, [`NeighbourRule::Thesis`], applied inside this closure
@@ -39,6 +41,7 @@ mod grid;
 mod neighbour_rule;
 mod refine;
 mod step;
+mod stitch;
 mod weld;
 
 #[cfg(test)]
@@ -108,7 +111,9 @@ pub struct MeshVertex {
     pub position: Vec3,
     /// Canonical unit normal; sides of samples are relative to it (DESIGN.md §5).
     pub normal: Vec3,
-    /// A base triangle the vertex lies on (`u32::MAX` for a scene vertex no triangle uses).
+    /// A scene triangle the vertex lies on, where renderers shade it (`u32::MAX` for a scene
+    /// vertex no triangle uses); the scene triangle of a base triangle that is a piece of one
+    /// (`stitch`).
     pub base_triangle: u32,
     /// Barycentric weights of that triangle's vertices 1 and 2.
     pub bary: [f32; 2],
@@ -268,6 +273,8 @@ pub struct SubdivisionMesh {
     /// Base triangles with two corners welded into one point: never split, no neighbours.
     degenerate: Vec<bool>,
     adjacency: adjacency::BaseAdjacency,
+    /// Where base triangles are pieces of the scene's (`stitch`).
+    scene_triangles: stitch::SceneTriangles,
     /// Keyed by point pair; kept when the count drops to zero so a re-split reuses the point.
     edge_splits: HashMap<u64, EdgeSplit, FastHash>,
     /// Keyed by vertex pair: one midpoint vertex per side of a seam, for edges with a seam vertex
@@ -307,13 +314,25 @@ impl SubdivisionMesh {
         } else {
             (hi - lo).length()
         };
-        let (vertex_point, point_positions) =
-            weld::weld(&mesh.positions, params.weld_tolerance_rel * extent);
-        let vertices = base_vertices(mesh);
-        let nodes: Vec<Node> = mesh
-            .triangles
-            .iter()
-            .map(|tri| Node::new(tri.vertices, None, NodeKind::Base))
+        let tolerance = params.weld_tolerance_rel * extent;
+        let (mut vertex_point, point_positions) = weld::weld(&mesh.positions, tolerance);
+        let mut vertices = base_vertices(mesh);
+        // Copies welded into one point take the point's position: leaves on either side of a
+        // seam then send bit-identical corners, and a viewer draws the seam without a crack
+        // (DESIGN.md §4). They move by at most the weld tolerance (a millionth of the extent).
+        for (vertex, &point) in vertices.iter_mut().zip(&vertex_point) {
+            vertex.position = point_positions[point as usize];
+        }
+        let (bases, scene_triangles) = stitch::base_triangles(
+            mesh,
+            &mut vertices,
+            &mut vertex_point,
+            &point_positions,
+            tolerance,
+        );
+        let nodes: Vec<Node> = bases
+            .into_iter()
+            .map(|vertices| Node::new(vertices, None, NodeKind::Base))
             .collect();
         let degenerate: Vec<bool> = nodes
             .iter()
@@ -353,6 +372,7 @@ impl SubdivisionMesh {
             point_count: point_positions.len() as u32,
             degenerate,
             adjacency,
+            scene_triangles,
             edge_splits: HashMap::default(),
             seam_midpoints: HashMap::default(),
             splits: 0,
@@ -391,7 +411,8 @@ impl SubdivisionMesh {
         self.ancestry(id).count() as u32 - 1
     }
 
-    /// The base triangle node `id` lies in (its node id is its triangle index).
+    /// The base triangle node `id` lies in: a scene triangle (the same index) or a piece of one
+    /// (`stitch`).
     pub fn base_of(&self, id: NodeId) -> u32 {
         self.ancestry(id)
             .last()
@@ -457,6 +478,7 @@ impl SubdivisionMesh {
             + self.vertex_point.capacity() * size_of::<u32>()
             + self.degenerate.capacity()
             + self.adjacency.heap_bytes()
+            + self.scene_triangles.heap_bytes()
             + table(&self.edge_splits)
             + table(&self.seam_midpoints)
     }

@@ -3,6 +3,7 @@
 //! - `carry_over`: a view brought to a refined or coarsened mesh without a pass, the camera
 //!   unchanged;
 //! - `gpu`: the device (a GPU when there is one, else Mesa) and offscreen targets with readback;
+//! - `guards`: leaves a viewer's rounding may show beside the visible ones, sent with them;
 //! - [`id_pass`]: triangles into an R32Uint ID buffer with depth, per-triangle pixel coverage;
 //! - `levels`: level 1 over the base mesh, level 2 over the leaves of visible base triangles;
 //! - `luminance_pass`: the Gouraud luminance image of what a viewer shows, for `nld-is`;
@@ -14,6 +15,7 @@ mod carry_over;
 #[cfg(any(test, feature = "testing"))]
 mod coverage_mask;
 mod gpu;
+mod guards;
 pub mod id_pass;
 mod levels;
 mod luminance_pass;

@@ -1,5 +1,6 @@
 //! The visible set V_t (DESIGN.md §3 steps 2–3): leaves seen from the camera, each with the side
-//! facing the eye (DESIGN.md §5) and its projected pixel count.
+//! facing the eye (DESIGN.md §5) and its projected pixel count; after them the guard leaves,
+//! shown with them though seen at no pixel (`visibility::guards`).
 
 use protocol::Side;
 
@@ -9,7 +10,7 @@ use crate::mesh::NodeId;
 pub struct VisibleLeaf {
     pub leaf: NodeId,
     pub side: Side,
-    /// Pixels of the ID buffer showing this leaf.
+    /// Pixels of the ID buffer showing this leaf (0 for a guard).
     pub pixels: u32,
 }
 

@@ -119,12 +119,14 @@ fn carried_against_fresh(carried: &LeafView, fresh: &LeafView) -> (f64, u32) {
     )
 }
 
-/// Every other visible leaf, from the first, until they cover `pixels`.
+/// Every other leaf seen at some pixel, from the first, until they cover `pixels`; guards (seen
+/// at none) and leaves larger than that are left out.
 fn leaves_covering(view: &LeafView, pixels: u32) -> Vec<NodeId> {
     let mut covered = 0;
     view.visible
         .leaves
         .iter()
+        .filter(|l| (1..=pixels).contains(&l.pixels))
         .step_by(2)
         .take_while(|l| {
             covered += l.pixels;

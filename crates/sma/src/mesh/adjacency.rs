@@ -171,7 +171,7 @@ impl BaseAdjacency {
 impl SubdivisionMesh {
     /// The leaves on the other side of edge `k` of node `id` (any node, leaf or not) that touch
     /// the edge along a segment: coarser, equal or finer ones alike.
-    pub(super) fn leaves_across(&self, id: NodeId, k: usize, out: &mut Vec<NodeId>) {
+    pub(crate) fn leaves_across(&self, id: NodeId, k: usize, out: &mut Vec<NodeId>) {
         let (mut node, mut edge, mut part) = (id, k, Interval::WHOLE);
         while let Some(parent) = self.node(node).parent() {
             let child = (node - self.node(parent).children().start) as usize;
@@ -200,6 +200,46 @@ impl SubdivisionMesh {
             let seen = if reversed { part.reversed() } else { part };
             self.leaves_along(base, e as usize, seen, out);
         }
+    }
+
+    /// The base triangles that share an edge with base triangle `base` (none for a degenerate one).
+    pub(crate) fn base_neighbours(&self, base: u32) -> impl Iterator<Item = u32> + '_ {
+        (0..3).flat_map(move |k| self.adjacency.across(base, k).iter().map(|&(b, _, _)| b))
+    }
+
+    /// The leaves with a corner at the point of corner `corner` of leaf `id` (`id` included), in
+    /// `out`: found by turning around the point across the edges that meet there. At most
+    /// `limit` of them (a fan of hundreds of faces is a modelling accident, not a surface).
+    pub(crate) fn leaves_around(
+        &self,
+        id: NodeId,
+        corner: usize,
+        limit: usize,
+        out: &mut Vec<NodeId>,
+    ) {
+        let point = self.point_of(self.node(id).vertices[corner]);
+        let corner_of =
+            |n: NodeId| (0..3).find(|&c| self.point_of(self.node(n).vertices[c]) == point);
+        let first = out.len();
+        out.push(id);
+        let mut next = first;
+        let mut across = Vec::new();
+        while next < out.len() && out.len() - first < limit {
+            let n = out[next];
+            next += 1;
+            let Some(c) = corner_of(n) else { continue };
+            // Edges c (from the corner) and c + 2 (to it) meet at the corner.
+            for k in [c, (c + 2) % 3] {
+                across.clear();
+                self.leaves_across(n, k, &mut across);
+                for &m in &across {
+                    if corner_of(m).is_some() && !out[first..].contains(&m) {
+                        out.push(m);
+                    }
+                }
+            }
+        }
+        out.truncate(first + limit);
     }
 
     /// The leaves under `id` with an edge overlapping `part` of its edge `k`.
@@ -252,6 +292,42 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// Around an inner point of a grid, then with one of its faces refined: every leaf with a
+    /// corner there, and no other.
+    #[test]
+    fn leaves_around_a_point_are_the_whole_fan() {
+        use crate::mesh::test_meshes::grid;
+        use crate::mesh::{MeshParams, SubdivisionMesh};
+        use glam::Vec3;
+
+        let mut mesh = SubdivisionMesh::new(&grid(2), MeshParams::default());
+        let centre = Vec3::new(1.0, 1.0, 0.0);
+        let fan = |mesh: &SubdivisionMesh| {
+            let mut all: Vec<NodeId> = mesh
+                .leaves()
+                .filter(|&l| mesh.leaf_positions(l).contains(&centre))
+                .collect();
+            all.sort_unstable();
+            all
+        };
+        for round in 0..2 {
+            let want = fan(&mesh);
+            let (leaf, corner) = want
+                .iter()
+                .find_map(|&l| {
+                    let c = mesh.leaf_positions(l).iter().position(|&p| p == centre)?;
+                    Some((l, c))
+                })
+                .expect("a leaf at the centre");
+            let mut got = Vec::new();
+            mesh.leaves_around(leaf, corner, 64, &mut got);
+            got.sort_unstable();
+            assert_eq!(got, want, "round {round}");
+            assert!(want.len() >= 6);
+            mesh.refine(&[want[2]], &|_| false);
         }
     }
 

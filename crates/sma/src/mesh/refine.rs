@@ -229,9 +229,9 @@ impl SubdivisionMesh {
         next_vertex
     }
 
-    /// The midpoint vertex of edge (va, vb) of node `id`: shaded on the node's base triangle,
-    /// normal halfway between the ends' (the node's face normal, turned to `va`'s side, if those
-    /// cancel).
+    /// The midpoint vertex of edge (va, vb) of node `id`: shaded on the scene triangle of the
+    /// node's base triangle, normal halfway between the ends' (the node's face normal, turned
+    /// to `va`'s side, if those cancel).
     fn midpoint_vertex(
         &self,
         id: NodeId,
@@ -245,12 +245,12 @@ impl SubdivisionMesh {
             let face = (b - a).cross(c - a).normalize_or(na);
             if face.dot(na) < 0.0 { -face } else { face }
         });
-        let base = self.base_of(id);
+        let (scene_triangle, corners) = self.scene_triangle_of(self.base_of(id));
         MeshVertex {
             position,
             normal,
-            base_triangle: base,
-            bary: barycentric(self.leaf_positions(base), position),
+            base_triangle: scene_triangle,
+            bary: barycentric(corners, position),
         }
     }
 }

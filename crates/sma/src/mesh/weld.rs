@@ -57,4 +57,36 @@ mod tests {
         assert_eq!(vp, vec![0, 1, 0, 1, 2]);
         assert_eq!(points.len(), 3);
     }
+
+    /// Two faces of an exported square whose shared corners were written a rounding apart:
+    /// both send bit-identical corners for them, before refinement and after, on the seam's
+    /// midpoints too.
+    #[test]
+    fn copies_of_a_point_share_its_position() {
+        use crate::mesh::{MeshParams, NodeId, SubdivisionMesh};
+
+        let mut mesh = crate::mesh::test_meshes::square();
+        let nudged = |p: Vec3| p + Vec3::new(3e-7, -2e-7, 0.0);
+        mesh.positions.push(nudged(mesh.positions[0]));
+        mesh.positions.push(nudged(mesh.positions[2]));
+        mesh.normals.extend([Vec3::Z; 2]);
+        mesh.triangles[1].vertices = [4, 5, 3];
+        let mut sma = SubdivisionMesh::new(&mesh, MeshParams::default());
+        let corners = |sma: &SubdivisionMesh, base: NodeId| -> Vec<[u32; 3]> {
+            sma.leaves_of_base(base)
+                .iter()
+                .flat_map(|&l| sma.leaf_positions(l))
+                .map(|p| p.to_array().map(f32::to_bits))
+                .collect()
+        };
+        for round in 0..2 {
+            let (a, b) = (corners(&sma, 0), corners(&sma, 1));
+            let shared = a.iter().filter(|p| b.contains(p)).count();
+            assert!(
+                shared >= 2 + round,
+                "round {round}: {shared} shared corners"
+            );
+            sma.refine(&[0, 1], &|_| false);
+        }
+    }
 }

@@ -18,6 +18,7 @@ use conventions::camera::{Pinhole, relative_to};
 use glam::{DVec3, Vec3};
 use protocol::viewer_link::Camera;
 
+use super::guards::add_guards;
 use super::id_pass::Coverage;
 use super::levels::{LeafView, side_facing};
 use crate::mesh::fast_hash::FastHash;
@@ -32,7 +33,7 @@ const MOST_PIXELS_CARRIED: f64 = 0.125;
 /// `view`, seen from `camera` through `mesh` before it changed, brought to the mesh's current
 /// leaves; `None` when so many pixels lost their leaf that a pass is cheaper. Leaves still live
 /// keep their entries; the pixels of the others go to the leaves that now hold them, which get
-/// entries after the kept ones, in pixel order.
+/// entries after the kept ones, in pixel order; the guards (`guards`) are found afresh.
 pub fn carry_over(view: LeafView, mesh: &SubdivisionMesh, camera: &Camera) -> Option<LeafView> {
     let stale: Vec<u32> = view
         .pixel_leaves
@@ -97,7 +98,7 @@ pub fn carry_over(view: LeafView, mesh: &SubdivisionMesh, camera: &Camera) -> Op
         });
         centroids.push(c.centroid());
     }
-    Some(LeafView {
+    let mut view = LeafView {
         visible: VisibleSet { leaves, ..visible },
         centroids,
         pixel_leaves,
@@ -105,7 +106,9 @@ pub fn carry_over(view: LeafView, mesh: &SubdivisionMesh, camera: &Camera) -> Op
         visible_bases,
         // Nothing was drawn: the figure stays that of the pass the view comes from.
         submitted_leaves,
-    })
+    };
+    add_guards(&mut view, mesh, camera);
+    Some(view)
 }
 
 /// The direction through each pixel centre, unnormalised (only signs are read): linear in the

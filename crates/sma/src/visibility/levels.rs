@@ -1,13 +1,15 @@
 //! The two visibility levels of DESIGN.md §3 (thesis §4.1, "segundo nível de visibilidade"):
 //! level 1 renders the base mesh (uploaded once) and finds the visible base triangles; level 2
-//! renders only the leaves of those and yields the visible set V_t keyed by (leaf, side), with
-//! pixel counts and centroids, and the leaf under every pixel.
+//! renders only the leaves of those (and of their neighbours) and yields the visible set V_t keyed
+//! by (leaf, side), with pixel counts and centroids, then its guard leaves (`guards`), and the
+//! leaf under every pixel.
 
 use glam::Vec3;
 use protocol::Side;
 use protocol::viewer_link::Camera;
 
 use super::gpu::{Gpu, GpuError};
+use super::guards::add_guards;
 use super::id_pass::{Coverage, IdPass, TriangleBuffer};
 use super::view::View;
 use crate::mesh::{NodeId, SubdivisionMesh};
@@ -79,7 +81,7 @@ impl Visibility {
         scene_view(camera, self.bounds)
     }
 
-    /// Levels 1 and 2 for one camera.
+    /// Levels 1 and 2 for one camera, and the guards of what level 2 sees.
     pub fn leaf_view(
         &mut self,
         mesh: &SubdivisionMesh,
@@ -88,7 +90,10 @@ impl Visibility {
         let view = self.view(camera);
         let (w, h) = (camera.width, camera.height);
         let bases = self.visible_bases(mesh, camera, &view)?;
-        let submitted: Vec<NodeId> = bases.iter().flat_map(|&b| mesh.leaves_of_base(b)).collect();
+        let submitted: Vec<NodeId> = with_neighbours(mesh, &bases)
+            .into_iter()
+            .flat_map(|b| mesh.leaves_of_base(b))
+            .collect();
         let positions: Vec<[Vec3; 3]> = submitted.iter().map(|&l| mesh.leaf_positions(l)).collect();
         self.leaves.upload(&self.gpu, &positions, view.eye());
         let level2 = self.pass.render(&self.gpu, &self.leaves, &view)?;
@@ -109,7 +114,7 @@ impl Visibility {
             .iter()
             .map(|&id| id.checked_sub(1).map(|i| submitted[i as usize]))
             .collect();
-        Ok(LeafView {
+        let mut view = LeafView {
             visible: VisibleSet {
                 leaves,
                 width: w,
@@ -120,7 +125,9 @@ impl Visibility {
             camera: Some(camera.clone()),
             visible_bases: bases.len(),
             submitted_leaves: submitted.len(),
-        })
+        };
+        add_guards(&mut view, mesh, camera);
+        Ok(view)
     }
 }
 
@@ -149,6 +156,21 @@ impl Visibility {
         self.level1.truncate(KEPT_LEVEL1);
         Ok(bases)
     }
+}
+
+/// `bases` and the base triangles that share an edge with one of them, in order. Level 1 gives a
+/// pixel centre lying within a rounding of a base edge to either side, and level 2, drawing
+/// other vertices along that edge (the leaves' midpoints), may give it to the other side: were
+/// that base left out, level 2 would see the background there, a crack no leaf of either base
+/// fills (a needle of a base triangle on Sponza beside its neighbour, DESIGN.md §3 step 3).
+fn with_neighbours(mesh: &SubdivisionMesh, bases: &[u32]) -> Vec<u32> {
+    let mut all: Vec<u32> = bases
+        .iter()
+        .flat_map(|&b| std::iter::once(b).chain(mesh.base_neighbours(b)))
+        .collect();
+    all.sort_unstable();
+    all.dedup();
+    all
 }
 
 /// The view of a scene with `bounds`: far reaches the farthest corner of the bounds; near is a
