@@ -40,6 +40,26 @@ pub fn split_shown_id(id: u64) -> (NodeId, Side) {
 }
 
 #[cfg(test)]
+impl VisibleSet {
+    /// The front faces of `leaves`, 10 pixels each in an 8×8 image: a view for the schedule's
+    /// tests.
+    pub(crate) fn of_front_leaves(leaves: &[NodeId]) -> VisibleSet {
+        VisibleSet {
+            leaves: leaves
+                .iter()
+                .map(|&leaf| VisibleLeaf {
+                    leaf,
+                    side: Side::Front,
+                    pixels: 10,
+                })
+                .collect(),
+            width: 8,
+            height: 8,
+        }
+    }
+}
+
+#[cfg(test)]
 mod tests {
     use super::*;
 

@@ -93,23 +93,6 @@ impl Coarsening {
 mod tests {
     use super::*;
     use crate::mesh::grid_mesh;
-    use crate::visible_set::VisibleLeaf;
-    use protocol::Side;
-
-    fn visible(leaves: &[NodeId]) -> VisibleSet {
-        VisibleSet {
-            leaves: leaves
-                .iter()
-                .map(|&leaf| VisibleLeaf {
-                    leaf,
-                    side: Side::Front,
-                    pixels: 10,
-                })
-                .collect(),
-            width: 8,
-            height: 8,
-        }
-    }
 
     /// Refines a few leaves of `bases` `levels` times over.
     fn refine_bases(mesh: &mut SubdivisionMesh, c: &mut Coarsening, bases: &[u32], levels: usize) {
@@ -134,7 +117,7 @@ mod tests {
         assert!(far_leaves.len() > 4 && mesh.leaves_of_base(0).len() > 4);
         let before: Vec<Vec<NodeId>> = (0..base as u32).map(|b| mesh.leaves_of_base(b)).collect();
         for pass in 1..=3 {
-            c.seen(&mesh, &visible(&far_leaves), pass);
+            c.seen(&mesh, &VisibleSet::of_front_leaves(&far_leaves), pass);
             // Base 0 (and its closure) was never seen: due once 3 passes are over.
             let steps = c.collapse_stale(&mut mesh, pass);
             assert_eq!(steps.is_empty(), pass < 3, "pass {pass}");

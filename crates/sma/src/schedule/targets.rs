@@ -45,22 +45,11 @@ pub fn targets(
 mod tests {
     use super::*;
     use crate::mesh::grid_mesh;
-    use crate::visible_set::{VisibleLeaf, VisibleSet};
+    use crate::visible_set::VisibleSet;
 
     fn view_of(leaves: &[NodeId]) -> LeafView {
         LeafView {
-            visible: VisibleSet {
-                leaves: leaves
-                    .iter()
-                    .map(|&leaf| VisibleLeaf {
-                        leaf,
-                        side: Side::Front,
-                        pixels: 10,
-                    })
-                    .collect(),
-                width: 8,
-                height: 8,
-            },
+            visible: VisibleSet::of_front_leaves(leaves),
             ..Default::default()
         }
     }
