@@ -16,9 +16,15 @@ const SECTIONS: &[Section] = &[
     ("farm", super::farm::section),
 ];
 
-/// Sections written by the long end-to-end benchmarks (`convergence`, `accuracy`, `cost`) and
-/// from their runs (`reproduction`).
-const EXTERNAL_SECTIONS: &[&str] = &["convergence", "accuracy", "cost", "reproduction"];
+/// Sections written by the long end-to-end benchmarks (`convergence`, `accuracy`, `cost`,
+/// `mesh-options`) and from their runs (`reproduction`).
+const EXTERNAL_SECTIONS: &[&str] = &[
+    "convergence",
+    "accuracy",
+    "cost",
+    "mesh-options",
+    "reproduction",
+];
 
 const SECTION_DIR: &str = "docs/bench";
 

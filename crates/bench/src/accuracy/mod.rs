@@ -58,10 +58,12 @@ pub fn run(args: AccuracyConfig) -> anyhow::Result<()> {
             direct,
         });
     }
+    // The direct renders' times are measurements of the convergence folder, kept with it
+    // whether or not this run writes its section (`reproduction` reads them from there).
+    direct::write_records(&args.convergence, &stored)?;
     let md = section(&results, &args);
     print!("{md}");
     if !args.no_report {
-        direct::write_records(&args.convergence, &stored)?;
         std::fs::write(SECTION, &md)?;
         crate::report::assemble(Path::new("BENCHMARKS.md"))?;
     }
