@@ -2,11 +2,14 @@
 
 use glam::Vec3;
 
-/// The three interior angles (radians) at vertices 0, 1, 2.
+/// The three interior angles (radians) at vertices 0, 1, 2. By `atan2` of the sides' cross and
+/// dot products rather than `acos` of their cosine, which rounds angles below about 0.03° (the
+/// scenes' slivers) to zero.
 pub fn angles(p: [Vec3; 3]) -> [f32; 3] {
     let angle_at = |i: usize| {
         let (a, b, c) = (p[i], p[(i + 1) % 3], p[(i + 2) % 3]);
-        (b - a).angle_between(c - a)
+        let (u, v) = (b - a, c - a);
+        u.cross(v).length().atan2(u.dot(v))
     };
     [angle_at(0), angle_at(1), angle_at(2)]
 }
@@ -102,5 +105,13 @@ mod tests {
         // A degenerate base counts in the absolute figure only.
         shapes.observe(right, 0.0);
         assert!((shapes.smallest_ratio_to_base().unwrap() - 0.5).abs() < 1e-4);
+    }
+
+    #[test]
+    fn a_sliver_has_its_small_angle_not_zero() {
+        let sliver = [Vec3::ZERO, Vec3::X, Vec3::new(0.5, 1e-5, 0.0)];
+        let expected = 2e-5f32.atan();
+        let angle = min_angle(sliver);
+        assert!((angle / expected - 1.0).abs() < 1e-2, "{angle} against {expected}");
     }
 }
