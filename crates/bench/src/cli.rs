@@ -187,6 +187,15 @@ pub struct AccuracyArgs {
     /// The direct renders' images (an ignored folder).
     #[arg(long, default_value = "out/direct")]
     pub direct: PathBuf,
+    /// Paths per pixel of the per-pixel competitors (plain and denoised).
+    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16,32,64")]
+    pub per_pixel_spp: Vec<u32>,
+    /// No per-pixel render above the first that takes longer than this many seconds.
+    #[arg(long, default_value_t = 30.0)]
+    pub per_pixel_max_seconds: f64,
+    /// Skip the denoised competitor (it needs `pip install pyoidn numpy`).
+    #[arg(long)]
+    pub no_denoise: bool,
     /// Do not write docs/bench/accuracy.md nor BENCHMARKS.md.
     #[arg(long)]
     pub no_report: bool,
@@ -319,6 +328,9 @@ impl AccuracyArgs {
             levels: self.levels,
             spp: self.spp,
             direct: self.direct,
+            per_pixel_spp: self.per_pixel_spp,
+            per_pixel_max_seconds: self.per_pixel_max_seconds,
+            denoise: !self.no_denoise,
             no_report: self.no_report,
         }
     }

@@ -112,6 +112,9 @@ mod tests {
         let sliver = [Vec3::ZERO, Vec3::X, Vec3::new(0.5, 1e-5, 0.0)];
         let expected = 2e-5f32.atan();
         let angle = min_angle(sliver);
-        assert!((angle / expected - 1.0).abs() < 1e-2, "{angle} against {expected}");
+        assert!(
+            (angle / expected - 1.0).abs() < 1e-2,
+            "{angle} against {expected}"
+        );
     }
 }
