@@ -72,9 +72,10 @@ pub struct LaunchArgs {
     /// Viewpoint to start at (default: the scene's first).
     #[arg(long)]
     pub view: Option<String>,
-    /// Refinement criterion (rnd, nld-is, nld-os, …).
-    #[arg(long, default_value = "nld-os")]
-    pub criterion: String,
+    /// Refinement criterion (rnd, nld-is, nld-os, nld-px, …) [default: nld-px, the best
+    /// measured; nld-os-thesis under --profile thesis].
+    #[arg(long)]
+    pub criterion: Option<String>,
     /// Which system the SMA runs: today's, or the thesis's as published (2006; see `walkthrough
     /// sma --help`). Under it nld-os and nld-is run as their -thesis forms, and nld-px is refused.
     #[arg(long, default_value_t = Profile::Today, value_parser = profile_parser())]
@@ -109,11 +110,14 @@ fn profile_parser() -> impl TypedValueParser<Value = Profile> {
 impl LaunchArgs {
     /// Refused here, before any process starts: a criterion the profile does not run.
     fn config(self) -> anyhow::Result<LaunchConfig> {
-        self.profile.criterion_named(&self.criterion)?;
+        let criterion = match self.criterion {
+            Some(name) => self.profile.criterion_named(&name)?,
+            None => self.profile.default_criterion(),
+        };
         Ok(LaunchConfig {
             scene: self.scene,
             view: self.view,
-            criterion: self.criterion,
+            criterion: criterion.name().to_string(),
             profile: self.profile,
             renderers: self.renderers,
             width: self.width,
@@ -153,9 +157,18 @@ mod tests {
 
     #[test]
     fn the_profile_goes_to_the_sma_and_refuses_what_it_does_not_run() {
-        assert_eq!(launch(&[]).unwrap().profile, Profile::Today);
+        let today = launch(&[]).unwrap();
+        assert_eq!(
+            (today.profile, today.criterion.as_str()),
+            (Profile::Today, "nld-px")
+        );
         let thesis = launch(&["--profile", "thesis", "--criterion", "nld-os"]).unwrap();
-        assert_eq!(thesis.profile, Profile::Thesis);
+        assert_eq!(
+            (thesis.profile, thesis.criterion.as_str()),
+            (Profile::Thesis, "nld-os-thesis")
+        );
+        let thesis_default = launch(&["--profile", "thesis"]).unwrap();
+        assert_eq!(thesis_default.criterion, "nld-os-thesis");
         assert!(launch(&["--profile", "thesis", "--criterion", "nld-px"]).is_err());
         assert!(launch(&["--criterion", "nld-px"]).is_ok());
         assert!(launch(&["--criterion", "nope"]).is_err());

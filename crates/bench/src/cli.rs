@@ -34,6 +34,7 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Convergence(args) => convergence::run(args.config()),
         BenchCommand::Accuracy(args) => accuracy::run(args.config()),
         BenchCommand::Cost(args) => crate::cost::run(args.config()),
+        BenchCommand::MeshOptions(args) => crate::mesh_options::run(args.config()),
         BenchCommand::LoopbackSink { listen } => crate::protocol::loopback_sink(&listen),
         BenchCommand::Reproduction { runs } => {
             crate::reproduction::run(crate::reproduction::ReproductionConfig { runs })
@@ -61,6 +62,9 @@ pub enum BenchCommand {
     Accuracy(AccuracyArgs),
     /// Error after 10 s and 60 s per ladder cap × bounce depth × criterion (DESIGN.md §10).
     Cost(CostArgs),
+    /// The thesis's neighbour rule and merging by uniformity against today's default mesh, on
+    /// the same views at equal paths (thesis §4.2, §6; DESIGN.md §4).
+    MeshOptions(MeshOptionsArgs),
     /// The thesis's findings beside ours (thesis §5.2–5.3), from `convergence` runs on MC, VR and
     /// VT with rnd, nld-is and nld-os: one with `--profile thesis`, one with today's defaults.
     Reproduction {
@@ -183,6 +187,15 @@ pub struct AccuracyArgs {
     /// The direct renders' images (an ignored folder).
     #[arg(long, default_value = "out/direct")]
     pub direct: PathBuf,
+    /// Paths per pixel of the per-pixel competitors (plain and denoised).
+    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16,32,64")]
+    pub per_pixel_spp: Vec<u32>,
+    /// No per-pixel render above the first that takes longer than this many seconds.
+    #[arg(long, default_value_t = 30.0)]
+    pub per_pixel_max_seconds: f64,
+    /// Skip the denoised competitor (it needs `pip install pyoidn numpy`).
+    #[arg(long)]
+    pub no_denoise: bool,
     /// Do not write docs/bench/accuracy.md nor BENCHMARKS.md.
     #[arg(long)]
     pub no_report: bool,
@@ -258,6 +271,56 @@ impl CostArgs {
     }
 }
 
+#[derive(Args, Debug, Clone)]
+pub struct MeshOptionsArgs {
+    /// Views; default: MC, VR, VT of bracara and S1, S2, S3 of Sponza when ../shared/scenes is
+    /// there.
+    #[arg(long, value_delimiter = ',')]
+    pub views: Vec<String>,
+    /// Length of each run; snapshots every second and at the convergence grid's sample counts.
+    #[arg(long, default_value_t = 60.0)]
+    pub seconds: f64,
+    /// Runs of the default per view: the spread merging is judged against.
+    #[arg(long, default_value_t = 3)]
+    pub repetitions: usize,
+    #[command(flatten)]
+    pub images: ImageArgs,
+    /// The readings' CSVs (committed: small).
+    #[arg(long, default_value = "docs/mesh-options")]
+    pub out: PathBuf,
+    /// Raw snapshots and process logs of every run (big: an ignored folder).
+    #[arg(long, default_value = "out/mesh-options")]
+    pub runs: PathBuf,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Measure nothing: rewrite the section from the CSVs in --out.
+    #[arg(long)]
+    pub report_only: bool,
+    /// Do not write docs/bench/mesh-options.md nor BENCHMARKS.md.
+    #[arg(long)]
+    pub no_report: bool,
+}
+
+impl MeshOptionsArgs {
+    fn config(self) -> crate::mesh_options::MeshOptionsConfig {
+        crate::mesh_options::MeshOptionsConfig {
+            views: self.views,
+            seconds: self.seconds,
+            repetitions: self.repetitions.max(1),
+            at_samples: snapshot_sample_grid(),
+            width: self.images.width,
+            height: self.images.height,
+            gt_spp: self.images.gt_spp,
+            gt_cache: self.images.gt_cache,
+            out: self.out,
+            runs: self.runs,
+            seed: self.seed,
+            report_only: self.report_only,
+            no_report: self.no_report,
+        }
+    }
+}
+
 impl AccuracyArgs {
     fn config(self) -> AccuracyConfig {
         AccuracyConfig {
@@ -265,6 +328,9 @@ impl AccuracyArgs {
             levels: self.levels,
             spp: self.spp,
             direct: self.direct,
+            per_pixel_spp: self.per_pixel_spp,
+            per_pixel_max_seconds: self.per_pixel_max_seconds,
+            denoise: !self.no_denoise,
             no_report: self.no_report,
         }
     }

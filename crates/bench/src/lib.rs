@@ -7,7 +7,8 @@
 //!   faults and uneven hosts with real processes);
 //! - [`convergence`], [`accuracy`] and [`cost`]: the end-to-end measurements of DESIGN.md §10,
 //!   with [`metrics`], [`plots`] and [`strips`]; [`reproduction`]: the thesis's findings beside
-//!   ours, from convergence runs of both profiles;
+//!   ours, from convergence runs of both profiles; [`mesh_options`]: the thesis's neighbour rule
+//!   and merging by uniformity against the default mesh;
 //! - [`ray_throughput`]: the ray-throughput table of the [`renderer`] section;
 //! - [`stats`] (medians, least squares) and [`machine`]: shared by all;
 //! - [`product`]: where the `walkthrough` binary the benchmarks start is;
@@ -19,6 +20,7 @@ pub mod convergence;
 pub mod cost;
 pub mod farm;
 pub mod machine;
+pub mod mesh_options;
 pub mod metrics;
 pub mod plots;
 pub mod product;

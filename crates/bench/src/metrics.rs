@@ -20,7 +20,7 @@ const FLIP_PIXELS_PER_DEGREE: f32 = 67.0;
 const L_WHITE_QUANTILE: f64 = 0.999;
 
 /// A linear RGB image as the renderer's reference mode and the headless viewer write it (EXR).
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct LinearImage {
     pub width: u32,
     pub height: u32,

@@ -16,9 +16,15 @@ const SECTIONS: &[Section] = &[
     ("farm", super::farm::section),
 ];
 
-/// Sections written by the long end-to-end benchmarks (`convergence`, `accuracy`, `cost`) and
-/// from their runs (`reproduction`).
-const EXTERNAL_SECTIONS: &[&str] = &["convergence", "accuracy", "cost", "reproduction"];
+/// Sections written by the long end-to-end benchmarks (`convergence`, `accuracy`, `cost`,
+/// `mesh-options`) and from their runs (`reproduction`).
+const EXTERNAL_SECTIONS: &[&str] = &[
+    "convergence",
+    "accuracy",
+    "cost",
+    "mesh-options",
+    "reproduction",
+];
 
 const SECTION_DIR: &str = "docs/bench";
 
@@ -53,6 +59,11 @@ pub fn assemble(out: &Path) -> anyhow::Result<()> {
          Machine of the last assembly: {}.\nEvery figure is a median over several runs, measured side by side in one run.\n\n",
         super::machine::describe()
     );
+    // The headline first: the system at rest against the best per-pixel competitor.
+    if let Ok(text) = std::fs::read_to_string(super::accuracy::HEADLINE) {
+        doc.push_str(&text);
+        doc.push('\n');
+    }
     let names = SECTIONS
         .iter()
         .map(|s| s.0)

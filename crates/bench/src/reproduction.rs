@@ -314,21 +314,19 @@ fn write_findings(
         }
     )?;
     for (view, claimed) in THESIS_SPEEDUPS {
-        let figure = thesis
-            .iter()
-            .find(|v| v.record.view == view)
-            .and_then(|runs| speedup(runs, directs));
-        let held = figure.map(|(s, _, _)| s >= claimed / 2.0);
-        let text = figure.map_or(
-            "no direct render measured at the runs' size".into(),
-            |(s, d, t)| {
-                format!("direct render {d:.1} s, NLD_OS at its FLIP after {t:.2} s: {s:.1}×")
-            },
-        );
+        let runs = thesis.iter().find(|v| v.record.view == view);
+        let direct = runs.and_then(|r| directs.iter().find(|d| d.describes(&r.record)));
+        let (held, text) = match (runs, direct) {
+            (Some(runs), Some(d)) => speedup_finding(&runs.of("nld-os"), d, claimed),
+            _ => (
+                None,
+                "no direct render measured at the runs' size".to_string(),
+            ),
+        };
         writeln!(
             md,
             "- Speed-up of about {claimed:.0}× on {view} (table 5.1, by eye; counted as \
-             reproduced at half of it or more): {}: {text}.",
+             reproduced at half of it or more, at the direct render's own error): {}: {text}.",
             verdict(held)
         )?;
     }
@@ -354,12 +352,44 @@ fn write_findings(
     Ok(())
 }
 
-/// The direct render's time over the time NLD_OS took to reach the direct render's mean FLIP,
-/// with both times.
-fn speedup(runs: &ViewRuns, directs: &[direct::DirectRecord]) -> Option<(f64, f64, f64)> {
-    let d = directs.iter().find(|d| d.describes(&runs.record))?;
-    let t = time_to_reach(&runs.of("nld-os"), d.flip())?.max(1e-3);
-    Some((d.seconds() / t, d.seconds(), t))
+/// The direct render's time over the time NLD_OS took to reach the direct render's mean FLIP
+/// (the thesis's "as good a picture"), and whether that is at least half the thesis's figure;
+/// where NLD_OS never got there, its speed-up to mean FLIP 0.1 (the level of this project's
+/// speed-ups, BENCHMARKS.md "accuracy") is given instead, and the finding is not reproduced.
+fn speedup_finding(
+    nld_os: &[&Measurement],
+    direct: &direct::DirectRecord,
+    claimed: f64,
+) -> (Option<bool>, String) {
+    let d = direct.seconds();
+    let to = |level: f64| time_to_reach(nld_os, level).map(|t| t.max(1e-3));
+    match to(direct.flip()) {
+        Some(t) => (
+            Some(d / t >= claimed / 2.0),
+            format!(
+                "direct render {d:.1} s, NLD_OS at its FLIP ({:.3}) after {t:.2} s: {:.1}×",
+                direct.flip(),
+                d / t
+            ),
+        ),
+        None => {
+            let best = nld_os
+                .iter()
+                .map(|m| m.error.flip)
+                .fold(f64::INFINITY, f64::min);
+            let at_0_1 = to(0.1).map_or("it never reached FLIP 0.1 either".into(), |t| {
+                format!("to FLIP 0.1 it took {t:.2} s, {:.1}× faster", d / t)
+            });
+            (
+                Some(false),
+                format!(
+                    "NLD_OS never reached the direct render's FLIP ({:.3}, {d:.1} s): its best \
+                     was {best:.3}; {at_0_1}",
+                    direct.flip()
+                ),
+            )
+        }
+    }
 }
 
 /// When a run's leaves stopped growing for good before its end, with the FLIP it stayed at:

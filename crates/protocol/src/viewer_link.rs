@@ -77,6 +77,34 @@ pub struct Stats {
     /// Renderer answers rejected so far (NaN, infinite or negative radiance or variance, no
     /// paths): never cached nor shown, asked for again.
     pub rejected_points: u64,
+    /// What the SMA's own structures hold, by part.
+    pub memory: SmaMemory,
+    /// How the subdivision mesh is shaped and what reshaped it.
+    pub mesh: MeshShape,
+}
+
+/// The SMA's memory by part, counted by capacity (what is allocated, not what is used).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SmaMemory {
+    /// The subdivision mesh: nodes, vertices, edge and midpoint tables.
+    pub mesh_bytes: u64,
+    /// The shading cache.
+    pub cache_bytes: u64,
+}
+
+/// The subdivision mesh's shape (thesis §4.2; DESIGN.md §4), to compare neighbour rules and
+/// merging by what they make.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct MeshShape {
+    /// The smallest interior angle of a leaf a split made, degrees; `None` before any split.
+    pub smallest_split_angle_deg: Option<f32>,
+    /// The smallest ratio of such a leaf's smallest angle to its base triangle's.
+    pub smallest_split_angle_ratio: Option<f32>,
+    /// Refinement steps whose thesis neighbour rule reached its bound on propagation (zero
+    /// under red–green closure).
+    pub neighbour_bound_hits: u64,
+    /// Parents merged back because their children's shading was uniform, since the start.
+    pub uniform_merges: u64,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -15,8 +15,8 @@ use protocol::renderer_link::{
 };
 use protocol::types::{Bounds, Viewpoint};
 use protocol::viewer_link::{
-    Camera, Epoch, Recolour, SceneInfo, ShownTriangle, SkyInfo, SmaToViewer, Stats, SunInfo,
-    ViewerToSma,
+    Camera, Epoch, MeshShape, Recolour, SceneInfo, ShownTriangle, SkyInfo, SmaMemory, SmaToViewer,
+    Stats, SunInfo, ViewerToSma,
 };
 use protocol::{Hello, HelloReply, PROTOCOL_VERSION, Role, SceneIdentity, Side};
 use serde::Serialize;
@@ -332,6 +332,16 @@ fn viewer_link_seeds() -> Vec<(String, Vec<u8>)> {
                 renderers: 2,
                 converged: true,
                 rejected_points: 3,
+                memory: SmaMemory {
+                    mesh_bytes: 1 << 20,
+                    cache_bytes: 3 << 20,
+                },
+                mesh: MeshShape {
+                    smallest_split_angle_deg: Some(12.5),
+                    smallest_split_angle_ratio: Some(0.5),
+                    neighbour_bound_hits: 2,
+                    uniform_merges: 9,
+                },
             }),
         ),
         (

@@ -216,6 +216,16 @@ fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
                     renderers,
                     converged: leaves % 2 == 0,
                     rejected_points: cached_samples / 3,
+                    memory: SmaMemory {
+                        mesh_bytes: leaves.wrapping_mul(100),
+                        cache_bytes: cached_samples,
+                    },
+                    mesh: MeshShape {
+                        smallest_split_angle_deg: (leaves % 3 > 0).then_some(samples_per_sec),
+                        smallest_split_angle_ratio: None,
+                        neighbour_bound_hits: leaves / 7,
+                        uniform_merges: cached_samples / 5,
+                    },
                 })
             }
         ),

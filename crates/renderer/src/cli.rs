@@ -105,6 +105,10 @@ pub enum Command {
         /// Worker threads (0 = one per core).
         #[arg(long, default_value_t = 0)]
         threads: usize,
+        /// Also write the albedo and normal of the first hit, box-filtered like the colour, as
+        /// `<out>-albedo.exr` and `<out>-normal.exr` (a denoiser's feature images).
+        #[arg(long)]
+        features: bool,
         /// How paths are scheduled: "wavefront" (ray streams) or "path" (one path at a time);
         /// the answers are the same in distribution (DESIGN.md §7).
         #[arg(long, default_value = Estimator::default().name())]
@@ -205,6 +209,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             seed,
             l_white,
             threads,
+            features,
             estimator,
             traversal,
         } => {
@@ -216,7 +221,16 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
                 seed,
             };
             let world = load_world(&scene, estimator.0, traversal.0)?;
-            reference(&world, &view, &settings, &out, l_white, threads)
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()?;
+            pool.install(|| {
+                reference(&world, &view, &settings, &out, l_white)?;
+                if features {
+                    write_features(&world, &view, &settings, &out)?;
+                }
+                anyhow::Ok(())
+            })
         }
     }
 }
@@ -276,13 +290,9 @@ fn reference(
     s: &ReferenceSettings,
     out: &std::path::Path,
     l_white: Option<f32>,
-    threads: usize,
 ) -> anyhow::Result<()> {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()?;
     let start = Instant::now();
-    let (_, counts) = pool.install(|| render_to_files(world, view, s, out, l_white))?;
+    let (_, counts) = render_to_files(world, view, s, out, l_white)?;
     let secs = start.elapsed().as_secs_f64();
     tracing::info!(
         seconds = secs,
@@ -291,6 +301,22 @@ fn reference(
         "reference written to {}",
         out.display()
     );
+    Ok(())
+}
+
+/// The feature images beside `out`: `<stem>-albedo.exr`, `<stem>-normal.exr`.
+fn write_features(
+    world: &World,
+    view: &str,
+    s: &ReferenceSettings,
+    out: &std::path::Path,
+) -> anyhow::Result<()> {
+    let camera = crate::reference::camera_for(world, view, s.width, s.height)?;
+    let f = crate::features::render_features(world, &camera, s.width, s.height, s.seed);
+    for (name, pixels) in [("albedo", &f.albedo), ("normal", &f.normal)] {
+        let path = crate::features::beside(out, name);
+        crate::image_files::write_exr(&path, s.width, s.height, pixels)?;
+    }
     Ok(())
 }
 

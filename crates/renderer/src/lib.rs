@@ -11,7 +11,7 @@
 //! - [`shade`]: points and batches at a quality, deterministic per (seed, index);
 //! - [`service`]: the TCP server of the renderer link;
 //! - [`reference`] and [`image_files`]: reference images (EXR + tone-mapped PNG), and the one EXR
-//!   reader;
+//!   reader; [`features`]: the albedo and normal images a denoiser takes beside a reference;
 //! - [`vector_level`]: the CPU's vector instructions the ray queries use, chosen at run time;
 //!   [`subnormals`]: tiny floats flushed to zero on the tracing threads;
 //! - [`cli`]: `renderer serve` and `renderer reference`, the only module that parses arguments.
@@ -20,6 +20,7 @@ pub(crate) mod bvh;
 pub mod cli;
 pub(crate) mod counters;
 pub mod estimator;
+pub mod features;
 pub mod image_files;
 pub(crate) mod lights;
 pub(crate) mod material;

@@ -143,9 +143,10 @@ pub struct Cli {
     /// quality ladder's flags do nothing under it.
     #[arg(long, default_value_t = Profile::Today, value_parser = profile_parser())]
     pub profile: Profile,
-    /// Refinement criterion (each viewer may change its own with SetCriterion).
-    #[arg(long, default_value_t = defaults().schedule.criterion, value_parser = criterion_parser())]
-    pub criterion: CriterionKind,
+    /// Refinement criterion (each viewer may change its own with SetCriterion) [default:
+    /// nld-px, the best measured; nld-os-thesis under --profile thesis].
+    #[arg(long, value_parser = criterion_parser())]
+    pub criterion: Option<CriterionKind>,
     /// No refinement at all: only the base mesh is shaded (the control run).
     #[arg(long)]
     pub no_refine: bool,
@@ -399,7 +400,7 @@ impl Cli {
     fn schedule_config(&self) -> ScheduleConfig {
         ScheduleConfig {
             profile: defaults().schedule.profile,
-            criterion: self.criterion,
+            criterion: self.criterion.unwrap_or(self.profile.default_criterion()),
             criterion_settings: self.criterion_settings(),
             refine: !self.no_refine,
             max_selections: self.max_selections,

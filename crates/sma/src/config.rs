@@ -122,6 +122,17 @@ impl SmaConfig {
     }
 }
 
+impl SmaConfig {
+    /// The defaults under `profile`, with the profile's own default criterion.
+    pub fn of_profile(profile: Profile) -> SmaConfig {
+        let mut config = SmaConfig::default();
+        config.schedule.criterion = profile.default_criterion();
+        config
+            .with_profile(profile)
+            .expect("a profile runs its own default criterion")
+    }
+}
+
 /// §4.3.3: NLD_IS subdivides a leaf only if it covers at least 6 pixels.
 pub const THESIS_NLD_IS_MIN_PIXELS: u32 = 6;
 
@@ -154,6 +165,16 @@ impl Profile {
         match self {
             Profile::Today => "today",
             Profile::Thesis => "thesis (2006)",
+        }
+    }
+
+    /// The criterion that runs when none is asked for: today's best measured one, `nld-px`
+    /// (BENCHMARKS.md, "accuracy": ahead of the others at equal paths on every view), and under
+    /// the thesis's profile the criterion it chose, NLD_OS of eq. 4.3 (§4.3.4, §5.2).
+    pub fn default_criterion(self) -> CriterionKind {
+        match self {
+            Profile::Today => CriterionKind::NldPx,
+            Profile::Thesis => CriterionKind::NldOsThesis,
         }
     }
 
@@ -331,7 +352,7 @@ impl Default for ScheduleConfig {
     fn default() -> Self {
         ScheduleConfig {
             profile: Profile::Today,
-            criterion: CriterionKind::NldOs,
+            criterion: Profile::Today.default_criterion(),
             criterion_settings: CriterionSettings::default(),
             refine: true,
             max_selections: 256,
@@ -374,7 +395,7 @@ mod tests {
     use super::*;
 
     fn thesis() -> SmaConfig {
-        SmaConfig::default().with_profile(Profile::Thesis).unwrap()
+        SmaConfig::of_profile(Profile::Thesis)
     }
 
     #[test]

@@ -55,7 +55,7 @@ use std::collections::HashMap;
 
 use glam::Vec3;
 
-pub use angles::{angle_bound, min_angle};
+pub use angles::{SplitShapes, angle_bound, min_angle};
 use fast_hash::FastHash;
 #[cfg(any(test, feature = "testing"))]
 pub use grid::grid_mesh;
@@ -262,6 +262,7 @@ pub struct SubdivisionMesh {
     min_split_edge: f32,
     neighbour_rule: NeighbourRule,
     neighbour_stats: NeighbourStats,
+    split_shapes: SplitShapes,
     nodes: Vec<Node>,
     vertices: Vec<MeshVertex>,
     /// Welded point of each vertex, with [`SEAM_VERTEX`] set where the point may have other
@@ -364,6 +365,7 @@ impl SubdivisionMesh {
                     .max(MIN_EDGE_ULPS * ulp(lo.abs().max(hi.abs()).max_element())),
             neighbour_rule: params.neighbour_rule,
             neighbour_stats: NeighbourStats::default(),
+            split_shapes: SplitShapes::default(),
             leaf_count: nodes.len(),
             base_count: nodes.len(),
             nodes,
@@ -457,6 +459,11 @@ impl SubdivisionMesh {
         self.node(id)
             .vertices
             .map(|v| self.vertices[v as usize].position)
+    }
+
+    /// The worst shape among the leaves splits made (see [`SplitShapes`]).
+    pub fn split_shapes(&self) -> SplitShapes {
+        self.split_shapes
     }
 
     /// The smallest angle any descendant of `base` can have (see the module documentation).

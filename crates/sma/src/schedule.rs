@@ -567,6 +567,8 @@ impl Schedule {
             in_flight: self.requests.in_flight_keys(),
             pending_steps: self.refinement.pending.len(),
             uniform_merges: self.refinement.uniform_merges(),
+            neighbour_bound_hits: self.mesh.neighbour_stats().bound_hits,
+            split_shapes: self.mesh.split_shapes(),
         };
         let stats = self.counters.report(gauges);
         for viewer in self.viewers.iter() {

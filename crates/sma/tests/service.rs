@@ -851,9 +851,9 @@ async fn the_thesis_profile_refines_at_fixed_quality_to_its_stated_end() {
     }
     let scene = diffuse_wall();
     let (renderer, log) = fake_renderer(scene.clone(), Fault::Noisy).await;
-    let mut config = config(vec![renderer], true)
-        .with_profile(Profile::Thesis)
-        .unwrap();
+    let mut config = config(vec![renderer], true);
+    config.schedule.criterion = Profile::Thesis.default_criterion();
+    let mut config = config.with_profile(Profile::Thesis).unwrap();
     config.schedule.stats_every = Duration::from_millis(10);
     let (sma, mut probe) = start_with_probe(&config, &scene).await;
     assert_eq!(

@@ -282,8 +282,7 @@ impl Headless<'_> {
             samples: epoch.samples,
             paths: epoch.paths,
             outstanding: epoch.outstanding,
-            renderer_busy: self.state.stats.renderer_busy,
-            converged: self.state.stats.converged,
+            stats: self.state.stats,
         };
         tracing::debug!(
             index = record.index,

@@ -3,6 +3,7 @@
 //! exactly as it applies key presses.
 
 use egui::{Rect, pos2, vec2};
+use protocol::viewer_link::SmaMemory;
 
 use crate::ToneMap;
 use crate::view_state::{Activity, ViewState};
@@ -58,6 +59,8 @@ pub struct Facts {
     pub quality: Option<String>,
     pub fps: f64,
     pub renderers: u32,
+    /// The SMA's own memory by part, as its latest `Stats` said.
+    pub sma_memory: SmaMemory,
     pub viewpoints: Vec<String>,
     pub criteria: Vec<String>,
     pub criterion: Option<String>,
@@ -90,6 +93,7 @@ impl Facts {
             quality,
             fps: 0.0,
             renderers: state.stats.renderers,
+            sma_memory: state.stats.memory,
             viewpoints: scene.map_or(Vec::new(), |s| {
                 s.viewpoints.iter().map(|v| v.name.clone()).collect()
             }),
@@ -173,7 +177,16 @@ fn status(ui: &mut egui::Ui, facts: &Facts) {
         row("fps", format!("{:.1}", facts.fps));
         row("SMA", facts.sma.to_string());
         row("renderers", facts.renderers.to_string());
+        let [total, mesh, cache] = memory_mib(facts.sma_memory);
+        row("SMA memory", format!("{total:.1} MiB"));
+        row("mesh / cache", format!("{mesh:.1} / {cache:.1} MiB"));
     });
+}
+
+/// The SMA's memory in MiB: in all, its mesh, its cache.
+fn memory_mib(m: SmaMemory) -> [f64; 3] {
+    [m.mesh_bytes + m.cache_bytes, m.mesh_bytes, m.cache_bytes]
+        .map(|bytes| bytes as f64 / f64::from(1 << 20))
 }
 
 fn controls(ui: &mut egui::Ui, facts: &Facts, actions: &mut Vec<Action>) {

@@ -23,6 +23,7 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 
 use anyhow::Context;
+use protocol::viewer_link::Stats;
 
 use crate::offscreen::Snapshot;
 use crate::snapshot_painter::{Canvas, Frame, SnapshotPainter};
@@ -39,9 +40,14 @@ const HELD_BEFORE_DRAWING: usize = MAX_WAITING_BYTES / 2;
 pub const CSV_NAME: &str = "snapshots.csv";
 /// `inserted`/`removed` are summed over the epochs since the previous snapshot (Δins, Δrem);
 /// `camera_seq`, `shown`, `samples`, `paths` and `outstanding` are the latest epoch's;
-/// `renderer_busy` and `converged` the latest `Stats`' (one interval of the SMA's, about a second).
+/// the columns after `outstanding` are the latest `Stats`' (one interval of the SMA's, about a
+/// second): the renderers' busy share, convergence, the mesh's leaves and the samples cached, the
+/// SMA's memory by part and the mesh's shape (an empty cell before any split).
 pub const CSV_HEADER: &str = "index,time_s,camera_seq,shown,inserted,removed,samples,paths,\
-                              outstanding,renderer_busy,converged,png,exr";
+                              outstanding,renderer_busy,converged,leaves,cached_samples,\
+                              mesh_bytes,cache_bytes,smallest_split_angle_deg,\
+                              smallest_split_angle_ratio,neighbour_bound_hits,uniform_merges,\
+                              png,exr";
 
 /// One CSV row.
 #[derive(Clone, Debug, PartialEq)]
@@ -55,8 +61,8 @@ pub struct SnapshotRecord {
     pub samples: u64,
     pub paths: u64,
     pub outstanding: u64,
-    pub renderer_busy: f32,
-    pub converged: bool,
+    /// The SMA's latest statistics.
+    pub stats: Stats,
 }
 
 /// Draws and writes snapshots on a background thread of the lowest priority (see the module
@@ -316,10 +322,11 @@ impl SnapshotFiles {
         let (png, exr) = (format!("{stem}.png"), format!("{stem}.exr"));
         write_png(&self.dir.join(&png), snapshot)?;
         write_exr(&self.dir.join(&exr), snapshot)?;
-        let r = record;
+        let (r, s) = (record, &record.stats);
+        let optional = |x: Option<f32>| x.map_or(String::new(), |x| format!("{x:.4}"));
         writeln!(
             self.csv,
-            "{},{:.3},{},{},{},{},{},{},{},{:.3},{},{png},{exr}",
+            "{},{:.3},{},{},{},{},{},{},{},{:.3},{},{},{},{},{},{},{},{},{},{png},{exr}",
             r.index,
             r.time_s,
             r.camera_seq,
@@ -329,8 +336,16 @@ impl SnapshotFiles {
             r.samples,
             r.paths,
             r.outstanding,
-            r.renderer_busy,
-            u8::from(r.converged)
+            s.renderer_busy,
+            u8::from(s.converged),
+            s.leaves,
+            s.cached_samples,
+            s.memory.mesh_bytes,
+            s.memory.cache_bytes,
+            optional(s.mesh.smallest_split_angle_deg),
+            optional(s.mesh.smallest_split_angle_ratio),
+            s.mesh.neighbour_bound_hits,
+            s.mesh.uniform_merges,
         )?;
         self.csv.flush()?;
         Ok(())
@@ -373,8 +388,7 @@ mod tests {
             samples: u64::from(index),
             paths: 0,
             outstanding: 0,
-            renderer_busy: 0.0,
-            converged: false,
+            stats: Stats::default(),
         }
     }
 

@@ -181,6 +181,28 @@ fn direct_render(exe: &Path, r: &ViewRecord, args: &AccuracyConfig) -> anyhow::R
         r.height,
         args.spp
     ));
+    let seconds = timed_reference(exe, r, args.spp, &out, false)?;
+    let reference = Reference::read_exr(Path::new(&r.ground_truth))?;
+    let flip = reference
+        .error_of(&crate::metrics::LinearImage::read_exr(&out)?)?
+        .flip;
+    Ok(Direct {
+        seconds,
+        flip,
+        measured: crate::machine::measured_stamp(),
+        recalled: false,
+    })
+}
+
+/// Runs `walkthrough renderer reference` of `r`'s view at `spp` paths per pixel into `out` (with
+/// the albedo and normal images beside it when `features`), and returns its wall time.
+pub(crate) fn timed_reference(
+    exe: &Path,
+    r: &ViewRecord,
+    spp: u32,
+    out: &Path,
+    features: bool,
+) -> anyhow::Result<f64> {
     let started = Instant::now();
     let status = Command::new(exe)
         .args([
@@ -199,35 +221,27 @@ fn direct_render(exe: &Path, r: &ViewRecord, args: &AccuracyConfig) -> anyhow::R
         ])
         .args([
             "--spp",
-            &args.spp.to_string(),
+            &spp.to_string(),
             "--bounces",
             &INTERACTIVE_BOUNCES.to_string(),
         ])
         // Sharing the ground truth's per-pixel streams would replay its first paths and flatter
-        // the direct render's error.
+        // the per-pixel render's error.
         .args(["--seed", &(GROUND_TRUTH_SEED + 1).to_string()])
+        .args(features.then_some("--features"))
         .arg("--out")
-        .arg(&out)
+        .arg(out)
         .stdin(Stdio::null())
         .stdout(Stdio::null())
         .status()
-        .context("starting the direct render")?;
+        .context("starting the per-pixel render")?;
     let seconds = started.elapsed().as_secs_f64();
     anyhow::ensure!(
         status.success(),
-        "the direct render of {} failed ({status})",
+        "the per-pixel render of {} at {spp} spp failed ({status})",
         r.stem()
     );
-    let reference = Reference::read_exr(Path::new(&r.ground_truth))?;
-    let flip = reference
-        .error_of(&crate::metrics::LinearImage::read_exr(&out)?)?
-        .flip;
-    Ok(Direct {
-        seconds,
-        flip,
-        measured: crate::machine::measured_stamp(),
-        recalled: false,
-    })
+    Ok(seconds)
 }
 
 #[cfg(test)]
@@ -256,6 +270,9 @@ mod tests {
             levels: vec![0.1],
             spp: 64,
             direct: dir.join("direct"),
+            per_pixel_spp: vec![],
+            per_pixel_max_seconds: 1.0,
+            denoise: false,
             no_report: true,
         }
     }

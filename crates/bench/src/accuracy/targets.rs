@@ -362,6 +362,7 @@ mod tests {
                 measured: "2026-12-04 at abc1234".into(),
                 recalled: false,
             },
+            per_pixel: vec![],
         }
     }
 

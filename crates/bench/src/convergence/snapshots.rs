@@ -26,6 +26,56 @@ pub struct Snapshot {
     pub converged: bool,
     /// The linear image.
     pub exr: PathBuf,
+    /// The mesh and the SMA's memory as the latest `Stats` gave them; `None` in a record
+    /// written before the viewer wrote them.
+    pub mesh: Option<MeshColumns>,
+}
+
+/// The mesh and memory columns of a snapshot (the viewer's `snapshot_files::CSV_HEADER`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MeshColumns {
+    pub leaves: u64,
+    pub cached_samples: u64,
+    pub mesh_bytes: u64,
+    pub cache_bytes: u64,
+    /// The smallest angle of a leaf a split made, degrees, and its smallest ratio to its base
+    /// triangle's (none before any split).
+    pub smallest_split_angle_deg: Option<f64>,
+    pub smallest_split_angle_ratio: Option<f64>,
+    pub neighbour_bound_hits: u64,
+    pub uniform_merges: u64,
+}
+
+const MESH_COLUMNS: [&str; 8] = [
+    "leaves",
+    "cached_samples",
+    "mesh_bytes",
+    "cache_bytes",
+    "smallest_split_angle_deg",
+    "smallest_split_angle_ratio",
+    "neighbour_bound_hits",
+    "uniform_merges",
+];
+
+/// The mesh columns of a row, given their indices in the header.
+fn mesh_columns(fields: &[&str], at: [usize; 8]) -> anyhow::Result<MeshColumns> {
+    let [leaves, cached, mesh, cache, angle, ratio, hits, merges] = at.map(|i| fields[i]);
+    let int = |f: &str| f.parse::<u64>().with_context(|| format!("field {f:?}"));
+    let optional = |f: &str| -> anyhow::Result<Option<f64>> {
+        (!f.is_empty())
+            .then(|| f.parse::<f64>().with_context(|| format!("field {f:?}")))
+            .transpose()
+    };
+    Ok(MeshColumns {
+        leaves: int(leaves)?,
+        cached_samples: int(cached)?,
+        mesh_bytes: int(mesh)?,
+        cache_bytes: int(cache)?,
+        smallest_split_angle_deg: optional(angle)?,
+        smallest_split_angle_ratio: optional(ratio)?,
+        neighbour_bound_hits: int(hits)?,
+        uniform_merges: int(merges)?,
+    })
 }
 
 /// All snapshots of a run directory, in the order taken.
@@ -87,6 +137,11 @@ fn parse(text: &str, dir: &Path) -> anyhow::Result<Vec<Snapshot>> {
         converged?,
         exr?,
     );
+    let mesh_at: Option<[usize; 8]> = MESH_COLUMNS
+        .iter()
+        .map(|name| header.get(name).copied())
+        .collect::<Option<Vec<_>>>()
+        .map(|v| v.try_into().expect("eight columns"));
     let (mut total_inserted, mut total_removed) = (0, 0);
     lines
         .map(|line| {
@@ -120,6 +175,7 @@ fn parse(text: &str, dir: &Path) -> anyhow::Result<Vec<Snapshot>> {
                     .with_context(|| format!("busy {:?}", fields[busy]))?,
                 converged: fields[converged] == "1",
                 exr: dir.join(fields[exr]),
+                mesh: mesh_at.map(|at| mesh_columns(&fields, at)).transpose()?,
             })
         })
         .collect()
@@ -146,6 +202,32 @@ mod tests {
         assert_eq!((run[1].paths, run[1].renderer_busy), (96000, 0.95));
         assert!(run[2].converged && !run[1].converged);
         assert_eq!(run[2].exr, Path::new("/r/snapshot_002.exr"));
+        assert_eq!(run[2].mesh, None);
+    }
+
+    #[test]
+    fn reads_the_mesh_columns_where_the_viewer_wrote_them() {
+        let csv = "index,time_s,camera_seq,shown,inserted,removed,samples,paths,outstanding,\
+                   renderer_busy,converged,leaves,cached_samples,mesh_bytes,cache_bytes,\
+                   smallest_split_angle_deg,smallest_split_angle_ratio,neighbour_bound_hits,\
+                   uniform_merges,png,exr\n\
+                   0,1.0,1,700,737,37,1500,96000,0,0.950,0,900,800,4096,8192,,,0,0,a.png,a.exr\n\
+                   1,2.0,1,700,0,0,1600,97000,0,0.950,0,1000,900,4096,8192,12.5000,0.5000,3,7,\
+                   b.png,b.exr\n";
+        let run = parse(csv, Path::new("/r")).unwrap();
+        let first = run[0].mesh.clone().unwrap();
+        assert_eq!((first.leaves, first.smallest_split_angle_deg), (900, None));
+        let second = run[1].mesh.clone().unwrap();
+        assert_eq!(
+            (
+                second.smallest_split_angle_deg,
+                second.smallest_split_angle_ratio,
+                second.neighbour_bound_hits,
+                second.uniform_merges
+            ),
+            (Some(12.5), Some(0.5), 3, 7)
+        );
+        assert_eq!((second.mesh_bytes, second.cache_bytes), (4096, 8192));
     }
 
     #[test]

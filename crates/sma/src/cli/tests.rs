@@ -40,10 +40,15 @@ fn renderers_are_dialed_or_join_a_renderer_port_but_one_way_is_given() {
 #[test]
 fn criteria_are_parsed_by_name() {
     let cli = Cli::try_parse_from(["sma", "--renderer", "r:1", "--criterion", "rnd"]).unwrap();
-    assert_eq!(cli.criterion, CriterionKind::Rnd);
+    assert_eq!(cli.criterion, Some(CriterionKind::Rnd));
     assert!(Cli::try_parse_from(["sma", "--renderer", "r:1", "--criterion", "x"]).is_err());
     let cli = Cli::try_parse_from(["sma", "--renderer", "r:1", "--criterion", "nld-mm"]).unwrap();
-    assert_eq!(cli.criterion, CriterionKind::NldMm);
+    assert_eq!(cli.criterion, Some(CriterionKind::NldMm));
+    let default = Cli::try_parse_from(["sma", "--renderer", "r:1"]).unwrap();
+    assert_eq!(
+        default.config().unwrap().schedule.criterion,
+        CriterionKind::NldPx
+    );
 }
 
 #[test]
@@ -99,7 +104,7 @@ fn thesis(flags: &[&str]) -> anyhow::Result<SmaConfig> {
 #[test]
 fn the_thesis_profile_is_the_config_with_that_profile() {
     let config = thesis(&[]).unwrap();
-    let want = SmaConfig::default().with_profile(Profile::Thesis).unwrap();
+    let want = SmaConfig::of_profile(Profile::Thesis);
     assert_eq!(config.schedule.profile, Profile::Thesis);
     assert_eq!(config.schedule.criterion, CriterionKind::NldOsThesis);
     assert_eq!(

@@ -207,6 +207,21 @@ mod tests {
         }
     }
 
+    /// The shapes the rules make on fig. 4.7's tall neighbour: red–green's bisection halves its
+    /// apex angle, the thesis's 1:4 split keeps the neighbour's shape (the rule's purpose).
+    #[test]
+    fn split_shapes_show_the_sliver_red_green_makes_of_a_tall_neighbour() {
+        let scene = neighbours(Vec3::new(0.5, 3.0, 0.0), false);
+        let apex = 2.0 * (0.5f32 / 3.0).atan();
+        let shapes = |rule| refined(&scene, rule).split_shapes();
+        let red_green = shapes(NeighbourRule::RedGreen);
+        assert!((red_green.smallest_angle().unwrap() - apex / 2.0).abs() < 1e-4);
+        assert!((red_green.smallest_ratio_to_base().unwrap() - 0.5).abs() < 1e-3);
+        let thesis = shapes(NeighbourRule::Thesis);
+        assert!((thesis.smallest_angle().unwrap() - apex).abs() < 1e-4);
+        assert!((thesis.smallest_ratio_to_base().unwrap() - 1.0).abs() < 1e-3);
+    }
+
     /// Twelve fins tall on one non-manifold edge: one step splits `MAX_THESIS_SPLITS_PER_STEP`
     /// of them 1:4, bisects the rest and counts the bound as hit; the mesh stays conforming.
     #[test]

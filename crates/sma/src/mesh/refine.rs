@@ -6,7 +6,7 @@ use super::neighbour_rule::Cascade;
 use super::step::StepRecorder;
 use super::{
     EdgeSplit, MeshVertex, Node, NodeId, NodeKind, RefinementStep, SEAM_VERTEX, Split,
-    SubdivisionMesh, VertexId, pair_key, push_lean,
+    SubdivisionMesh, VertexId, min_angle, pair_key, push_lean,
 };
 
 /// Children of a red split of (a, b, c) with midpoints m0 on ab, m1 on bc, m2 on ca: the corners
@@ -186,6 +186,11 @@ impl SubdivisionMesh {
         }
         self.leaf_count += children.len() - 1;
         self.splits += 1;
+        let base_angle = min_angle(self.leaf_positions(self.base_of(parent)));
+        for child in first..first + children.len() as NodeId {
+            self.split_shapes
+                .observe(self.leaf_positions(child), base_angle);
+        }
         first
     }
 

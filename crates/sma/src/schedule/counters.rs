@@ -5,7 +5,9 @@
 
 use std::time::{Duration, Instant};
 
-use protocol::viewer_link::Stats;
+use protocol::viewer_link::{MeshShape, SmaMemory, Stats};
+
+use crate::mesh::SplitShapes;
 
 use super::answers::Answered;
 
@@ -105,9 +107,10 @@ pub struct Gauges {
     pub queued: usize,
     pub in_flight: usize,
     pub pending_steps: usize,
-    /// Parents merged back by uniformity since the start (`uniformity`; the log only, so the
-    /// protocol's `Stats` is unchanged).
+    /// Parents merged back by uniformity since the start (`uniformity`).
     pub uniform_merges: u64,
+    pub neighbour_bound_hits: u64,
+    pub split_shapes: SplitShapes,
 }
 
 impl Counters {
@@ -176,6 +179,16 @@ impl Counters {
             renderers: gauges.renderers as u32,
             converged: self.converged,
             rejected_points: self.rejected_points,
+            memory: SmaMemory {
+                mesh_bytes: gauges.mesh_bytes as u64,
+                cache_bytes: gauges.cache_bytes as u64,
+            },
+            mesh: MeshShape {
+                smallest_split_angle_deg: gauges.split_shapes.smallest_angle().map(f32::to_degrees),
+                smallest_split_angle_ratio: gauges.split_shapes.smallest_ratio_to_base(),
+                neighbour_bound_hits: gauges.neighbour_bound_hits,
+                uniform_merges: gauges.uniform_merges,
+            },
         };
         let mib = |bytes: usize| format!("{:.1}", bytes as f64 / (1 << 20) as f64);
         tracing::debug!(

@@ -463,7 +463,7 @@ mod tests {
     fn without_the_ladder_a_sample_gets_the_scene_quality_at_once_and_nothing_more() {
         use crate::config::{Profile, SmaConfig};
         let scene = scene::load("cornell").expect("the built-in Cornell box");
-        let config = SmaConfig::default().with_profile(Profile::Thesis).unwrap();
+        let config = SmaConfig::of_profile(Profile::Thesis);
         let rules = PlanRules::new(&config.schedule, &scene);
         let preset = Quality {
             paths: scene.settings.quality.paths,
