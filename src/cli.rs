@@ -79,6 +79,10 @@ pub struct LaunchArgs {
     /// sma --help`). Under it nld-os and nld-is run as their -thesis forms, and nld-px is refused.
     #[arg(long, default_value_t = Profile::Today, value_parser = profile_parser())]
     pub profile: Profile,
+    /// The SMA's object-space filter of the indirect light (on|off), passed on as
+    /// `--indirect-filter` [default: on; off under --profile thesis].
+    #[arg(long, value_parser = on_off())]
+    pub indirect_filter: Option<bool>,
     /// Number of renderer processes; the cores are shared among them.
     #[arg(long, default_value_t = 1)]
     pub renderers: usize,
@@ -106,6 +110,11 @@ fn profile_parser() -> impl TypedValueParser<Value = Profile> {
         .map(|name| Profile::from_name(&name).expect("a possible value"))
 }
 
+/// `on` or `off`.
+fn on_off() -> impl TypedValueParser<Value = bool> {
+    PossibleValuesParser::new(["on", "off"]).map(|value| value == "on")
+}
+
 impl LaunchArgs {
     /// Refused here, before any process starts: a criterion the profile does not run.
     fn config(self) -> anyhow::Result<LaunchConfig> {
@@ -115,6 +124,7 @@ impl LaunchArgs {
             view: self.view,
             criterion: self.criterion,
             profile: self.profile,
+            indirect_filter: self.indirect_filter,
             renderers: self.renderers,
             width: self.width,
             height: self.height,
@@ -160,5 +170,18 @@ mod tests {
         assert!(launch(&["--criterion", "nld-px"]).is_ok());
         assert!(launch(&["--criterion", "nope"]).is_err());
         assert!(launch(&["--profile", "2006"]).is_err());
+    }
+
+    #[test]
+    fn the_indirect_filter_flag_is_passed_on_only_when_given() {
+        assert_eq!(launch(&[]).unwrap().indirect_filter, None);
+        let off = launch(&["--indirect-filter", "off"]).unwrap();
+        assert_eq!(off.indirect_filter, Some(false));
+        assert_eq!(
+            crate::launch::indirect_filter_args(&off),
+            ["--indirect-filter", "off"]
+        );
+        assert!(crate::launch::indirect_filter_args(&launch(&[]).unwrap()).is_empty());
+        assert!(launch(&["--indirect-filter", "yes"]).is_err());
     }
 }

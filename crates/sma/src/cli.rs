@@ -248,6 +248,10 @@ pub struct Cli {
     // three runs without it, the six default views at 60 s (leaves and bytes saved, FLIP).
     #[arg(long, value_parser = on_off)]
     pub merge_uniform: Option<bool>,
+    /// Filter each sample's indirect part over its mesh neighbours in object space (on|off)
+    /// [default: on; off under --profile thesis].
+    #[arg(long, value_parser = on_off)]
+    pub indirect_filter: Option<bool>,
     /// The quality ladder's last rung: samples get paths by fours past the scene's quality
     /// while the viewer rests, up to this many paths each.
     #[arg(long, default_value_t = defaults().schedule.max_paths)]
@@ -344,6 +348,9 @@ impl Cli {
         if let Some(on) = self.merge_uniform {
             config.schedule.merge_uniform = on;
         }
+        if let Some(on) = self.indirect_filter {
+            config.schedule.indirect_filter.enabled = on;
+        }
         Ok(config)
     }
 
@@ -419,6 +426,7 @@ impl Cli {
             cache_budget_bytes: self.cache_mib << 20,
             coarsen_after_passes: defaults().schedule.coarsen_after_passes,
             merge_uniform: defaults().schedule.merge_uniform,
+            indirect_filter: defaults().schedule.indirect_filter,
             seed: self.seed,
             ladder: defaults().schedule.ladder,
             max_paths: self.max_paths,
