@@ -122,7 +122,7 @@ async fn batches_match_the_in_process_estimator_and_bad_frames_are_answered() {
         panic!("expected radiance")
     };
     assert_eq!(reply.flags[1], point_flags::INVALID_POINT);
-    assert_eq!(reply.rgb[1], [0.0; 3]);
+    assert_eq!(reply.parts[1], protocol::SampleParts::default());
 
     // An unreasonable batch is rejected, and the link goes on.
     let mut b = batch(&world, 201, 1, 3);
