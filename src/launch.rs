@@ -122,7 +122,7 @@ async fn run_async(args: LaunchConfig) -> anyhow::Result<()> {
         "--profile",
         args.profile.name(),
     ]);
-    sma.extend(indirect_filter_args(args));
+    sma.extend(indirect_filter_args(&args));
     // The renderers load their scenes side by side; then each reports its address.
     for renderer in &mut servers {
         sma.extend(["--renderer".to_string(), listening_addr(renderer)?]);
