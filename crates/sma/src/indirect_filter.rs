@@ -28,8 +28,8 @@
 use std::collections::HashMap;
 
 use glam::{IVec3, Vec3};
-use protocol::PartEstimate;
 use protocol::renderer_link::SampleKey;
+use protocol::{PartEstimate, Side};
 
 use crate::cache::ShadingCache;
 use crate::mesh::SubdivisionMesh;
@@ -101,9 +101,13 @@ pub struct IndirectFilter {
     settings: IndirectFilterSettings,
     diagonal: f32,
     candidates: Vec<Candidate>,
+    /// The hash's cell size, the largest radius in use.
+    cell_size: f32,
     /// Candidate indices sorted by cell, and each cell's range in it.
     sorted: Vec<u32>,
-    cells: HashMap<IVec3, (u32, u32), FastHash>,
+    cells: HashMap<u64, (u32, u32), FastHash>,
+    /// Which (vertex, side) slots `gather` has taken, by `2 vertex + side`.
+    taken: Vec<bool>,
 }
 
 /// What one run of the filter did, for its tests and the benchmark.
@@ -168,7 +172,8 @@ impl IndirectFilter {
         cache: &ShadingCache,
     ) {
         self.candidates.clear();
-        let mut seen = std::collections::HashSet::<SampleKey, FastHash>::default();
+        self.taken.clear();
+        self.taken.resize(2 * mesh.vertex_count(), false);
         for view in views {
             for v in &view.leaves {
                 for vertex in mesh.node(v.leaf).vertices {
@@ -176,7 +181,8 @@ impl IndirectFilter {
                         vertex,
                         side: v.side,
                     };
-                    if !seen.insert(key) {
+                    let slot = 2 * vertex as usize + usize::from(v.side == Side::Back);
+                    if std::mem::replace(&mut self.taken[slot], true) {
                         continue;
                     }
                     if let Some(c) = candidate(mesh, cache, key) {
@@ -202,29 +208,38 @@ impl IndirectFilter {
         (p / size).floor().as_ivec3()
     }
 
+    /// A cell as one hash key, 21 bits an axis. A scene is far fewer cells across (the largest
+    /// radius is over a ten-thousandth of its diagonal at any path count a `u32` holds); were
+    /// two cells to share a key, they would only be searched together: the distance test still
+    /// decides.
+    fn cell_key(c: IVec3) -> u64 {
+        let axis = |v: i32| u64::from(v as u32 & 0x1F_FFFF);
+        axis(c.x) | axis(c.y) << 21 | axis(c.z) << 42
+    }
+
     /// Sorts the candidates by cell of the largest radius, so that every neighbour of one lies
     /// in its cell or the 26 around it.
     fn hash(&mut self) {
         let size = self.cell_size();
-        let cell: Vec<IVec3> = self
+        self.cell_size = size;
+        let key: Vec<u64> = self
             .candidates
             .iter()
-            .map(|c| self.cell_of(c.position, size))
+            .map(|c| Self::cell_key(self.cell_of(c.position, size)))
             .collect();
         self.sorted.clear();
         self.sorted.extend(0..self.candidates.len() as u32);
-        self.sorted
-            .sort_unstable_by_key(|&i| cell[i as usize].to_array());
+        self.sorted.sort_unstable_by_key(|&i| key[i as usize]);
         self.cells.clear();
         let mut start = 0;
         while start < self.sorted.len() {
-            let c = cell[self.sorted[start] as usize];
+            let k = key[self.sorted[start] as usize];
             let end = start
                 + self.sorted[start..]
                     .iter()
-                    .take_while(|&&i| cell[i as usize] == c)
+                    .take_while(|&&i| key[i as usize] == k)
                     .count();
-            self.cells.insert(c, (start as u32, end as u32));
+            self.cells.insert(k, (start as u32, end as u32));
             start = end;
         }
     }
@@ -233,15 +248,15 @@ impl IndirectFilter {
     fn filtered(&self, i: usize) -> (PartEstimate, usize) {
         let me = &self.candidates[i];
         let radius = radius_at(&self.settings, self.diagonal, me.paths);
-        let size = self.cell_size();
-        let centre = self.cell_of(me.position, size);
+        let centre = self.cell_of(me.position, self.cell_size);
         let mut sum = WeightedSum::default();
         sum.add(me);
         let mut neighbours = 0;
         for dz in -1..=1 {
             for dy in -1..=1 {
                 for dx in -1..=1 {
-                    let Some(&(a, b)) = self.cells.get(&(centre + IVec3::new(dx, dy, dz))) else {
+                    let cell = Self::cell_key(centre + IVec3::new(dx, dy, dz));
+                    let Some(&(a, b)) = self.cells.get(&cell) else {
                         continue;
                     };
                     for &j in &self.sorted[a as usize..b as usize] {
