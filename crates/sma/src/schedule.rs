@@ -430,10 +430,11 @@ impl Schedule {
     }
 
     /// The viewers, the criteria and the stopping rule all read the filtered indirect part
-    /// (`indirect_filter`): it is brought up to date before each sync, the paced step that
-    /// shows it.
+    /// (`indirect_filter`): it is brought up to date before a sync, the paced step that shows
+    /// it, when its own pace allows (`IndirectFilter::ready`).
     fn sync_viewers(&mut self) {
-        if std::mem::take(&mut self.filter_due) {
+        if self.filter_due && self.indirect_filter.ready(Instant::now()) {
+            self.filter_due = false;
             let views = self.viewers.views().map(|v| &v.visible);
             self.indirect_filter.run(&self.mesh, views, &mut self.cache);
         }

@@ -167,4 +167,16 @@ fn the_indirect_filter_is_on_by_default_and_off_by_flag_or_thesis_profile() {
     assert!(parsed(&["--indirect-filter", "on"]).unwrap());
     assert!(parsed(&["--indirect-filter", "maybe"]).is_err());
     assert!(!parsed(&["--profile", "thesis", "--criterion", "nld-os"]).unwrap());
+    let radius = |value: &str| {
+        Cli::try_parse_from([
+            "sma",
+            "--renderer",
+            "r:1",
+            "--indirect-filter-radius",
+            value,
+        ])
+        .map(|cli| cli.config().unwrap().schedule.indirect_filter.radius)
+    };
+    assert_eq!(radius("0.003").unwrap(), 0.003);
+    assert!(radius("1.5").is_err());
 }
