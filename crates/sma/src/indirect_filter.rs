@@ -21,6 +21,10 @@
 //! reflection, not smooth), samples of fewer than two paths (no variance yet) and samples whose
 //! neighbours all differ are shown as they are.
 //!
+//! The samples filtered, and the neighbours they borrow from, are those of the viewers' visible
+//! leaves (one gather per run, not a scan of the whole cache): a sample's shown value can change
+//! when another view brings its neighbours in, and reaches a viewer at its next sync.
+//!
 //! What the filter leaves is the cache's shown indirect part (`ShadingCache::set_shown_indirect`),
 //! which every reader of a sample (viewer inserts, criteria, L_white, the stopping rule) reads:
 //! they judge the filtered estimate and its reduced uncertainty.
