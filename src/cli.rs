@@ -36,7 +36,7 @@ pub enum Command {
     /// The path-tracing renderer service (`serve`) and reference images (`reference`).
     Renderer(renderer::cli::Cli),
     /// The Shading Management Agent.
-    Sma(sma::cli::Cli),
+    Sma(Box<sma::cli::Cli>),
     /// The viewer, in a window or headless.
     Viewer(viewer::cli::Cli),
     /// Scene tools.
@@ -51,7 +51,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             crate::launch::run(cli.launch.config()?)
         }
         Some(Command::Renderer(c)) => renderer::cli::run(c),
-        Some(Command::Sma(c)) => sma::cli::run(c),
+        Some(Command::Sma(c)) => sma::cli::run(*c),
         Some(Command::Viewer(c)) => viewer::cli::run(c),
         Some(Command::Scene(SceneCommand::Info {
             scene,
@@ -80,6 +80,10 @@ pub struct LaunchArgs {
     /// sma --help`). Under it nld-os and nld-is run as their -thesis forms, and nld-px is refused.
     #[arg(long, default_value_t = Profile::Today, value_parser = profile_parser())]
     pub profile: Profile,
+    /// The SMA's object-space filter of the indirect light (on|off), passed on as
+    /// `--indirect-filter` [default: on; off under --profile thesis].
+    #[arg(long, value_parser = on_off())]
+    pub indirect_filter: Option<bool>,
     /// Number of renderer processes; the cores are shared among them.
     #[arg(long, default_value_t = 1)]
     pub renderers: usize,
@@ -107,6 +111,11 @@ fn profile_parser() -> impl TypedValueParser<Value = Profile> {
         .map(|name| Profile::from_name(&name).expect("a possible value"))
 }
 
+/// `on` or `off`.
+fn on_off() -> impl TypedValueParser<Value = bool> {
+    PossibleValuesParser::new(["on", "off"]).map(|value| value == "on")
+}
+
 impl LaunchArgs {
     /// Refused here, before any process starts: a criterion the profile does not run.
     fn config(self) -> anyhow::Result<LaunchConfig> {
@@ -119,6 +128,7 @@ impl LaunchArgs {
             view: self.view,
             criterion: criterion.name().to_string(),
             profile: self.profile,
+            indirect_filter: self.indirect_filter,
             renderers: self.renderers,
             width: self.width,
             height: self.height,
@@ -173,5 +183,18 @@ mod tests {
         assert!(launch(&["--criterion", "nld-px"]).is_ok());
         assert!(launch(&["--criterion", "nope"]).is_err());
         assert!(launch(&["--profile", "2006"]).is_err());
+    }
+
+    #[test]
+    fn the_indirect_filter_flag_is_passed_on_only_when_given() {
+        assert_eq!(launch(&[]).unwrap().indirect_filter, None);
+        let off = launch(&["--indirect-filter", "off"]).unwrap();
+        assert_eq!(off.indirect_filter, Some(false));
+        assert_eq!(
+            crate::launch::indirect_filter_args(&off),
+            ["--indirect-filter", "off"]
+        );
+        assert!(crate::launch::indirect_filter_args(&launch(&[]).unwrap()).is_empty());
+        assert!(launch(&["--indirect-filter", "yes"]).is_err());
     }
 }

@@ -25,6 +25,9 @@ pub struct LaunchConfig {
     pub criterion: String,
     /// Which system the SMA runs (`sma::config::Profile`), passed on as `--profile`.
     pub profile: sma::config::Profile,
+    /// The SMA's object-space filter of the indirect light, passed on as `--indirect-filter`;
+    /// `None`: the profile's default.
+    pub indirect_filter: Option<bool>,
     /// Number of renderer processes; the cores are shared among them.
     pub renderers: usize,
     pub width: u32,
@@ -35,6 +38,13 @@ pub struct LaunchConfig {
     pub headless: bool,
     /// Where headless snapshots go (default: out/run-<unix time>).
     pub out: Option<PathBuf>,
+}
+
+/// The SMA's `--indirect-filter` flag, when the launcher was given one.
+pub(crate) fn indirect_filter_args(args: &LaunchConfig) -> Vec<String> {
+    args.indirect_filter
+        .map(|on| strings(&["--indirect-filter", if on { "on" } else { "off" }]))
+        .unwrap_or_default()
 }
 
 /// A display is there when X11 or Wayland says so.
@@ -112,6 +122,7 @@ async fn run_async(args: LaunchConfig) -> anyhow::Result<()> {
         "--profile",
         args.profile.name(),
     ]);
+    sma.extend(indirect_filter_args(&args));
     // The renderers load their scenes side by side; then each reports its address.
     for renderer in &mut servers {
         sma.extend(["--renderer".to_string(), listening_addr(renderer)?]);

@@ -100,11 +100,21 @@ async fn one_of_two_renderers_killed_loses_no_request_and_two_viewers_agree() {
     let (mut doomed, a) = renderer("bracara");
     let (_b, b) = renderer("bracara");
     // The ladder ends at the scene's quality: once the first viewer's picture is complete,
-    // no more paths change what it shows while the second viewer's comes in.
+    // no more paths change what it shows while the second viewer's comes in. The indirect
+    // filter is off: with it, the samples the second view adds are neighbours that change what
+    // the first viewer is shown, which reaches it only at its next sync.
     let (_s, saddr) = sma(
         "bracara",
         &[&a, &b],
-        &["--no-refine", "--batch-points", "8", "--max-paths", "64"],
+        &[
+            "--no-refine",
+            "--batch-points",
+            "8",
+            "--max-paths",
+            "64",
+            "--indirect-filter",
+            "off",
+        ],
     );
     let mut one = Probe::connect(&saddr).await.unwrap();
     let camera = one.view("VT", W, H).await.unwrap();

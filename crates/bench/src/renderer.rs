@@ -540,11 +540,12 @@ fn error_and_time(world: &World, view: &str, cfg: &Config) -> anyhow::Result<Str
             seed,
             points: points.clone(),
         };
-        let mut rgb = Vec::new();
-        let secs = median_seconds(runs, || rgb = shade_batch(world, &batch).0.rgb);
+        let mut parts = Vec::new();
+        let secs = median_seconds(runs, || parts = shade_batch(world, &batch).0.parts);
         (
-            rgb.iter()
-                .map(|c| luminance(Vec3::from(*c)) as f64)
+            parts
+                .iter()
+                .map(|p| luminance(Vec3::from(p.rgb())) as f64)
                 .collect(),
             secs,
         )

@@ -5,8 +5,8 @@
 use std::fmt::Write;
 use std::time::Instant;
 
-use protocol::Side;
 use protocol::renderer_link::{Quality, SampleKey};
+use protocol::{PartEstimate, SampleParts, Side};
 use rand::{RngExt, SeedableRng};
 
 use sma::cache::{CachedSample, ShadingCache};
@@ -15,6 +15,7 @@ use sma::criteria::{
     Criterion, CriterionInput, CriterionKind, CriterionSettings, Metric, NldOs, NldPx,
     make_criterion,
 };
+use sma::indirect_filter::{IndirectFilter, IndirectFilterSettings};
 use sma::mesh::{MeshParams, NodeId, SubdivisionMesh, grid_mesh};
 use sma::visible_set::{VisibleLeaf, VisibleSet};
 
@@ -30,10 +31,23 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
     Ok(md)
 }
 
+/// A sample of radiance `rgb`, a third of it indirect light with a 10 % standard error of the
+/// mean (what the object-space filter reads).
 fn sample(rgb: [f32; 3]) -> CachedSample {
+    let paths = Quality::INTERACTIVE.paths as f32;
+    let third = rgb.map(|c| c / 3.0);
+    let error = 0.1 * conventions::luminance(third);
     CachedSample {
-        rgb,
-        luminance_variance: 0.0,
+        parts: SampleParts {
+            direct: PartEstimate {
+                rgb: rgb.map(|c| c - c / 3.0),
+                luminance_variance: 0.0,
+            },
+            indirect: PartEstimate {
+                rgb: third,
+                luminance_variance: error * error * paths,
+            },
+        },
         quality: Quality::INTERACTIVE,
         view_dependent: false,
         eye: None,
@@ -105,6 +119,7 @@ fn write_criterion_speed(md: &mut String, runs: usize) -> anyhow::Result<()> {
     };
     let scan = time(&|| Box::new(NldOs::new(&full_scan, Metric::NoiseAware)));
     let px = time(&|| Box::new(NldPx::new(&CriterionSettings::default())));
+    let (filter, borrowed) = filter_cost(&mesh, &cache, &visible, runs);
     writeln!(
         md,
         "### Criterion cost ({} visible leaves, all samples cached, median of {runs})\n",
@@ -119,11 +134,44 @@ fn write_criterion_speed(md: &mut String, runs: usize) -> anyhow::Result<()> {
     )?;
     writeln!(
         md,
-        "| `nld-px`, ranks all, R = 64 out | {:.2} | {:.1} M |\n",
+        "| `nld-px`, ranks all, R = 64 out | {:.2} | {:.1} M |",
         px * 1e3,
         n / px / 1e6
     )?;
+    writeln!(
+        md,
+        "| object-space filter of the indirect part, one run ({borrowed:.0} neighbours a \
+         sample) | {:.2} | {:.1} M |\n",
+        filter * 1e3,
+        n / filter / 1e6
+    )?;
     Ok(())
+}
+
+/// The median time of one run of the indirect filter (default settings) over every visible
+/// sample, and the mean number of neighbours a sample borrows from.
+fn filter_cost(
+    mesh: &SubdivisionMesh,
+    cache: &ShadingCache,
+    visible: &VisibleSet,
+    runs: usize,
+) -> (f64, f64) {
+    let settings = IndirectFilterSettings::default();
+    let mut borrowed = 0.0;
+    let secs = median(
+        (0..runs)
+            .map(|_| {
+                let mut cache = cache.clone();
+                let mut filter = IndirectFilter::new(settings, mesh);
+                let t = Instant::now();
+                let run = filter.run(mesh, [visible], &mut cache);
+                let secs = t.elapsed().as_secs_f64();
+                borrowed = run.neighbours as f64 / run.filtered.max(1) as f64;
+                secs
+            })
+            .collect(),
+    );
+    (secs, borrowed)
 }
 
 fn write_split_speed_and_memory(

@@ -39,4 +39,4 @@ pub use connection::{MessageReader, MessageWriter, split_tcp};
 pub use error::ProtocolError;
 pub use frame::WireMessage;
 pub use handshake::{Hello, HelloReply, PROTOCOL_VERSION, Role};
-pub use types::{Fingerprint, Rgb, SceneIdentity, Side, Vec3f};
+pub use types::{Fingerprint, PartEstimate, Rgb, SampleParts, SceneIdentity, Side, Vec3f};

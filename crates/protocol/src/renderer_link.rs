@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::frame::WireMessage;
 
-use crate::types::{Rgb, Side, Vec3f};
+use crate::types::{SampleParts, Side, Vec3f};
 
 /// Key of a cached sample: a mesh vertex (after material and crease splits) and a side.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -111,11 +111,11 @@ pub enum FromRenderer {
 pub struct Radiance {
     pub batch_id: u64,
     pub quality: Quality,
-    /// The mean radiance of each point's paths, one per point of the batch, in order. With the
-    /// two lists below, each point's answer is an estimate with its uncertainty (DESIGN.md §5).
-    pub rgb: Vec<Rgb>,
-    /// The sample variance of the luminance (Rec. 709) of each point's paths.
-    pub luminance_variance: Vec<f32>,
+    /// Each point's answer in parts (direct, indirect), one per point of the batch, in order:
+    /// per part the mean radiance of the point's paths and the sample variance of their
+    /// luminance (Rec. 709). With `paths`, each part is an estimate with its uncertainty
+    /// (DESIGN.md §5); the point's radiance is the parts' sum.
+    pub parts: Vec<SampleParts>,
     /// The paths each point's estimate averages (`quality.paths`, or 0 for a point that could
     /// not be shaded).
     pub paths: Vec<u32>,

@@ -18,7 +18,9 @@ use protocol::viewer_link::{
     Camera, Epoch, MeshShape, Recolour, SceneInfo, ShownTriangle, SkyInfo, SmaMemory, SmaToViewer,
     Stats, SunInfo, ViewerToSma,
 };
-use protocol::{Hello, HelloReply, PROTOCOL_VERSION, Role, SceneIdentity, Side};
+use protocol::{
+    Hello, HelloReply, PROTOCOL_VERSION, PartEstimate, Role, SampleParts, SceneIdentity, Side,
+};
 use serde::Serialize;
 
 const TARGETS: [(&str, corpus::Target); 3] = [
@@ -196,8 +198,28 @@ fn renderer_link_seeds() -> Vec<(String, Vec<u8>)> {
             FromRenderer::Radiance(Radiance {
                 batch_id: 42,
                 quality: Quality::DIRECT,
-                rgb: vec![[0.1, 0.2, 0.3], [1e6, 0.0, f32::INFINITY]],
-                luminance_variance: vec![0.01, f32::NAN],
+                parts: vec![
+                    SampleParts {
+                        direct: PartEstimate {
+                            rgb: [0.1, 0.2, 0.3],
+                            luminance_variance: 0.01,
+                        },
+                        indirect: PartEstimate {
+                            rgb: [0.05, 0.04, 0.03],
+                            luminance_variance: 0.002,
+                        },
+                    },
+                    SampleParts {
+                        direct: PartEstimate {
+                            rgb: [1e6, 0.0, f32::INFINITY],
+                            luminance_variance: f32::NAN,
+                        },
+                        indirect: PartEstimate {
+                            rgb: [-1.0, 0.0, 0.0],
+                            luminance_variance: 0.0,
+                        },
+                    },
+                ],
                 paths: vec![16, 0],
                 flags: vec![0, 1 | 8],
                 micros: 1234,

@@ -4,7 +4,7 @@ use proptest::prelude::*;
 use protocol::frame::{decode, encode};
 use protocol::handshake::{Hello, HelloReply, Role};
 use protocol::renderer_link::*;
-use protocol::types::{Bounds, SceneIdentity, Side, Viewpoint};
+use protocol::types::{Bounds, PartEstimate, SampleParts, SceneIdentity, Side, Viewpoint};
 use protocol::viewer_link::*;
 
 fn finite() -> impl Strategy<Value = f32> {
@@ -101,15 +101,36 @@ fn from_renderer() -> impl Strategy<Value = FromRenderer> {
         (
             any::<u64>(),
             quality(),
-            prop::collection::vec((v3(), any::<u8>(), 0.0f32..1e6, any::<u32>()), 0..50),
+            prop::collection::vec(
+                (
+                    v3(),
+                    any::<u8>(),
+                    0.0f32..1e6,
+                    any::<u32>(),
+                    v3(),
+                    0.0f32..1e6
+                ),
+                0..50
+            ),
             any::<u64>()
         )
             .prop_map(|(batch_id, quality, vals, micros)| FromRenderer::Radiance(
                 Radiance {
                     batch_id,
                     quality,
-                    rgb: vals.iter().map(|v| v.0).collect(),
-                    luminance_variance: vals.iter().map(|v| v.2).collect(),
+                    parts: vals
+                        .iter()
+                        .map(|v| SampleParts {
+                            direct: PartEstimate {
+                                rgb: v.0,
+                                luminance_variance: v.2,
+                            },
+                            indirect: PartEstimate {
+                                rgb: v.4,
+                                luminance_variance: v.5,
+                            },
+                        })
+                        .collect(),
                     paths: vals.iter().map(|v| v.3).collect(),
                     flags: vals.iter().map(|v| v.1).collect(),
                     micros,

@@ -49,6 +49,32 @@ impl Estimator {
     }
 }
 
+/// One path's radiance in parts (DESIGN.md §5, "Parts, and textures"): what arrives at the first
+/// vertex straight from a light (its shadow rays, and its continuation ray where that escapes to
+/// the sky or, through a mirror, meets an emitter or the sun's disc), apart from everything that
+/// arrives over further vertices.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PathParts {
+    pub direct: Vec3,
+    pub indirect: Vec3,
+}
+
+impl PathParts {
+    /// The path's radiance: the sum of its parts.
+    pub fn total(&self) -> Vec3 {
+        self.direct + self.indirect
+    }
+
+    /// Adds `l` to the direct part when it arrives at the first vertex, else to the indirect.
+    pub(crate) fn add(&mut self, at_first_vertex: bool, l: Vec3) {
+        if at_first_vertex {
+            self.direct += l;
+        } else {
+            self.indirect += l;
+        }
+    }
+}
+
 /// `paths` estimates of the radiance leaving `surface` toward unit `wo` (as [`path_radiance`]),
 /// each handed to `f` as it completes, scheduled by the world's [`Estimator`].
 #[allow(clippy::too_many_arguments)]
@@ -60,7 +86,7 @@ pub fn for_each_path(
     max_bounces: Option<u32>,
     rng: &mut Rng,
     counts: &mut RayCounts,
-    mut f: impl FnMut(Vec3),
+    mut f: impl FnMut(PathParts),
 ) {
     let strata = world.first_bounce.strata(rng);
     match world.estimator {
@@ -93,8 +119,8 @@ pub fn for_each_path(
     }
 }
 
-/// One path's estimate of the radiance leaving `surface` toward unit `wo`, excluding the surface's
-/// own emission. `max_bounces`: `Some(0)` = direct light only, `None` = unbounded with roulette.
+/// One path's estimate of the radiance leaving `surface` toward unit `wo`, in parts
+/// ([`PathParts`]), excluding the surface's own emission. `max_bounces`: `Some(0)` = direct light only, `None` = unbounded with roulette.
 ///
 /// The sky is reached by the path's own continuation ray where there is one (for a Lambertian
 /// vertex that ray is cosine-distributed, exactly the sky's next-event density, so it spares a
@@ -111,14 +137,15 @@ pub(crate) fn path_radiance(
     first_bounce: Option<[f32; 2]>,
     rng: &mut Rng,
     counts: &mut RayCounts,
-) -> Vec3 {
-    let mut radiance = Vec3::ZERO;
+) -> PathParts {
+    let mut radiance = PathParts::default();
     let mut throughput = Vec3::ONE;
     let mut s = surface;
     let mut wo = wo;
     let mut depth = Depth::START;
     let mut direction_u = first_bounce;
-    for _ in 0..MAX_DEPTH {
+    for vertex in 0..MAX_DEPTH {
+        let at_first_vertex = vertex == 0;
         let bsdf = &world.bsdf_at(&s);
         let origin = world.offset.origin(s.position, s.normal);
         let u = direction_u.take().unwrap_or_else(|| uniform2(rng));
@@ -129,14 +156,14 @@ pub(crate) fn path_radiance(
                 direct += ray.contribution;
             }
         });
-        radiance += throughput * direct;
+        radiance.add(at_first_vertex, throughput * direct);
         let Some((sample, next_throughput)) = next else {
             break;
         };
         throughput = next_throughput;
         let hit = world.trace(origin, sample.dir, sample.kind, counts);
         let arrived = arrive(world, origin, sample.dir, sample.kind, hit, depth);
-        radiance += throughput * arrived.seen;
+        radiance.add(at_first_vertex, throughput * arrived.seen);
         let Some((next_surface, next_depth)) = arrived.next else {
             break;
         };

@@ -147,6 +147,7 @@ fn pixel(
                         rng,
                         counts,
                     )
+                    .total()
             }
         };
         add_finite(&mut sum, l);
@@ -179,7 +180,7 @@ fn row_as_waves(
         let pixels = first..(first + group).min(row.len());
         let (starts, emitted) = camera_paths(world, camera, y, pixels, spp, rngs, &mut row, counts);
         trace_paths(world, &starts, s.bounces, rngs, counts, |i, l| {
-            add_finite(&mut row[starts[i].stream].0, emitted[i] + l);
+            add_finite(&mut row[starts[i].stream].0, emitted[i] + l.total());
         });
     }
     for (sum, _) in &mut row {

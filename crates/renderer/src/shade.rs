@@ -7,22 +7,25 @@ use std::time::Instant;
 
 use glam::Vec3;
 use protocol::renderer_link::{Quality, Radiance, ShadeBatch, ShadePoint, point_flags};
+use protocol::{PartEstimate, SampleParts};
 use rayon::prelude::*;
 
 use crate::counters::RayCounts;
-use crate::estimator::{Estimator, for_each_path};
+use crate::estimator::{Estimator, PathParts, for_each_path};
 use crate::point::locate;
 use crate::sampling::{Rng, stream};
 use crate::wavefront::{Start, WAVE_PATHS, trace_paths};
 use crate::world::{Surface, World};
 
-/// The answer for one point: an estimate with its uncertainty (DESIGN.md §5).
+/// The answer for one point: an estimate with its uncertainty, in parts (DESIGN.md §5).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Shaded {
-    /// The mean of the paths, plus the point's own emission.
+    /// The mean of the paths, plus the point's own emission: the sum of `parts`.
     pub rgb: Vec3,
-    /// The sample variance of the paths' luminance (0 with fewer than two paths).
-    pub luminance_variance: f32,
+    /// Per part the mean of the paths and the sample variance of their luminance (0 with fewer
+    /// than two paths). The point's own emission is exact, arrives at no vertex and is never
+    /// filtered, so it goes with the direct part.
+    pub parts: SampleParts,
     /// Paths averaged; 0 when the point could not be shaded.
     pub paths: u32,
     /// `protocol::renderer_link::point_flags` bits.
@@ -73,7 +76,7 @@ struct Prepared {
 fn prepare(world: &World, p: &ShadePoint, counts: &mut RayCounts) -> Result<Prepared, Shaded> {
     let located = locate(world, p, counts).map_err(|_| Shaded {
         rgb: Vec3::ZERO,
-        luminance_variance: 0.0,
+        parts: SampleParts::default(),
         paths: 0,
         flags: point_flags::INVALID_POINT,
     })?;
@@ -95,43 +98,70 @@ fn prepare(world: &World, p: &ShadePoint, counts: &mut RayCounts) -> Result<Prep
 }
 
 impl Prepared {
-    /// The mean of the paths plus the point's own emission.
+    /// The mean of the paths plus the point's own emission (in the direct part).
     fn finish(&self, world: &World, sum: PathSum) -> Shaded {
-        let paths = sum.luminance.n;
         let emitted = world.emission(self.surface.triangle, -self.surface.normal);
+        let paths = sum.direct.luminance.n;
+        let direct = sum.direct.estimate(paths, emitted);
+        let indirect = sum.indirect.estimate(paths, Vec3::ZERO);
         Shaded {
-            rgb: emitted + sum.rgb / paths.max(1) as f32,
-            luminance_variance: sum.luminance.variance(),
+            rgb: Vec3::from(direct.rgb) + Vec3::from(indirect.rgb),
+            parts: SampleParts { direct, indirect },
             paths,
             flags: sum.flags,
         }
     }
 }
 
-/// The paths of one point as they arrive.
+/// The paths of one point as they arrive, per part.
 struct PathSum {
-    rgb: Vec3,
-    luminance: PathLuminance,
+    direct: PartSum,
+    indirect: PartSum,
     flags: u8,
 }
 
 impl PathSum {
     fn new(flags: u8) -> PathSum {
         PathSum {
-            rgb: Vec3::ZERO,
-            luminance: PathLuminance::default(),
+            direct: PartSum::default(),
+            indirect: PartSum::default(),
             flags,
         }
     }
 
-    fn add(&mut self, l: Vec3) {
-        if l.is_finite() && l.min_element() >= 0.0 {
-            self.rgb += l;
-            self.luminance.add(conventions::luminance(l.to_array()));
+    /// A path with a non-finite or negative value in either part counts as a black path in
+    /// both, so that both means stay over the same `paths`.
+    fn add(&mut self, l: PathParts) {
+        let good = |v: Vec3| v.is_finite() && v.min_element() >= 0.0;
+        let l = if good(l.direct) && good(l.indirect) {
+            l
         } else {
-            // Counted as a black path, so the mean stays over `paths`.
-            self.luminance.add(0.0);
             self.flags |= point_flags::NON_FINITE_DISCARDED;
+            PathParts::default()
+        };
+        self.direct.add(l.direct);
+        self.indirect.add(l.indirect);
+    }
+}
+
+/// One part's running sum over a point's paths.
+#[derive(Default)]
+struct PartSum {
+    rgb: Vec3,
+    luminance: PathLuminance,
+}
+
+impl PartSum {
+    fn add(&mut self, l: Vec3) {
+        self.rgb += l;
+        self.luminance.add(conventions::luminance(l.to_array()));
+    }
+
+    /// The part's mean over `paths`, plus `exact` (a value without variance).
+    fn estimate(&self, paths: u32, exact: Vec3) -> PartEstimate {
+        PartEstimate {
+            rgb: (exact + self.rgb / paths.max(1) as f32).to_array(),
+            luminance_variance: self.luminance.variance(),
         }
     }
 }
@@ -210,8 +240,7 @@ pub fn shade_batch(world: &World, batch: &ShadeBatch) -> (Radiance, RayCounts) {
     let radiance = Radiance {
         batch_id: batch.batch_id,
         quality: batch.quality,
-        rgb: shaded.iter().map(|s| s.rgb.to_array()).collect(),
-        luminance_variance: shaded.iter().map(|s| s.luminance_variance).collect(),
+        parts: shaded.iter().map(|s| s.parts).collect(),
         paths: shaded.iter().map(|s| s.paths).collect(),
         flags: shaded.iter().map(|s| s.flags).collect(),
         micros: start.elapsed().as_micros() as u64,

@@ -19,7 +19,7 @@ use glam::Vec3;
 
 use crate::bvh::PACKET_RAYS;
 use crate::counters::{RayCounts, RayKind};
-use crate::estimator::{Depth, MAX_DEPTH, ShadowRay, arrive, continuation, shadow_rays};
+use crate::estimator::{Depth, MAX_DEPTH, PathParts, ShadowRay, arrive, continuation, shadow_rays};
 use crate::ray_order::RayOrder;
 use crate::sampling::{Rng, uniform2};
 use crate::strata::Strata;
@@ -43,15 +43,15 @@ pub(crate) struct Start {
 }
 
 /// Traces every path of `starts` in waves of at most [`WAVE_PATHS`] and hands each path's
-/// radiance (without the start's own emission) to `done`, with the index of its start, in the
-/// order of the starts.
+/// radiance in parts (without the start's own emission) to `done`, with the index of its start,
+/// in the order of the starts.
 pub(crate) fn trace_paths(
     world: &World,
     starts: &[Start],
     max_bounces: Option<u32>,
     rngs: &mut [Rng],
     counts: &mut RayCounts,
-    mut done: impl FnMut(usize, Vec3),
+    mut done: impl FnMut(usize, PathParts),
 ) {
     let mut wave = Wave::default();
     let mut streams = Streams::default();
@@ -75,7 +75,9 @@ pub(crate) fn trace_paths(
 struct Wave {
     start: Vec<u32>,
     stream: Vec<u32>,
-    radiance: Vec<Vec3>,
+    radiance: Vec<PathParts>,
+    /// Whether the path is still at its first vertex: what arrives there is its direct part.
+    at_first_vertex: Vec<bool>,
     throughput: Vec<Vec3>,
     surface: Vec<Surface>,
     wo: Vec<Vec3>,
@@ -124,7 +126,8 @@ impl Wave {
     fn push(&mut self, start_index: usize, start: &Start, k: u32) {
         self.start.push(start_index as u32);
         self.stream.push(start.stream as u32);
-        self.radiance.push(Vec3::ZERO);
+        self.radiance.push(PathParts::default());
+        self.at_first_vertex.push(true);
         self.throughput.push(Vec3::ONE);
         self.surface.push(start.surface);
         self.wo.push(start.wo);
@@ -246,7 +249,7 @@ impl Wave {
                 continue;
             }
             if !world.occluded_after(origin, ray.dir, ray.tmax, ray.kind, &mut last[slot], counts) {
-                self.radiance[p as usize] += ray.contribution;
+                self.add(p as usize, ray.contribution);
             }
         }
         self.trace_sun_packet(
@@ -285,7 +288,7 @@ impl Wave {
         );
         for (&k, occluder) in rays.iter().zip(occluders.iter()) {
             match occluder {
-                None => self.radiance[shadow.path[k] as usize] += shadow.ray[k].contribution,
+                None => self.add(shadow.path[k] as usize, shadow.ray[k].contribution),
                 Some(prim) => *last = Some(*prim),
             }
         }
@@ -312,7 +315,8 @@ impl Wave {
             let i = p as usize;
             let hit = world.trace(origin, dir, kind, counts);
             let arrived = arrive(world, origin, dir, kind, hit, self.depth[i]);
-            self.radiance[i] += self.throughput[i] * arrived.seen;
+            self.add(i, self.throughput[i] * arrived.seen);
+            self.at_first_vertex[i] = false;
             if let Some((surface, depth)) = arrived.next {
                 self.surface[i] = surface;
                 self.depth[i] = depth;
@@ -322,14 +326,20 @@ impl Wave {
         }
     }
 
+    /// Adds `l`, arriving at path `i`'s current vertex, to the part it belongs to.
+    fn add(&mut self, i: usize, l: Vec3) {
+        self.radiance[i].add(self.at_first_vertex[i], l);
+    }
+
     /// Hands every path's radiance to `done` in path order and empties the wave.
-    fn drain(&mut self, done: &mut impl FnMut(usize, Vec3)) {
+    fn drain(&mut self, done: &mut impl FnMut(usize, PathParts)) {
         for (&start, &radiance) in self.start.iter().zip(&self.radiance) {
             done(start as usize, radiance);
         }
         self.start.clear();
         self.stream.clear();
         self.radiance.clear();
+        self.at_first_vertex.clear();
         self.throughput.clear();
         self.surface.clear();
         self.wo.clear();

@@ -38,6 +38,7 @@ fn path_samples(
         &mut rng,
         &mut counts,
         |l| {
+            let l = l.total();
             assert!(l.is_finite() && l.min_element() >= 0.0, "bad sample {l}");
             samples.push(l.x as f64);
         },
@@ -262,6 +263,43 @@ fn a_sun_below_the_horizon_lights_nothing_and_one_on_it_half_its_disc() {
         assert!(
             (mean - want).abs() <= 4.0 * se + 1e-6 * want,
             "sun on the horizon: {mean} vs half the disc's {want} (se {se})"
+        );
+    });
+}
+
+/// The white furnace in parts (DESIGN.md §5, "Parts, and textures"): the point's own emission Le
+/// and what the walls send it straight, a Le, are its direct part; everything over further
+/// walls, Le (a^2 + a^3 + ...) = Le a^2 / (1 - a), its indirect part. Both estimators.
+#[test]
+fn furnace_parts_are_direct_and_indirect_light_and_sum_to_the_radiance() {
+    let (le, a) = (1.0f32, 0.5f32);
+    with_each_estimator(furnace(Vec3::new(2.0, 1.0, 1.5), le, a), |w| {
+        let p = point_hit_by(w, Vec3::new(0.7, 0.5, 0.6), Vec3::NEG_Y);
+        let quality = Quality {
+            paths: 40_000,
+            bounces: None,
+        };
+        let s = shade_point(w, &p, quality, &mut stream(3, 0), &mut RayCounts::default());
+        let se = |variance: f32| (f64::from(variance) / f64::from(s.paths)).sqrt();
+        let (le, a) = (f64::from(le), f64::from(a));
+        for (part, want, name) in [
+            (s.parts.direct, le * (1.0 + a), "direct"),
+            (s.parts.indirect, le * a * a / (1.0 - a), "indirect"),
+        ] {
+            let (got, se) = (f64::from(part.rgb[0]), se(part.luminance_variance));
+            assert!(
+                (got - want).abs() <= 4.0 * se && se < 0.02 * want,
+                "{name}: {got} vs {want} (se {se})"
+            );
+        }
+        let sum = Vec3::from(s.parts.rgb());
+        assert!(sum.abs_diff_eq(s.rgb, 1e-5 * s.rgb.x), "{sum} vs {}", s.rgb);
+        let total = le / (1.0 - a);
+        let se_total = se(s.parts.luminance_variance());
+        assert!(
+            (f64::from(s.rgb.x) - total).abs() <= 4.0 * se_total,
+            "{} vs {total}",
+            s.rgb
         );
     });
 }

@@ -293,3 +293,75 @@ fn both_estimators_render_the_same_mean_luminance() {
         "wavefront - path = {mean_difference} (se {se}) on a mean of {mean}"
     );
 }
+
+/// A Cornell floor point in parts (DESIGN.md §5, "Parts, and textures"): the direct part is what a
+/// direct-light-only sample estimates, the indirect part is the room's light and is not
+/// nothing, and the parts' sum is the radiance an independent estimate finds, within noise; the
+/// two estimators agree part by part.
+#[test]
+fn parts_sum_to_the_radiance_and_the_direct_part_is_direct_light() {
+    let mut w = cornell();
+    let p = point_hit_by(&w, Vec3::new(0.4, 0.3, 0.15), Vec3::NEG_Y);
+    let shade = |w: &World, bounces: Option<u32>, seed: u64| {
+        let q = Quality {
+            paths: 16_384,
+            bounces,
+        };
+        shade_point(w, &p, q, &mut stream(seed, 0), &mut RayCounts::default())
+    };
+    // Mean luminance and its standard error.
+    let lum = |part: &protocol::PartEstimate, paths: u32| {
+        let l = luminance(Vec3::from(part.rgb)) as f64;
+        (
+            l,
+            (f64::from(part.luminance_variance) / f64::from(paths)).sqrt(),
+        )
+    };
+    let within = |(a, ea): (f64, f64), (b, eb): (f64, f64), what: &str| {
+        assert!(
+            (a - b).abs() <= 4.0 * ea.hypot(eb),
+            "{what}: {a} ± {ea} vs {b} ± {eb}"
+        );
+    };
+    let mut by_estimator = Vec::new();
+    for estimator in Estimator::ALL {
+        w.estimator = estimator;
+        let full = shade(&w, Some(2), 11);
+        let direct_only = shade(&w, Some(0), 12);
+        let other = shade(&w, Some(2), 13);
+        let (direct, indirect) = (
+            lum(&full.parts.direct, full.paths),
+            lum(&full.parts.indirect, full.paths),
+        );
+        within(
+            direct,
+            lum(&direct_only.parts.direct, direct_only.paths),
+            "direct part vs direct light only",
+        );
+        assert_eq!(direct_only.parts.indirect.rgb, [0.0; 3]);
+        assert!(indirect.0 > 10.0 * indirect.1, "indirect {indirect:?}");
+        let total = |s: &renderer::Shaded| {
+            let l = luminance(s.rgb) as f64;
+            (
+                l,
+                (f64::from(s.parts.luminance_variance()) / f64::from(s.paths)).sqrt(),
+            )
+        };
+        within(
+            (direct.0 + indirect.0, total(&full).1),
+            total(&other),
+            "parts' sum vs an independent estimate",
+        );
+        by_estimator.push((direct, indirect));
+    }
+    within(
+        by_estimator[0].0,
+        by_estimator[1].0,
+        "direct, path vs wavefront",
+    );
+    within(
+        by_estimator[0].1,
+        by_estimator[1].1,
+        "indirect, path vs wavefront",
+    );
+}

@@ -58,7 +58,7 @@ async fn serve_answers_and_stops_on_ctrl_c() {
     w.send(&ToRenderer::ShadeBatch(batch)).await.unwrap();
     let reply = recv(&mut r).await.unwrap();
     assert!(
-        matches!(reply, FromRenderer::Radiance(ref rad) if rad.batch_id == 9 && rad.rgb.len() == 4)
+        matches!(reply, FromRenderer::Radiance(ref rad) if rad.batch_id == 9 && rad.parts.len() == 4)
     );
 
     let status = Command::new("kill")

@@ -105,10 +105,10 @@ async fn batches_match_the_in_process_estimator_and_bad_frames_are_answered() {
             .find(|b| b.batch_id == reply.batch_id)
             .expect("known batch id");
         let (local, _) = shade_batch(&world, b);
-        assert_eq!(reply.rgb, local.rgb, "batch {}", b.batch_id);
+        assert_eq!(reply.parts, local.parts, "batch {}", b.batch_id);
         assert_eq!(reply.flags, local.flags);
         assert_eq!(reply.quality, b.quality);
-        assert!(reply.rgb.iter().any(|c| c[0] > 0.0));
+        assert!(reply.parts.iter().any(|p| p.rgb()[0] > 0.0));
         seen.push(reply.batch_id);
     }
     seen.sort();
@@ -122,7 +122,7 @@ async fn batches_match_the_in_process_estimator_and_bad_frames_are_answered() {
         panic!("expected radiance")
     };
     assert_eq!(reply.flags[1], point_flags::INVALID_POINT);
-    assert_eq!(reply.rgb[1], [0.0; 3]);
+    assert_eq!(reply.parts[1], protocol::SampleParts::default());
 
     // An unreasonable batch is rejected, and the link goes on.
     let mut b = batch(&world, 201, 1, 3);
@@ -156,7 +156,7 @@ async fn batches_match_the_in_process_estimator_and_bad_frames_are_answered() {
     let FromRenderer::Radiance(reply) = recv(&mut r2).await.unwrap() else {
         panic!("expected radiance")
     };
-    assert_eq!(reply.rgb, shade_batch(&world, &b).0.rgb);
+    assert_eq!(reply.parts, shade_batch(&world, &b).0.parts);
 
     // An oversized frame header: error, close.
     let (mut r3, mut raw) = connect_raw(server.addr, fp).await;

@@ -1,11 +1,17 @@
 //! The object-space vertex shading cache (DESIGN.md §5): per (vertex, side) an estimate of the
-//! radiance with its uncertainty (`sample::Estimate`), when it was last seen; which leaves have
-//! all their samples; a memory budget with eviction of what has long been out of view.
+//! radiance in parts with its uncertainty (`sample::Estimate`), when it was last seen; which
+//! leaves have all their samples; a memory budget with eviction of what has long been out of view.
+//!
+//! What is read back is the *shown* estimate: the sample with its indirect part as the
+//! object-space filter last left it (`indirect_filter`; the raw part until the filter has run).
+//! Viewer inserts, the criteria, L_white and the stopping rule all read that one, so they judge
+//! what the person sees; the raw estimate is what further paths merge with.
 //!
 //! Storage is dense: a slot per (vertex, side) indexing a packed sample array, so the per-leaf
-//! lookups of NLD_OS are two array reads, not hashing. A sample is packed into 28 bytes: mean
-//! RGB, luminance variance, paths, the time it was last seen, its bounce depth and whether it is
-//! view-dependent; the eye, which only view-dependent samples need, lives in a side table. A
+//! lookups of NLD_OS are two array reads, not hashing. A sample is packed into 60 bytes: per part
+//! mean RGB and luminance variance, the shown indirect part, paths, the time it was last seen,
+//! its bounce depth and whether it is view-dependent; the eye, which only view-dependent samples
+//! need, lives in a side table. A
 //! view-dependent sample keeps a few eyes there, each with its own estimate: viewers looking at
 //! one mirror from different places each read the one nearest their eye, instead of retaking
 //! each other's forever (several viewers: thesis §2.2).
@@ -13,93 +19,14 @@
 use std::collections::HashMap;
 
 use glam::Vec3;
-use protocol::Side;
-use protocol::renderer_link::{Quality, SampleKey};
+use protocol::renderer_link::SampleKey;
+use protocol::{PartEstimate, Side};
 
 use crate::mesh::fast_hash::FastHash;
 use crate::mesh::{NodeId, SubdivisionMesh};
-use crate::sample::{Depth, Estimate, Merge};
+use crate::sample::{Estimate, Merge};
 use crate::visible_set::VisibleSet;
 use conventions::luminance;
-
-/// A sample as callers build and read it; stored packed (`PackedSample`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CachedSample {
-    /// Mean radiance of its paths.
-    pub rgb: [f32; 3],
-    /// Sample variance of its paths' luminance.
-    pub luminance_variance: f32,
-    /// Paths averaged so far, and the bounce depth they were traced at.
-    pub quality: Quality,
-    /// Glossy or mirror: valid for `eye` only; ages as the eye moves (DESIGN.md §5).
-    pub view_dependent: bool,
-    /// The eye a view-dependent sample was shaded for. Only view-dependent samples keep it: the
-    /// cache reads back `None` for the others, whose radiance holds for every eye.
-    pub eye: Option<Vec3>,
-    /// Frame or epoch counter of the caller when the sample was last visible. Stored as a `u32`,
-    /// saturating: see `Stamp`.
-    pub last_seen: u64,
-}
-
-impl CachedSample {
-    pub fn estimate(&self) -> Estimate {
-        Estimate {
-            rgb: self.rgb,
-            luminance_variance: self.luminance_variance,
-            paths: self.quality.paths,
-            depth: Depth::of(self.quality.bounces),
-        }
-    }
-}
-
-/// `last_seen` as stored. The scheduler passes its count of visibility passes (frames), not a
-/// clock: at 1,000 passes a second `u32` lasts 49 days of walkthrough. Beyond it every time
-/// saturates to `u32::MAX`, which only makes eviction treat all later frames as one.
-type Stamp = u32;
-
-fn stamp(time: u64) -> Stamp {
-    Stamp::try_from(time).unwrap_or(Stamp::MAX)
-}
-
-/// What the sample array holds per sample: for a view-dependent one, its latest eye's estimate
-/// (the eyes are in `ShadingCache::eyes`).
-#[derive(Clone, Copy, Debug)]
-struct PackedSample {
-    rgb: [f32; 3],
-    luminance_variance: f32,
-    paths: u32,
-    last_seen: Stamp,
-    depth: Depth,
-    view_dependent: bool,
-}
-
-const _: () = assert!(size_of::<PackedSample>() == 28);
-
-impl PackedSample {
-    fn new(e: &Estimate, view_dependent: bool, last_seen: Stamp) -> Self {
-        PackedSample {
-            rgb: e.rgb,
-            luminance_variance: e.luminance_variance,
-            paths: e.paths,
-            last_seen,
-            depth: e.depth,
-            view_dependent,
-        }
-    }
-
-    fn estimate(&self) -> Estimate {
-        Estimate {
-            rgb: self.rgb,
-            luminance_variance: self.luminance_variance,
-            paths: self.paths,
-            depth: self.depth,
-        }
-    }
-
-    fn set(&mut self, e: &Estimate) {
-        *self = PackedSample::new(e, self.view_dependent, self.last_seen);
-    }
-}
 
 /// One eye's estimate of a view-dependent sample.
 #[derive(Clone, Copy, Debug)]
@@ -293,7 +220,7 @@ impl ShadingCache {
         let s = s as usize;
         self.samples[s].view_dependent = sample.view_dependent;
         let Some(eye) = eye else {
-            let mut kept = self.samples[s].estimate();
+            let mut kept = self.samples[s].raw();
             if kept.accumulate(&new) == Merge::Kept {
                 return CacheInsert::Ignored;
             }
@@ -336,6 +263,23 @@ impl ShadingCache {
         Some(nearest.map_or_else(|| p.estimate(), |v| v.estimate))
     }
 
+    /// A sample as the renderers answered it (no filter), and whether it is view-dependent: what
+    /// the object-space filter reads (`indirect_filter`).
+    pub(crate) fn answered(&self, key: SampleKey) -> Option<(Estimate, bool)> {
+        self.packed(slot_index(key))
+            .map(|p| (p.raw(), p.view_dependent))
+    }
+
+    /// Sets the indirect part a sample is shown with (`indirect_filter`); it holds until the
+    /// sample changes.
+    pub(crate) fn set_shown_indirect(&mut self, key: SampleKey, shown: PartEstimate) {
+        if let Some(&s) = self.slots.get(slot_index(key))
+            && s != NO_SLOT
+        {
+            self.samples[s as usize].shown_indirect = shown;
+        }
+    }
+
     /// The estimates of a leaf's three vertices on `side`, if all are cached.
     pub fn leaf_estimates(
         &self,
@@ -370,7 +314,7 @@ impl ShadingCache {
         side: Side,
     ) -> Option<[[f32; 3]; 3]> {
         self.leaf_radiance_with(mesh, leaf, side, |key| {
-            self.packed(slot_index(key)).map(|p| p.rgb)
+            self.packed(slot_index(key)).map(|p| p.estimate().rgb())
         })
     }
 
@@ -384,7 +328,7 @@ impl ShadingCache {
         eye: Vec3,
     ) -> Option<[[f32; 3]; 3]> {
         self.leaf_radiance_with(mesh, leaf, side, |key| {
-            self.get_seen_from(key, Some(eye)).map(|s| s.rgb)
+            self.get_seen_from(key, Some(eye)).map(|s| s.rgb())
         })
     }
 
@@ -519,7 +463,7 @@ impl ShadingCache {
     pub fn max_luminance(&self) -> f32 {
         self.samples
             .iter()
-            .map(|s| luminance(s.rgb))
+            .map(|s| luminance(s.estimate().rgb()))
             .fold(0.0, f32::max)
     }
 
@@ -545,7 +489,7 @@ impl ShadingCache {
                 })
             })
             .filter_map(|key| self.packed(slot_index(key)))
-            .map(|s| luminance(s.rgb))
+            .map(|s| luminance(s.estimate().rgb()))
             .collect();
         let skipped = (lum.len() as f64 * self.l_white_outliers) as usize;
         let Some(rank) = lum.len().checked_sub(1 + skipped) else {
@@ -555,21 +499,13 @@ impl ShadingCache {
     }
 }
 
-/// A cached sample as callers read it.
-fn sample_of(e: &Estimate, view_dependent: bool, eye: Option<Vec3>, seen: Stamp) -> CachedSample {
-    CachedSample {
-        rgb: e.rgb,
-        luminance_variance: e.luminance_variance,
-        quality: e.quality(),
-        view_dependent,
-        eye,
-        last_seen: u64::from(seen),
-    }
-}
-
 /// The fraction of the brightest visible samples [`ShadingCache::l_white`] leaves above it by
 /// default (`ScheduleConfig::l_white_outliers`).
 pub const L_WHITE_OUTLIERS: f64 = 0.001;
+
+mod packed;
+pub use packed::CachedSample;
+use packed::{PackedSample, Stamp, sample_of, stamp};
 
 #[cfg(test)]
 mod tests;

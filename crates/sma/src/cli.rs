@@ -14,6 +14,7 @@ use protocol::liveness::Liveness;
 
 use crate::config::{Profile, ScheduleConfig, SmaConfig};
 use crate::criteria::{CriterionKind, CriterionSettings};
+use crate::indirect_filter::IndirectFilterSettings;
 use crate::mesh::{MeshParams, NeighbourRule};
 
 fn defaults() -> SmaConfig {
@@ -249,6 +250,14 @@ pub struct Cli {
     // three runs without it, the six default views at 60 s (leaves and bytes saved, FLIP).
     #[arg(long, value_parser = on_off)]
     pub merge_uniform: Option<bool>,
+    /// Filter each sample's indirect part over its mesh neighbours in object space (on|off)
+    /// [default: on; off under --profile thesis].
+    #[arg(long, value_parser = on_off)]
+    pub indirect_filter: Option<bool>,
+    /// The indirect filter's radius at 64 paths, as a fraction of the scene's bounding-box
+    /// diagonal; it shrinks as paths^(-1/4).
+    #[arg(long, value_parser = fraction, default_value_t = f64::from(defaults().schedule.indirect_filter.radius))]
+    pub indirect_filter_radius: f64,
     /// The quality ladder's last rung: samples get paths by fours past the scene's quality
     /// while the viewer rests, up to this many paths each.
     #[arg(long, default_value_t = defaults().schedule.max_paths)]
@@ -345,6 +354,9 @@ impl Cli {
         if let Some(on) = self.merge_uniform {
             config.schedule.merge_uniform = on;
         }
+        if let Some(on) = self.indirect_filter {
+            config.schedule.indirect_filter.enabled = on;
+        }
         Ok(config)
     }
 
@@ -420,6 +432,10 @@ impl Cli {
             cache_budget_bytes: self.cache_mib << 20,
             coarsen_after_passes: defaults().schedule.coarsen_after_passes,
             merge_uniform: defaults().schedule.merge_uniform,
+            indirect_filter: IndirectFilterSettings {
+                radius: self.indirect_filter_radius as f32,
+                ..defaults().schedule.indirect_filter
+            },
             seed: self.seed,
             ladder: defaults().schedule.ladder,
             max_paths: self.max_paths,

@@ -10,6 +10,7 @@ use protocol::liveness::Liveness;
 
 use crate::cache::L_WHITE_OUTLIERS;
 use crate::criteria::{CriterionKind, CriterionSettings, Passes};
+use crate::indirect_filter::IndirectFilterSettings;
 use crate::mesh::{MeshParams, NeighbourRule};
 
 /// A whole SMA: where it listens, which renderers it uses, and how it refines.
@@ -90,6 +91,8 @@ impl SmaConfig {
     /// - the thesis's neighbour rule (§4.2, fig. 4.7) in place of red–green's bisection;
     /// - no coarsening, by passes unseen or by uniformity (`merge_uniform`): removing
     ///   subdivision is future work in §6;
+    /// - no object-space filter of the indirect part (`indirect_filter`): the thesis shows each
+    ///   vertex's sample as the renderer answered it;
     /// - refinement only while the camera rests (DESIGN.md §3 step 6): no work while walking
     ///   (step 9), and every camera's pass at once.
     ///
@@ -114,6 +117,7 @@ impl SmaConfig {
                 schedule.criterion_settings.passes = Passes::One;
                 schedule.coarsen_after_passes = 0;
                 schedule.merge_uniform = false;
+                schedule.indirect_filter.enabled = false;
                 schedule.work_while_walking = false;
                 self.mesh.neighbour_rule = NeighbourRule::Thesis;
             }
@@ -322,6 +326,9 @@ pub struct ScheduleConfig {
     /// samples its own corners predict, within their noise or one display step, is merged back
     /// (`schedule::uniformity`). Off until measured.
     pub merge_uniform: bool,
+    /// The object-space filter of the samples' indirect part (DESIGN.md §5,
+    /// `indirect_filter`): on by default, off under the thesis profile.
+    pub indirect_filter: IndirectFilterSettings,
     /// Seed of the criteria's random streams.
     pub seed: u64,
     /// Whether samples climb the quality ladder (DESIGN.md §5, `schedule::ladder`); off, every
@@ -377,6 +384,7 @@ impl Default for ScheduleConfig {
             cache_budget_bytes: 1024 << 20,
             coarsen_after_passes: 300,
             merge_uniform: false,
+            indirect_filter: IndirectFilterSettings::default(),
             seed: 1,
             // 64 × 4 × 4: two rungs past the interactive preset, a quarter of its noise.
             ladder: true,

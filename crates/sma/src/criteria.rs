@@ -350,11 +350,11 @@ fn nld_of(
 ) -> f32 {
     match metric {
         Metric::Thesis => crate::nld::nld3(
-            estimates.map(|e| conventions::luminance(e.rgb)),
+            estimates.map(|e| conventions::luminance(e.rgb())),
             input.l_white,
         ),
         Metric::MaxMin => nld_mm(
-            &estimates.map(|e| conventions::luminance(e.rgb)),
+            &estimates.map(|e| conventions::luminance(e.rgb())),
             input.l_white,
         ),
         Metric::NoiseAware => {

@@ -5,7 +5,8 @@
 //! - [`cache`]: the object-space vertex shading cache (§5);
 //! - [`visible_set`]: the visible set V_t keyed by (leaf, side);
 //! - [`nld`]: the NLD metric (eq. 4.3);
-//! - [`criteria`]: refinement criteria, one file each behind one trait (§4.3).
+//! - [`criteria`]: refinement criteria, one file each behind one trait (§4.3);
+//! - [`indirect_filter`]: the object-space filter of the samples' indirect part (§5).
 //!
 //! Service:
 //! - [`visibility`]: GPU ID-buffer passes with wgpu, headless (§3 steps 2–3);
@@ -24,6 +25,7 @@
 
 pub mod cache;
 pub mod criteria;
+pub mod indirect_filter;
 pub mod mesh;
 pub(crate) mod nld;
 pub(crate) mod sample;

@@ -507,19 +507,18 @@ impl Dispatcher {
     }
 }
 
-/// A reply must carry one value, variance, path count and flag byte per point. What the values
+/// A reply must carry one answer in parts, path count and flag byte per point. What the values
 /// are is judged per point by the schedule: one bad point does not cost the batch's others.
 fn checked(batch: &ShadeBatch, radiance: Radiance) -> Result<Radiance, String> {
     let n = batch.points.len();
     let lengths = [
-        radiance.rgb.len(),
-        radiance.luminance_variance.len(),
+        radiance.parts.len(),
         radiance.paths.len(),
         radiance.flags.len(),
     ];
     if lengths.iter().any(|&l| l != n) {
         return Err(format!(
-            "reply holds {lengths:?} values, variances, path counts and flags for {n} points"
+            "reply holds {lengths:?} answers in parts, path counts and flags for {n} points"
         ));
     }
     Ok(radiance)

@@ -1,16 +1,22 @@
-//! What one cached sample is (DESIGN.md §5, "a sample is an estimate with its uncertainty"): the
-//! running mean RGB of its paths, the variance of their luminance, how many paths, and the bounce
-//! depth they were traced at. Everything that reads or merges samples goes through here, so a
-//! later extension of the sample (texture coordinates, a cache file on disk) changes one module.
+//! What one cached sample is (DESIGN.md §5, "a sample is an estimate with its uncertainty"): in
+//! parts (direct, indirect: `protocol::SampleParts`), per part the running mean RGB of its paths
+//! and the variance of their luminance; how many paths (one count: the parts of a sample always
+//! come from the same paths), and the bounce depth they were traced at. Everything that reads or
+//! merges samples goes through here, so a later extension of the sample (texture coordinates, a
+//! cache file on disk, albedo-demodulated parts) changes one module.
 //!
-//! - [`Estimate::accumulate`]: further paths at the same depth are added to the estimate (the
-//!   pairwise update of Chan et al. for the variance); paths at another depth never mix with it.
+//! - [`Estimate::rgb`]: the displayed radiance, the sum of the parts; every reader of a sample's
+//!   radiance (viewer inserts, criteria, L_white, the stopping rule) goes through it.
+//! - [`Estimate::accumulate`]: further paths at the same depth are added to the estimate, part by
+//!   part (the pairwise update of Chan et al. for the variance); paths at another depth never mix
+//!   with it.
 //! - [`Estimate::display_standard_error`]: the uncertainty of the mean in the units the person
 //!   sees (Drago tone map with L_white, then sRGB encoding, 0..1), which the noise-aware criteria
 //!   and the schedule's stopping rule compare against.
 
 use conventions::luminance;
 use protocol::renderer_link::Quality;
+use protocol::{PartEstimate, SampleParts};
 
 /// A bounce depth as stored: `Some(b)` up to 254 bounces, `None` (unbounded, ended by Russian
 /// roulette) as 255, the deepest.
@@ -27,14 +33,12 @@ impl Depth {
     }
 }
 
-/// One sample's estimate.
+/// One sample's estimate. Plain data: the cache file stores it as it is.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Estimate {
-    /// Mean radiance of the paths.
-    pub rgb: [f32; 3],
-    /// Sample variance of the paths' luminance.
-    pub luminance_variance: f32,
-    /// Paths averaged.
+    /// Per part, the mean radiance of the paths and the sample variance of their luminance.
+    pub parts: SampleParts,
+    /// Paths averaged (the same for every part).
     pub paths: u32,
     pub depth: Depth,
 }
@@ -56,10 +60,17 @@ impl Estimate {
     /// at least one path. Anything else is rejected per point (DESIGN.md §8: bad input loses
     /// nothing else).
     pub fn is_valid(&self) -> bool {
-        self.rgb.iter().all(|c| c.is_finite() && *c >= 0.0)
-            && self.luminance_variance.is_finite()
-            && self.luminance_variance >= 0.0
-            && self.paths > 0
+        self.parts.is_valid() && self.paths > 0
+    }
+
+    /// The displayed radiance: the sum of the parts.
+    pub fn rgb(&self) -> [f32; 3] {
+        self.parts.rgb()
+    }
+
+    /// The luminance variance of the displayed radiance (`SampleParts::luminance_variance`).
+    pub fn luminance_variance(&self) -> f32 {
+        self.parts.luminance_variance()
     }
 
     pub fn quality(&self) -> Quality {
@@ -89,12 +100,12 @@ impl Estimate {
         if self.paths == 0 {
             return f32::INFINITY;
         }
-        (self.luminance_variance / self.paths as f32).sqrt()
+        (self.luminance_variance() / self.paths as f32).sqrt()
     }
 
     /// Luminance as the person sees it: Drago with `l_white`, sRGB-encoded, in 0..1.
     pub fn display_luminance(&self, l_white: f32) -> f32 {
-        DisplayMap::new(l_white).display(luminance(self.rgb))
+        DisplayMap::new(l_white).display(luminance(self.rgb()))
     }
 
     /// [`Self::standard_error`] carried through the display mapping (its slope at the mean):
@@ -106,7 +117,7 @@ impl Estimate {
     /// The displayed luminance and standard error together, for one mapping: the noise-aware
     /// criteria read both for every vertex of every visible leaf, several times a second.
     pub fn displayed(&self, map: &DisplayMap) -> Displayed {
-        let (luminance, slope) = map.display_and_slope(luminance(self.rgb));
+        let (luminance, slope) = map.display_and_slope(luminance(self.rgb()));
         Displayed {
             luminance,
             standard_error: slope * self.standard_error(),
@@ -172,9 +183,23 @@ pub fn display(l: f32, l_white: f32) -> f32 {
     DisplayMap::new(l_white).display(l)
 }
 
-/// Chan, Golub and LeVeque's pairwise update of mean and variance: `b`'s paths added to `a`'s.
+/// `b`'s paths added to `a`'s, part by part.
 fn combine(a: &Estimate, b: &Estimate) -> Estimate {
     let (na, nb) = (f64::from(a.paths), f64::from(b.paths));
+    let part = |pa: &PartEstimate, pb: &PartEstimate| combine_part(pa, na, pb, nb);
+    Estimate {
+        parts: SampleParts {
+            direct: part(&a.parts.direct, &b.parts.direct),
+            indirect: part(&a.parts.indirect, &b.parts.indirect),
+        },
+        paths: a.paths.saturating_add(b.paths),
+        depth: a.depth,
+    }
+}
+
+/// Chan, Golub and LeVeque's pairwise update of mean and variance: `b`'s `nb` paths added to
+/// `a`'s `na`.
+fn combine_part(a: &PartEstimate, na: f64, b: &PartEstimate, nb: f64) -> PartEstimate {
     let n = na + nb;
     let rgb =
         std::array::from_fn(|i| ((na * f64::from(a.rgb[i]) + nb * f64::from(b.rgb[i])) / n) as f32);
@@ -182,15 +207,13 @@ fn combine(a: &Estimate, b: &Estimate) -> Estimate {
     let m2 = f64::from(a.luminance_variance) * (na - 1.0).max(0.0)
         + f64::from(b.luminance_variance) * (nb - 1.0).max(0.0)
         + delta * delta * na * nb / n;
-    Estimate {
+    PartEstimate {
         rgb,
         luminance_variance: if n > 1.0 {
             (m2 / (n - 1.0)) as f32
         } else {
             0.0
         },
-        paths: a.paths.saturating_add(b.paths),
-        depth: a.depth,
     }
 }
 
@@ -207,9 +230,17 @@ mod tests {
             .map(|&v| (f64::from(v) - mean).powi(2))
             .sum::<f64>()
             / (n - 1.0);
+        // A quarter of every path is direct light, the rest indirect: the parts' variances are
+        // then a sixteenth and nine sixteenths of the paths'.
+        let part = |share: f64| PartEstimate {
+            rgb: [(share * mean) as f32; 3],
+            luminance_variance: (share * share * var) as f32,
+        };
         Estimate {
-            rgb: [mean as f32; 3],
-            luminance_variance: var as f32,
+            parts: SampleParts {
+                direct: part(0.25),
+                indirect: part(0.75),
+            },
             paths: values.len() as u32,
             depth: Depth::of(depth),
         }
@@ -230,8 +261,14 @@ mod tests {
         }
         let whole = estimate(&values, Some(2));
         assert_eq!(kept.paths, 1024);
-        assert!((kept.rgb[0] - whole.rgb[0]).abs() < 1e-5);
-        assert!((kept.luminance_variance - whole.luminance_variance).abs() < 1e-4);
+        for (k, w) in kept.parts.each().iter().zip(whole.parts.each()) {
+            assert!((k.rgb[0] - w.rgb[0]).abs() < 1e-5, "{k:?} vs {w:?}");
+            assert!((k.luminance_variance - w.luminance_variance).abs() < 1e-4);
+        }
+        assert!(
+            (kept.rgb()[0] - whole.rgb()[0]).abs() < 1e-5,
+            "the sum of the parts"
+        );
         assert!(
             errors.windows(2).all(|w| w[1] < w[0]),
             "the standard error falls with every batch: {errors:?}"
@@ -260,31 +297,45 @@ mod tests {
     fn bad_answers_are_not_valid() {
         let good = estimate(&[1.0, 2.0], Some(1));
         assert!(good.is_valid());
-        for bad in [
-            Estimate {
+        let bad_parts = [
+            PartEstimate {
                 rgb: [f32::NAN, 0.0, 0.0],
-                ..good
+                ..good.parts.direct
             },
-            Estimate {
+            PartEstimate {
                 rgb: [f32::INFINITY, 0.0, 0.0],
-                ..good
+                ..good.parts.direct
             },
-            Estimate {
+            PartEstimate {
                 rgb: [-0.1, 0.0, 0.0],
-                ..good
+                ..good.parts.direct
             },
-            Estimate {
+            PartEstimate {
                 luminance_variance: f32::NAN,
-                ..good
+                ..good.parts.direct
             },
-            Estimate {
+            PartEstimate {
                 luminance_variance: -1.0,
-                ..good
+                ..good.parts.direct
             },
-            Estimate { paths: 0, ..good },
-        ] {
-            assert!(!bad.is_valid(), "{bad:?}");
+        ];
+        for part in bad_parts {
+            // Either part bad makes the answer bad, though the other is good.
+            for parts in [
+                SampleParts {
+                    direct: part,
+                    ..good.parts
+                },
+                SampleParts {
+                    indirect: part,
+                    ..good.parts
+                },
+            ] {
+                let bad = Estimate { parts, ..good };
+                assert!(!bad.is_valid(), "{bad:?}");
+            }
         }
+        assert!(!Estimate { paths: 0, ..good }.is_valid());
     }
 
     #[test]
@@ -333,8 +384,7 @@ mod tests {
     #[test]
     fn display_error_is_larger_in_the_dark() {
         let at = |l: f32| Estimate {
-            rgb: [l; 3],
-            luminance_variance: 0.01f32.powi(2) * 64.0,
+            parts: SampleParts::direct_only([l; 3], 0.01f32.powi(2) * 64.0),
             paths: 64,
             depth: Depth::of(Some(2)),
         };

@@ -61,6 +61,7 @@ use tokio::sync::{mpsc, watch};
 use crate::cache::ShadingCache;
 use crate::clock::sleep_until;
 use crate::config::ScheduleConfig;
+use crate::indirect_filter::IndirectFilter;
 use crate::mesh::SubdivisionMesh;
 use crate::pool::{Lane, PoolEvent, PoolHandle};
 use crate::viewer_link::{ViewerEvent, ViewerId};
@@ -98,6 +99,10 @@ pub struct Schedule {
     owed: Owed,
     paces: Paces,
     counters: Counters,
+    /// The object-space filter of the indirect part, run before each sync when samples or
+    /// views changed since the last run.
+    indirect_filter: IndirectFilter,
+    filter_due: bool,
 }
 
 impl Schedule {
@@ -111,6 +116,7 @@ impl Schedule {
         let now = Instant::now();
         let luminance = LuminancePass::new(&gpu);
         let visibility = Visibility::new(gpu, &mesh, scene.mesh.bounds());
+        let indirect_filter = IndirectFilter::new(config.indirect_filter, &mesh);
         Schedule {
             refinement: Refinement::new(mesh.base_count(), &config),
             rules: PlanRules::new(&config, scene),
@@ -130,6 +136,8 @@ impl Schedule {
             viewers: Viewers::default(),
             owed: Owed::default(),
             counters: Counters::new(now),
+            indirect_filter,
+            filter_due: false,
         }
     }
 
@@ -194,6 +202,7 @@ impl Schedule {
                 );
                 if answered.points > 0 {
                     self.refinement.merge_input();
+                    self.filter_due = true;
                 }
                 if self.counters.answered(answered) {
                     self.viewers.new_input();
@@ -336,6 +345,7 @@ impl Schedule {
             self.counters.since_pass = 0;
         }
         self.cache.evict(self.frame, &|_| false);
+        self.filter_due = true;
         self.owed.views_changed();
         self.refinement.merge_input();
         let work = if drew { Work::Pass } else { Work::CarryOver };
@@ -419,7 +429,15 @@ impl Schedule {
         ))
     }
 
+    /// The viewers, the criteria and the stopping rule all read the filtered indirect part
+    /// (`indirect_filter`): it is brought up to date before a sync, the paced step that shows
+    /// it, when its own pace allows (`IndirectFilter::ready`).
     fn sync_viewers(&mut self) {
+        if self.filter_due && self.indirect_filter.ready(Instant::now()) {
+            self.filter_due = false;
+            let views = self.viewers.views().map(|v| &v.visible);
+            self.indirect_filter.run(&self.mesh, views, &mut self.cache);
+        }
         let input = SyncInput {
             mesh: &self.mesh,
             cache: &self.cache,

@@ -6,7 +6,7 @@ use std::sync::{Arc, Mutex};
 use glam::Vec3;
 use protocol::connection::{SceneCheck, accept_handshake};
 use protocol::renderer_link::{FromRenderer, Quality, Radiance, SampleKey, ShadePoint, ToRenderer};
-use protocol::{Role, SceneIdentity, Side, split_tcp};
+use protocol::{Role, SampleParts, SceneIdentity, Side, split_tcp};
 use scene::Scene;
 use tokio::net::TcpListener;
 
@@ -111,20 +111,24 @@ async fn serve(listener: TcpListener, scene: Scene, shading: Shading, fault: Fau
                     ),
                 })
                 .collect();
-            let luminance_variance = rgb
+            // The fake's shading is all direct light: the object-space filter of the indirect
+            // part (DESIGN.md §5) leaves it as it is.
+            let parts = rgb
                 .iter()
-                .map(|c| match fault {
-                    Fault::Noisy | Fault::NoisyTaking(_) => {
-                        (0.5 * conventions::luminance(*c)).powi(2)
-                    }
-                    _ => 0.0,
+                .map(|c| {
+                    let luminance_variance = match fault {
+                        Fault::Noisy | Fault::NoisyTaking(_) => {
+                            (0.5 * conventions::luminance(*c)).powi(2)
+                        }
+                        _ => 0.0,
+                    };
+                    SampleParts::direct_only(*c, luminance_variance)
                 })
                 .collect();
             let reply = Radiance {
                 batch_id: batch.batch_id,
                 quality: batch.quality,
-                rgb,
-                luminance_variance,
+                parts,
                 paths: vec![batch.quality.paths; batch.points.len()],
                 flags: vec![0; batch.points.len()],
                 micros: 1,

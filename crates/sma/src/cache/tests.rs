@@ -1,12 +1,12 @@
 //! Unit tests of the shading cache (DESIGN.md §5).
 use super::*;
+use protocol::SampleParts;
 use protocol::renderer_link::Quality;
 use rand::{RngExt, SeedableRng};
 
 fn sample(l: f32, quality: Quality, seen: u64) -> CachedSample {
     CachedSample {
-        rgb: [l; 3],
-        luminance_variance: 0.25,
+        parts: SampleParts::direct_only([l; 3], 0.25),
         quality,
         view_dependent: false,
         eye: None,
@@ -34,7 +34,7 @@ fn same_depth_accumulates_deeper_replaces_shallower_is_ignored() {
         CacheInsert::Upgraded,
         "a 2-bounce answer replaces direct light"
     );
-    assert_eq!(cache.get(key(3)).unwrap().rgb, [2.0; 3]);
+    assert_eq!(cache.get(key(3)).unwrap().rgb(), [2.0; 3]);
     assert_eq!(
         cache.insert(key(3), sample(9.0, Quality::DIRECT, 0)),
         CacheInsert::Ignored,
@@ -46,7 +46,7 @@ fn same_depth_accumulates_deeper_replaces_shallower_is_ignored() {
     );
     let s = cache.get(key(3)).unwrap();
     assert_eq!(
-        (s.rgb, s.quality.paths),
+        (s.rgb(), s.quality.paths),
         ([3.0; 3], 128),
         "64 + 64 paths averaged"
     );
@@ -219,7 +219,7 @@ fn eviction_keeps_memory_under_budget_over_a_long_walk() {
         assert!(
             visible
                 .iter()
-                .all(|&k| cache.get(k).is_some_and(|s| s.rgb[0] == k.vertex as f32)),
+                .all(|&k| cache.get(k).is_some_and(|s| s.rgb()[0] == k.vertex as f32)),
             "a visible sample was evicted or moved to another key"
         );
     }
@@ -273,7 +273,7 @@ fn view_dependent_samples_keep_one_radiance_per_eye() {
     let mut cache = ShadingCache::new(1 << 20);
     let at = |x: f32| Vec3::new(x, 0.0, 0.0);
     let shaded = |x: f32, quality| CachedSample {
-        rgb: [x; 3],
+        parts: SampleParts::direct_only([x; 3], 0.25),
         quality,
         ..glossy(at(x), 1)
     };
@@ -284,36 +284,36 @@ fn view_dependent_samples_keep_one_radiance_per_eye() {
         );
     }
     let seen = |cache: &ShadingCache, x| cache.get_seen_from(key(1), Some(at(x))).unwrap();
-    assert_eq!(seen(&cache, 9.0).rgb, [10.0; 3]);
+    assert_eq!(seen(&cache, 9.0).rgb(), [10.0; 3]);
     assert_eq!(seen(&cache, 9.0).eye, Some(at(10.0)));
-    assert_eq!(cache.get(key(1)).unwrap().rgb, [30.0; 3], "the latest");
+    assert_eq!(cache.get(key(1)).unwrap().rgb(), [30.0; 3], "the latest");
     // A fifth eye at 12 replaces the one at 10; the others stay.
     cache.insert(key(1), shaded(12.0, Quality::DIRECT));
-    assert_eq!(seen(&cache, 9.0).rgb, [12.0; 3]);
-    assert_eq!(seen(&cache, 1.0).rgb, [0.0; 3]);
+    assert_eq!(seen(&cache, 9.0).rgb(), [12.0; 3]);
+    assert_eq!(seen(&cache, 1.0).rgb(), [0.0; 3]);
     assert_eq!(cache.eye_variants, MAX_EYES);
     // The same eye again: its paths add to that eye's estimate; a deeper one replaces it.
     let again = CachedSample {
-        rgb: [5.0; 3],
+        parts: SampleParts::direct_only([5.0; 3], 0.25),
         ..shaded(20.0, Quality::DIRECT)
     };
     assert_eq!(cache.insert(key(1), again), CacheInsert::Upgraded);
-    assert_eq!(seen(&cache, 21.0).rgb, [12.5; 3]);
+    assert_eq!(seen(&cache, 21.0).rgb(), [12.5; 3]);
     let better = CachedSample {
         quality: Quality::INTERACTIVE,
         ..again
     };
     assert_eq!(cache.insert(key(1), better), CacheInsert::Upgraded);
-    assert_eq!(seen(&cache, 21.0).rgb, [5.0; 3]);
+    assert_eq!(seen(&cache, 21.0).rgb(), [5.0; 3]);
     assert_eq!(cache.eye_variants, MAX_EYES);
     // A diffuse reading (no eye) and a diffuse sample: the latest, then no eyes at all.
-    assert_eq!(cache.get_seen_from(key(1), None).unwrap().rgb, [5.0; 3]);
+    assert_eq!(cache.get_seen_from(key(1), None).unwrap().rgb(), [5.0; 3]);
     let best = Quality {
         paths: Quality::INTERACTIVE.paths,
         bounces: Some(3),
     };
     cache.insert(key(1), sample(7.0, best, 1));
-    assert_eq!(seen(&cache, 9.0).rgb, [7.0; 3]);
+    assert_eq!(seen(&cache, 9.0).rgb(), [7.0; 3]);
     assert!(cache.eyes.is_empty() && cache.eye_variants == 0);
 }
 

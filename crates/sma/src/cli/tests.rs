@@ -159,3 +159,29 @@ fn work_while_walking_is_on_today_off_under_the_thesis_and_a_flag_sets_it() {
     assert!(Cli::try_parse_from(flag("yes")).is_err());
     assert!(!walks(thesis(&[])) && walks(thesis(&["--work-while-walking", "on"])));
 }
+
+#[test]
+fn the_indirect_filter_is_on_by_default_and_off_by_flag_or_thesis_profile() {
+    let parsed = |args: &[&str]| {
+        let mut all = vec!["sma", "--renderer", "r:1"];
+        all.extend_from_slice(args);
+        Cli::try_parse_from(all).map(|cli| cli.config().unwrap().schedule.indirect_filter.enabled)
+    };
+    assert!(parsed(&[]).unwrap());
+    assert!(!parsed(&["--indirect-filter", "off"]).unwrap());
+    assert!(parsed(&["--indirect-filter", "on"]).unwrap());
+    assert!(parsed(&["--indirect-filter", "maybe"]).is_err());
+    assert!(!parsed(&["--profile", "thesis", "--criterion", "nld-os"]).unwrap());
+    let radius = |value: &str| {
+        Cli::try_parse_from([
+            "sma",
+            "--renderer",
+            "r:1",
+            "--indirect-filter-radius",
+            value,
+        ])
+        .map(|cli| cli.config().unwrap().schedule.indirect_filter.radius)
+    };
+    assert_eq!(radius("0.003").unwrap(), 0.003);
+    assert!(radius("1.5").is_err());
+}

@@ -3,8 +3,8 @@
 //! so the error of the Gouraud image against the truth is exact and cheap.
 
 use glam::{Vec2, Vec3};
-use protocol::Side;
 use protocol::renderer_link::{Quality, SampleKey};
+use protocol::{SampleParts, Side};
 
 use crate::cache::{CachedSample, ShadingCache};
 use crate::criteria::{CriterionInput, LuminanceImage};
@@ -115,8 +115,7 @@ impl Synthetic {
             let half = 3f32.sqrt() * per_path / (paths as f32).sqrt();
             let mean = l + rng.random_range(-half..=half);
             let sample = CachedSample {
-                rgb: [mean; 3],
-                luminance_variance: per_path * per_path,
+                parts: SampleParts::direct_only([mean; 3], per_path * per_path),
                 quality: Quality::INTERACTIVE,
                 view_dependent: false,
                 eye: None,
@@ -191,8 +190,7 @@ impl Synthetic {
                 .shading
                 .luminance(self.mesh.vertex(vertex).position.truncate(), self.n);
             let sample = CachedSample {
-                rgb: [l; 3],
-                luminance_variance: 0.0,
+                parts: SampleParts::direct_only([l; 3], 0.0),
                 quality: Quality::INTERACTIVE,
                 view_dependent: false,
                 eye: None,

@@ -48,8 +48,7 @@ impl Answers {
             let view_dependent = view_dependent.get(base).copied().unwrap_or(false)
                 || radiance.flags[i] & point_flags::VIEW_DEPENDENT != 0;
             let sample = CachedSample {
-                rgb: radiance.rgb[i],
-                luminance_variance: radiance.luminance_variance[i],
+                parts: radiance.parts[i],
                 quality: Quality {
                     paths: radiance.paths[i],
                     bounces: radiance.quality.bounces,
@@ -81,8 +80,8 @@ impl Answers {
         if *count >= MAX_REJECTIONS {
             tracing::warn!(
                 ?key,
-                rgb = ?sample.rgb,
-                variance = sample.luminance_variance,
+                parts = ?sample.parts,
+
                 paths = sample.quality.paths,
                 "renderers answered this sample badly {MAX_REJECTIONS} times: it is shown with \
                  the mean of its triangles' other vertices"
@@ -99,6 +98,7 @@ mod tests {
     use protocol::renderer_link::ShadePoint;
 
     use super::*;
+    use protocol::SampleParts;
 
     fn key(vertex: u32) -> SampleKey {
         SampleKey {
@@ -125,8 +125,10 @@ mod tests {
         let radiance = Radiance {
             batch_id: 1,
             quality: Quality::INTERACTIVE,
-            rgb: vec![[0.5; 3], [bad; 3]],
-            luminance_variance: vec![0.1; 2],
+            parts: vec![
+                SampleParts::direct_only([0.5; 3], 0.1),
+                SampleParts::direct_only([bad; 3], 0.1),
+            ],
             paths: vec![Quality::INTERACTIVE.paths; 2],
             flags: vec![0; 2],
             micros: 0,

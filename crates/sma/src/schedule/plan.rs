@@ -283,6 +283,7 @@ mod tests {
     use crate::cache::CachedSample;
     use crate::mesh::NodeId;
     use crate::visible_set::{VisibleLeaf, VisibleSet};
+    use protocol::SampleParts;
 
     /// The interactive preset's ladder up to 1024 paths, for `bases` diffuse base triangles.
     fn rules(bases: usize) -> PlanRules {
@@ -331,8 +332,7 @@ mod tests {
             cache.insert(
                 key,
                 CachedSample {
-                    rgb: [0.2; 3],
-                    luminance_variance,
+                    parts: SampleParts::direct_only([0.2; 3], luminance_variance),
                     quality,
                     view_dependent: false,
                     eye: None,

@@ -124,6 +124,7 @@ mod tests {
     use super::*;
     use crate::cache::CachedSample;
     use crate::mesh::grid_mesh;
+    use protocol::SampleParts;
 
     fn cache_all(mesh: &SubdivisionMesh, cache: &mut ShadingCache, value: f32) {
         for vertex in 0..mesh.vertex_count() as u32 {
@@ -133,8 +134,7 @@ mod tests {
                     side: Side::Front,
                 },
                 CachedSample {
-                    rgb: [value; 3],
-                    luminance_variance: 0.0,
+                    parts: SampleParts::direct_only([value; 3], 0.0),
                     quality: Quality::INTERACTIVE,
                     view_dependent: false,
                     eye: None,

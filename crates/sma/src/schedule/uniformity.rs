@@ -154,7 +154,7 @@ fn predicts(
     l_white: f32,
     display_error: f32,
 ) -> bool {
-    let rgb: [f32; 3] = std::array::from_fn(|i| 0.5 * (a.rgb[i] + b.rgb[i]));
+    let rgb: [f32; 3] = std::array::from_fn(|i| 0.5 * (a.rgb()[i] + b.rgb()[i]));
     let (shown, slope) = map.display_and_slope(luminance(rgb));
     let predicted_error = slope * 0.5 * a.standard_error().hypot(b.standard_error());
     let at_m = m.displayed(map);
@@ -163,7 +163,7 @@ fn predicts(
         return false;
     }
     let channels = |rgb: [f32; 3]| ToneMap::Drago.display_rgb(rgb, l_white).map(srgb_encode);
-    let (at_m, shown) = (channels(m.rgb), channels(rgb));
+    let (at_m, shown) = (channels(m.rgb()), channels(rgb));
     at_m.iter()
         .zip(&shown)
         .all(|(x, y)| (x - y).abs() <= allowance)

@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::cache::CachedSample;
-use protocol::Side;
+use protocol::{SampleParts, Side};
 
 fn need(vertex: u32, quality: Quality, urgency: Urgency, priority: f32) -> Need {
     let key = SampleKey {
@@ -260,8 +260,7 @@ fn needs_satisfied_while_queued_leave_nothing_outstanding_once_submission_passes
             side: Side::Front,
         };
         let sample = CachedSample {
-            rgb: [1.0; 3],
-            luminance_variance: 0.0,
+            parts: SampleParts::direct_only([1.0; 3], 0.0),
             quality: Quality::INTERACTIVE,
             view_dependent: false,
             eye: None,

@@ -8,6 +8,7 @@ use crate::cache::CachedSample;
 use crate::mesh::invariants::{apply, check};
 use crate::mesh::test_meshes::grid;
 use crate::visible_set::VisibleLeaf;
+use protocol::SampleParts;
 
 /// The scene's depth, and the paths from which the ladder believes a variance (a scene of 64
 /// paths: its first rung above).
@@ -33,8 +34,7 @@ fn config() -> ScheduleConfig {
 
 fn sample(l: f32, luminance_variance: f32, paths: u32) -> CachedSample {
     CachedSample {
-        rgb: [l; 3],
-        luminance_variance,
+        parts: SampleParts::direct_only([l; 3], luminance_variance),
         quality: Quality {
             paths,
             bounces: DEPTH,

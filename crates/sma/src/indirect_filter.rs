@@ -1,0 +1,358 @@
+//! The object-space filter of the indirect part (DESIGN.md §5, "Parts, and textures"): indirect
+//! light is smooth, so a vertex's shown indirect estimate borrows from the samples of its
+//! neighbours: path-space filtering (Keller et al. 2016), with the neighbours found by a spatial
+//! hash over vertex positions (Binder et al. 2019). The direct part, which holds the sharp
+//! shadows, is never filtered.
+//!
+//! A neighbour counts when it lies within a world-space radius of the vertex, on a surface facing
+//! the same way (its shown normal within [`IndirectFilterSettings::min_normal_cos`]), at the same
+//! bounce depth, and only where the difference of the two indirect estimates is explained by
+//! their noise: the criteria's own test (`nld::NOISE_Z` combined standard errors), here in
+//! radiance units, where it is the displayed test with the display slope cancelled. Each counted
+//! sample (the vertex's own among them) is weighted by the inverse variance of its mean, so the
+//! shown mean is the minimum-variance combination and its variance the inverse of the summed
+//! weights (taking the neighbours' noise as independent, which it is: each vertex has its own
+//! paths).
+//!
+//! The radius shrinks as the vertex's paths accumulate, as n^(-1/4) (the progressive photon
+//! mapping rate of Hachisuka et al.: the bias falls with the radius while the neighbours, ∝ r²,
+//! fall slower than the paths grow, so the shown variance still falls as n^(-1/2)): the filtered
+//! estimate converges to the vertex's own. View-dependent samples (their indirect part is a
+//! reflection, not smooth), samples of fewer than two paths (no variance yet) and samples whose
+//! neighbours all differ are shown as they are.
+//!
+//! The samples filtered, and the neighbours they borrow from, are those of the viewers' visible
+//! leaves (one gather per run, not a scan of the whole cache): a sample's shown value can change
+//! when another view brings its neighbours in, and reaches a viewer at its next sync.
+//!
+//! What the filter leaves is the cache's shown indirect part (`ShadingCache::set_shown_indirect`),
+//! which every reader of a sample (viewer inserts, criteria, L_white, the stopping rule) reads:
+//! they judge the filtered estimate and its reduced uncertainty.
+
+use std::collections::HashMap;
+use std::time::Instant;
+
+use glam::{IVec3, Vec3};
+use protocol::renderer_link::SampleKey;
+use protocol::{PartEstimate, Side};
+
+use crate::cache::ShadingCache;
+use crate::mesh::SubdivisionMesh;
+use crate::mesh::fast_hash::FastHash;
+use crate::nld::NOISE_Z;
+use crate::sample::{Depth, Estimate};
+use crate::visible_set::VisibleSet;
+use conventions::luminance;
+
+/// The filter's settings, plain values (`cli` fills them from flags).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IndirectFilterSettings {
+    /// Off: every sample is shown as the renderers answered it (the thesis's, and the control
+    /// to measure the filter against).
+    pub enabled: bool,
+    /// The radius at [`REFERENCE_PATHS`] paths, as a fraction of the scene's bounding-box
+    /// diagonal.
+    pub radius: f32,
+    /// Least cosine between two samples' shown normals for one to borrow from the other.
+    pub min_normal_cos: f32,
+}
+
+impl Default for IndirectFilterSettings {
+    fn default() -> Self {
+        IndirectFilterSettings {
+            enabled: true,
+            // A hundredth of the scene: about a metre of bracara, a few leaves of a refined
+            // wall, well within the range over which its indirect light is smooth. Not a
+            // measured optimum: the noise test keeps a larger one from blurring.
+            radius: 0.01,
+            // Within about 18°: a crease or a corner is not filtered across.
+            min_normal_cos: 0.95,
+        }
+    }
+}
+
+/// Paths at which the radius is [`IndirectFilterSettings::radius`]: the interactive preset's.
+pub const REFERENCE_PATHS: f32 = 64.0;
+
+/// The radius for a sample of `paths` paths, in scene units (`diagonal`: the scene's bounding-box
+/// diagonal): shrinking as paths^(-1/4).
+pub fn radius_at(settings: &IndirectFilterSettings, diagonal: f32, paths: u32) -> f32 {
+    let paths = (paths.max(1)) as f32;
+    settings.radius * diagonal * (REFERENCE_PATHS / paths).powf(0.25)
+}
+
+/// A sample the filter reads: where it is, which way it faces, its indirect part.
+#[derive(Clone, Copy, Debug)]
+struct Candidate {
+    key: SampleKey,
+    position: Vec3,
+    normal: Vec3,
+    indirect: PartEstimate,
+    /// The indirect part's luminance.
+    luminance: f32,
+    /// The variance of the mean of its luminance.
+    mean_variance: f32,
+    paths: u32,
+    depth: Depth,
+}
+
+/// Below this variance of a mean a sample's weight stops growing: one sample of an exactly
+/// known value (an indirect part that is 0 on every path) is not allowed an infinite weight.
+const MIN_MEAN_VARIANCE: f32 = 1e-12;
+
+/// The filter, with what it keeps from pass to pass: the scene's diagonal, and its buffers.
+#[derive(Debug, Default)]
+pub struct IndirectFilter {
+    settings: IndirectFilterSettings,
+    diagonal: f32,
+    candidates: Vec<Candidate>,
+    /// The hash's cell size, the largest radius in use.
+    cell_size: f32,
+    /// Candidate indices sorted by cell, and each cell's range in it.
+    sorted: Vec<u32>,
+    cells: HashMap<u64, (u32, u32), FastHash>,
+    /// Which (vertex, side) slots `gather` has taken, by `2 vertex + side`.
+    taken: Vec<bool>,
+    /// When the next run may start ([`IndirectFilter::ready`]).
+    next_run: Option<Instant>,
+}
+
+/// A run of the filter is followed by this many times its own duration without one: it takes
+/// at most a fifth of the SMA thread. Run at every sync, its cost (tens of milliseconds at
+/// 50k visible samples) slowed refinement: on bracara MC, VR and VT at 512×384 the views had
+/// a quarter fewer leaves at 5 s than without the filter. Between runs a sample that got
+/// paths is shown unfiltered.
+const SPACING: u32 = 4;
+
+/// What one run of the filter did, for its tests and the benchmark.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FilterRun {
+    /// Samples whose shown indirect part was set.
+    pub filtered: usize,
+    /// Of them, those that borrowed from at least one neighbour.
+    pub borrowed: usize,
+    /// Neighbours borrowed from, summed over the samples.
+    pub neighbours: usize,
+}
+
+impl IndirectFilter {
+    pub fn new(settings: IndirectFilterSettings, mesh: &SubdivisionMesh) -> IndirectFilter {
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for v in 0..mesh.vertex_count() as u32 {
+            let p = mesh.vertex(v).position;
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+        IndirectFilter {
+            settings,
+            diagonal: if lo.x <= hi.x { lo.distance(hi) } else { 0.0 },
+            ..IndirectFilter::default()
+        }
+    }
+
+    pub fn settings(&self) -> &IndirectFilterSettings {
+        &self.settings
+    }
+
+    /// Whether a run may start at `now`: spaced by its own cost ([`SPACING`]).
+    pub fn ready(&self, now: Instant) -> bool {
+        self.next_run.is_none_or(|next| now >= next)
+    }
+
+    /// Sets the shown indirect part of every sample of `views`' leaves (all of them, on their
+    /// seen sides). Off, it does nothing: the shown part stays the answered one.
+    pub fn run<'a>(
+        &mut self,
+        mesh: &SubdivisionMesh,
+        views: impl IntoIterator<Item = &'a VisibleSet>,
+        cache: &mut ShadingCache,
+    ) -> FilterRun {
+        if !self.settings.enabled || self.diagonal <= 0.0 {
+            return FilterRun::default();
+        }
+        let start = Instant::now();
+        self.gather(mesh, views, cache);
+        self.hash();
+        let mut run = FilterRun::default();
+        for i in 0..self.candidates.len() {
+            let (shown, neighbours) = self.filtered(i);
+            cache.set_shown_indirect(self.candidates[i].key, shown);
+            run.filtered += 1;
+            run.borrowed += usize::from(neighbours > 0);
+            run.neighbours += neighbours;
+        }
+        let spent = start.elapsed();
+        self.next_run = Some(start + spent + spent * SPACING);
+        run
+    }
+
+    /// The samples to filter, once each: diffuse, of at least two paths.
+    fn gather<'a>(
+        &mut self,
+        mesh: &SubdivisionMesh,
+        views: impl IntoIterator<Item = &'a VisibleSet>,
+        cache: &ShadingCache,
+    ) {
+        self.candidates.clear();
+        self.taken.clear();
+        self.taken.resize(2 * mesh.vertex_count(), false);
+        for view in views {
+            for v in &view.leaves {
+                for vertex in mesh.node(v.leaf).vertices {
+                    let key = SampleKey {
+                        vertex,
+                        side: v.side,
+                    };
+                    let slot = 2 * vertex as usize + usize::from(v.side == Side::Back);
+                    if std::mem::replace(&mut self.taken[slot], true) {
+                        continue;
+                    }
+                    if let Some(c) = candidate(mesh, cache, key) {
+                        self.candidates.push(c);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The largest radius in use: that of the sample of fewest paths.
+    fn cell_size(&self) -> f32 {
+        let largest = self
+            .candidates
+            .iter()
+            .map(|c| c.paths)
+            .min()
+            .map_or(0.0, |p| radius_at(&self.settings, self.diagonal, p));
+        largest.max(f32::MIN_POSITIVE)
+    }
+
+    fn cell_of(&self, p: Vec3, size: f32) -> IVec3 {
+        (p / size).floor().as_ivec3()
+    }
+
+    /// A cell as one hash key, 21 bits an axis. A scene is far fewer cells across (the largest
+    /// radius is over a ten-thousandth of its diagonal at any path count a `u32` holds); were
+    /// two cells to share a key, they would only be searched together: the distance test still
+    /// decides.
+    fn cell_key(c: IVec3) -> u64 {
+        let axis = |v: i32| u64::from(v as u32 & 0x1F_FFFF);
+        axis(c.x) | axis(c.y) << 21 | axis(c.z) << 42
+    }
+
+    /// Sorts the candidates by cell of the largest radius, so that every neighbour of one lies
+    /// in its cell or the 26 around it.
+    fn hash(&mut self) {
+        let size = self.cell_size();
+        self.cell_size = size;
+        let key: Vec<u64> = self
+            .candidates
+            .iter()
+            .map(|c| Self::cell_key(self.cell_of(c.position, size)))
+            .collect();
+        self.sorted.clear();
+        self.sorted.extend(0..self.candidates.len() as u32);
+        self.sorted.sort_unstable_by_key(|&i| key[i as usize]);
+        self.cells.clear();
+        let mut start = 0;
+        while start < self.sorted.len() {
+            let k = key[self.sorted[start] as usize];
+            let end = start
+                + self.sorted[start..]
+                    .iter()
+                    .take_while(|&&i| key[i as usize] == k)
+                    .count();
+            self.cells.insert(k, (start as u32, end as u32));
+            start = end;
+        }
+    }
+
+    /// Candidate `i`'s shown indirect part, and how many neighbours it borrowed from.
+    fn filtered(&self, i: usize) -> (PartEstimate, usize) {
+        let me = &self.candidates[i];
+        let radius = radius_at(&self.settings, self.diagonal, me.paths);
+        let centre = self.cell_of(me.position, self.cell_size);
+        let mut sum = WeightedSum::default();
+        sum.add(me);
+        let mut neighbours = 0;
+        for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let cell = Self::cell_key(centre + IVec3::new(dx, dy, dz));
+                    let Some(&(a, b)) = self.cells.get(&cell) else {
+                        continue;
+                    };
+                    for &j in &self.sorted[a as usize..b as usize] {
+                        let other = &self.candidates[j as usize];
+                        if j as usize != i && self.agrees(me, other, radius) {
+                            sum.add(other);
+                            neighbours += 1;
+                        }
+                    }
+                }
+            }
+        }
+        if neighbours == 0 {
+            return (me.indirect, 0);
+        }
+        (sum.estimate(me.paths), neighbours)
+    }
+
+    /// Whether `me` may borrow from `other`: near, facing the same way, at the same depth, and
+    /// different by no more than their noise explains.
+    fn agrees(&self, me: &Candidate, other: &Candidate, radius: f32) -> bool {
+        me.position.distance_squared(other.position) <= radius * radius
+            && me.normal.dot(other.normal) >= self.settings.min_normal_cos
+            && me.depth == other.depth
+            && (me.luminance - other.luminance).abs()
+                <= NOISE_Z * (me.mean_variance + other.mean_variance).sqrt()
+    }
+}
+
+/// The filter's view of one cached sample, if it is one to filter.
+fn candidate(mesh: &SubdivisionMesh, cache: &ShadingCache, key: SampleKey) -> Option<Candidate> {
+    let (estimate, view_dependent): (Estimate, bool) = cache.answered(key)?;
+    if view_dependent || estimate.paths < 2 {
+        return None;
+    }
+    let vertex = mesh.vertex(key.vertex);
+    let indirect = estimate.parts.indirect;
+    Some(Candidate {
+        key,
+        position: vertex.position,
+        normal: vertex.normal * key.side.sign(),
+        indirect,
+        luminance: luminance(indirect.rgb),
+        mean_variance: indirect.luminance_variance / estimate.paths as f32,
+        paths: estimate.paths,
+        depth: estimate.depth,
+    })
+}
+
+/// The inverse-variance weighted sum of indirect parts.
+#[derive(Default)]
+struct WeightedSum {
+    rgb: [f64; 3],
+    weight: f64,
+}
+
+impl WeightedSum {
+    fn add(&mut self, c: &Candidate) {
+        let w = 1.0 / f64::from(c.mean_variance.max(MIN_MEAN_VARIANCE));
+        for (sum, &v) in self.rgb.iter_mut().zip(&c.indirect.rgb) {
+            *sum += w * f64::from(v);
+        }
+        self.weight += w;
+    }
+
+    /// The weighted mean, with its variance in per-path units for a sample of `paths` paths
+    /// (the cache's convention: the standard error is sqrt(variance / paths)).
+    fn estimate(&self, paths: u32) -> PartEstimate {
+        PartEstimate {
+            rgb: self.rgb.map(|s| (s / self.weight) as f32),
+            luminance_variance: (f64::from(paths) / self.weight) as f32,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;
