@@ -8,6 +8,7 @@
 //! - [`convergence`], [`accuracy`] and [`cost`]: the end-to-end measurements of DESIGN.md §10,
 //!   with [`metrics`], [`plots`] and [`strips`]; [`reproduction`]: the thesis's findings beside
 //!   ours, from convergence runs of both profiles;
+//! - [`walk`]: a scripted walk of each scene, the system against a per-pixel viewport;
 //! - [`ray_throughput`]: the ray-throughput table of the [`renderer`] section;
 //! - [`stats`] (medians, least squares) and [`machine`]: shared by all;
 //! - [`product`]: where the `walkthrough` binary the benchmarks start is;
@@ -33,3 +34,4 @@ pub mod sma_service;
 pub mod stats;
 pub mod strips;
 pub mod viewer;
+pub mod walk;

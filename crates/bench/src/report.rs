@@ -16,9 +16,9 @@ const SECTIONS: &[Section] = &[
     ("farm", super::farm::section),
 ];
 
-/// Sections written by the long end-to-end benchmarks (`convergence`, `accuracy`, `cost`) and
-/// from their runs (`reproduction`).
-const EXTERNAL_SECTIONS: &[&str] = &["convergence", "accuracy", "cost", "reproduction"];
+/// Sections written by the long end-to-end benchmarks (`convergence`, `accuracy`, `cost`,
+/// `walk`) and from their runs (`reproduction`).
+const EXTERNAL_SECTIONS: &[&str] = &["convergence", "accuracy", "cost", "reproduction", "walk"];
 
 const SECTION_DIR: &str = "docs/bench";
 

@@ -39,9 +39,10 @@ const HELD_BEFORE_DRAWING: usize = MAX_WAITING_BYTES / 2;
 pub const CSV_NAME: &str = "snapshots.csv";
 /// `inserted`/`removed` are summed over the epochs since the previous snapshot (Δins, Δrem);
 /// `camera_seq`, `shown`, `samples`, `paths` and `outstanding` are the latest epoch's;
-/// `renderer_busy` and `converged` the latest `Stats`' (one interval of the SMA's, about a second).
+/// `renderer_busy`, `converged`, `leaves` and `cached_samples` the latest `Stats`' (one interval
+/// of the SMA's, about a second).
 pub const CSV_HEADER: &str = "index,time_s,camera_seq,shown,inserted,removed,samples,paths,\
-                              outstanding,renderer_busy,converged,png,exr";
+                              outstanding,renderer_busy,converged,leaves,cached_samples,png,exr";
 
 /// One CSV row.
 #[derive(Clone, Debug, PartialEq)]
@@ -57,6 +58,9 @@ pub struct SnapshotRecord {
     pub outstanding: u64,
     pub renderer_busy: f32,
     pub converged: bool,
+    /// The SMA's mesh leaves and cached samples (what `Stats` says of its memory).
+    pub leaves: u64,
+    pub cached_samples: u64,
 }
 
 /// Draws and writes snapshots on a background thread of the lowest priority (see the module
@@ -319,7 +323,7 @@ impl SnapshotFiles {
         let r = record;
         writeln!(
             self.csv,
-            "{},{:.3},{},{},{},{},{},{},{},{:.3},{},{png},{exr}",
+            "{},{:.3},{},{},{},{},{},{},{},{:.3},{},{},{},{png},{exr}",
             r.index,
             r.time_s,
             r.camera_seq,
@@ -330,7 +334,9 @@ impl SnapshotFiles {
             r.paths,
             r.outstanding,
             r.renderer_busy,
-            u8::from(r.converged)
+            u8::from(r.converged),
+            r.leaves,
+            r.cached_samples
         )?;
         self.csv.flush()?;
         Ok(())
@@ -375,6 +381,8 @@ mod tests {
             outstanding: 0,
             renderer_busy: 0.0,
             converged: false,
+            leaves: 0,
+            cached_samples: 0,
         }
     }
 

@@ -24,6 +24,10 @@ pub struct Snapshot {
     /// The SMA's latest `Stats`: the renderers' busy share, and whether the view converged.
     pub renderer_busy: f64,
     pub converged: bool,
+    /// The SMA's mesh leaves and cached samples, as its latest `Stats` says (0 in a record
+    /// written before the viewer recorded them).
+    pub leaves: u64,
+    pub cached_samples: u64,
     /// The linear image.
     pub exr: PathBuf,
 }
@@ -87,6 +91,9 @@ fn parse(text: &str, dir: &Path) -> anyhow::Result<Vec<Snapshot>> {
         converged?,
         exr?,
     );
+    // Columns a record written by an older viewer lacks.
+    let leaves = header.get("leaves").copied();
+    let cached_samples = header.get("cached_samples").copied();
     let (mut total_inserted, mut total_removed) = (0, 0);
     lines
         .map(|line| {
@@ -119,6 +126,8 @@ fn parse(text: &str, dir: &Path) -> anyhow::Result<Vec<Snapshot>> {
                     .parse()
                     .with_context(|| format!("busy {:?}", fields[busy]))?,
                 converged: fields[converged] == "1",
+                leaves: leaves.map_or(Ok(0), int)?,
+                cached_samples: cached_samples.map_or(Ok(0), int)?,
                 exr: dir.join(fields[exr]),
             })
         })
@@ -146,6 +155,16 @@ mod tests {
         assert_eq!((run[1].paths, run[1].renderer_busy), (96000, 0.95));
         assert!(run[2].converged && !run[1].converged);
         assert_eq!(run[2].exr, Path::new("/r/snapshot_002.exr"));
+        assert_eq!(run[2].leaves, 0, "an older record has no leaves column");
+    }
+
+    #[test]
+    fn reads_the_memory_the_stats_report() {
+        let csv = "index,time_s,camera_seq,shown,inserted,removed,samples,paths,outstanding,\
+                   renderer_busy,converged,leaves,cached_samples,png,exr\n\
+                   0,0.500,1,7,7,0,10,640,0,0.500,0,1200,3400,snapshot_000.png,snapshot_000.exr\n";
+        let run = parse(csv, Path::new("/r")).unwrap();
+        assert_eq!((run[0].leaves, run[0].cached_samples), (1200, 3400));
     }
 
     #[test]
