@@ -210,6 +210,9 @@ pub struct WalkArgs {
     /// Ground truth EXRs (big: an ignored folder).
     #[arg(long, default_value = "out/gt")]
     pub gt_cache: PathBuf,
+    /// Moments judged per pass (default 30, quick 2; at most 30: the 60 a walk).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=30))]
+    pub moments: Option<u16>,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Flags passed on to `walkthrough sma`, e.g. `--sma-flags=--work-while-walking,off`.
@@ -225,13 +228,15 @@ pub struct WalkArgs {
 
 impl WalkArgs {
     fn config(self) -> crate::walk::WalkConfig {
+        let defaults = crate::walk::WalkConfig::new(self.quick, self.out, self.runs, self.gt_cache);
         crate::walk::WalkConfig {
+            moments: self.moments.map_or(defaults.moments, usize::from),
             scene: self.scene,
             seed: self.seed,
             sma_flags: self.sma_flags,
             no_report: self.no_report,
             write_paths: self.write_paths,
-            ..crate::walk::WalkConfig::new(self.quick, self.out, self.runs, self.gt_cache)
+            ..defaults
         }
     }
 }

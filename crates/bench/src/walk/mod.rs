@@ -121,16 +121,19 @@ pub fn run(config: WalkConfig) -> anyhow::Result<()> {
     let exe = crate::product::walkthrough_exe()?;
     std::fs::create_dir_all(&config.out)?;
     let mut results = Vec::new();
+    let mut md = String::new();
     for walkable in scenes(config.scene.as_deref())? {
         eprintln!("walk: {}", walkable.route.scene);
         results.push(walk_scene(&config, &exe, &walkable)?);
+        // After each scene: a long run stopped later keeps what it measured.
+        md = section::write(&config, &results)?;
+        if !config.no_report {
+            std::fs::create_dir_all(Path::new(SECTION).parent().expect("a folder"))?;
+            std::fs::write(SECTION, &md)?;
+            crate::report::assemble(Path::new("BENCHMARKS.md"))?;
+        }
     }
-    let md = section::write(&config, &results)?;
-    if !config.no_report {
-        std::fs::create_dir_all(Path::new(SECTION).parent().expect("a folder"))?;
-        std::fs::write(SECTION, &md)?;
-        crate::report::assemble(Path::new("BENCHMARKS.md"))?;
-    }
+    print!("{md}");
     Ok(())
 }
 

@@ -333,6 +333,9 @@ fn mm(v: Vec3) -> Vec3 {
     (v * 1000.0).round() / 1000.0
 }
 
+/// A stop's subject direction, and the walking seconds to or from it.
+type Subject = (Vec3, f32);
+
 /// Where the gaze goes at walking step `k` of a pass (`walked_s`: seconds walked in this pass
 /// so far): ahead with a head turn, blended towards the stop before or after within `TURN_S`.
 struct Gaze<'a> {
@@ -342,7 +345,7 @@ struct Gaze<'a> {
 impl Gaze<'_> {
     /// The subject direction of the nearest hold before phase `i` and after it, with the walking
     /// seconds to each.
-    fn neighbours(&self, i: usize, s: f32) -> (Option<(Vec3, f32)>, Option<(Vec3, f32)>) {
+    fn neighbours(&self, i: usize, s: f32) -> (Option<Subject>, Option<Subject>) {
         let secs = |p: &Phase| p.steps() as f32 / STEPS_PER_SECOND as f32;
         let subject = |p: &Phase| match p {
             Phase::Hold { at, look_at, .. } => Some(*look_at - *at),
