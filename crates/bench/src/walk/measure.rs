@@ -20,6 +20,9 @@ const STOP_DELAYS: [f64; 15] = [
 ];
 /// The last snapshot of a stop is this long before it ends.
 const BEFORE_END_S: f64 = 0.05;
+/// A moment's snapshot taken later than this after it shows another camera than the moment's
+/// (1.4 m/s: 7 cm): it is left out, as is a stop's snapshot taken after the stop ended.
+const MOMENT_LATENESS_S: f64 = 0.05;
 
 /// The two systems, as the CSV and the section name them.
 pub(crate) const SYSTEM: &str = "system";
@@ -36,6 +39,8 @@ pub(crate) struct Ask {
     /// The camera the picture is judged against (the stop's, or the moment's).
     pub camera: WalkCamera,
     time_s: f64,
+    /// A snapshot taken after this shows another camera.
+    until_s: f64,
 }
 
 impl Ask {
@@ -65,6 +70,7 @@ pub(crate) fn asks(plan: &WalkPlan) -> Vec<Ask> {
                 number: stop.number,
                 camera: stop.camera,
                 time_s: stop.start_s() + since,
+                until_s: stop.start_s() + stop.seconds(),
             });
         }
     }
@@ -74,6 +80,7 @@ pub(crate) fn asks(plan: &WalkPlan) -> Vec<Ask> {
         number: m.number,
         camera: m.camera,
         time_s: m.camera.time_s(),
+        until_s: m.camera.time_s() + MOMENT_LATENESS_S,
     }));
     asks.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
     asks
@@ -185,6 +192,8 @@ pub(crate) struct SceneResult {
     pub cpu: testkit::loopback::CpuShares,
     pub viewport_fps: f64,
     pub viewport_walking_fps: f64,
+    /// The system's snapshots taken too late to show the camera asked for, left out.
+    pub late: usize,
 }
 
 /// The stops' and moments' ground truths' costs.
@@ -210,9 +219,14 @@ pub(crate) fn judge(
         .map(|&(t, b)| (t, b as f64 / MB))
         .collect();
     let taken = matched_snapshots(&asks, &system.snapshots)?;
-    let mut rows: Vec<Row> = asks
-        .par_iter()
+    let in_time: Vec<(&Ask, &Snapshot)> = asks
+        .iter()
         .zip(taken)
+        .filter(|(ask, s)| s.time_s < ask.until_s)
+        .collect();
+    let late = asks.len() - in_time.len();
+    let mut rows: Vec<Row> = in_time
+        .into_par_iter()
         .map(|(ask, s)| {
             let error = refs
                 .of(&ask.camera)
@@ -268,6 +282,7 @@ pub(crate) fn judge(
         cpu: system.cpu,
         viewport_fps: viewport.frames_per_second(),
         viewport_walking_fps: viewport.walking_frames_per_second(),
+        late,
         plan,
     })
 }
@@ -317,11 +332,11 @@ pub(crate) fn time_to(rows: &[&Row], level: f64) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::walk::route;
+    use crate::walk::{route, sites};
 
     #[test]
     fn every_stop_and_moment_is_asked_in_time_order_and_within_its_stop() {
-        let plan = route::generate(&route::bracara().quick(2.5, 1.5), 2);
+        let plan = route::generate(&sites::bracara().quick(2.5, 1.5), 2);
         let asks = asks(&plan);
         assert!(asks.windows(2).all(|w| w[0].time_s <= w[1].time_s));
         assert_eq!(asks.iter().filter(|a| a.kind() == "moment").count(), 4);
@@ -353,7 +368,7 @@ mod tests {
             cached_samples: 0,
             exr: format!("{t}.exr").into(),
         };
-        let plan = route::generate(&route::bracara().quick(2.5, 1.5), 1);
+        let plan = route::generate(&sites::bracara().quick(2.5, 1.5), 1);
         let asks: Vec<Ask> = asks(&plan).into_iter().take(3).collect();
         let snaps: Vec<Snapshot> = asks.iter().map(|a| snap(a.time_s + 0.015)).collect();
         let matched = matched_snapshots(&asks, &snaps).unwrap();

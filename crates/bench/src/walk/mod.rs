@@ -10,6 +10,7 @@
 pub(crate) mod measure;
 pub(crate) mod route;
 mod section;
+pub(crate) mod sites;
 pub(crate) mod truths;
 pub(crate) mod viewport;
 
@@ -139,7 +140,7 @@ pub fn run(config: WalkConfig) -> anyhow::Result<()> {
 
 /// Every route's path file, as the viewer reads it.
 pub fn path_files() -> Vec<(String, String)> {
-    [route::bracara(), route::sponza()]
+    [sites::bracara(), sites::sponza()]
         .iter()
         .map(|r| {
             (
@@ -166,8 +167,8 @@ fn scenes(scene: Option<&str>) -> anyhow::Result<Vec<Walkable>> {
             .with_context(|| format!("loading {spec}"))?
             .name;
         let route = match name.as_str() {
-            "bracara" => route::bracara(),
-            "sponza" => route::sponza(),
+            "bracara" => sites::bracara(),
+            "sponza" => sites::sponza(),
             other => anyhow::bail!("no walk is scripted for scene {other} (bracara, sponza)"),
         };
         Ok(Walkable {

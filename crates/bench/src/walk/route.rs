@@ -24,6 +24,8 @@ const GLANCE_DEG: f32 = 20.0;
 const GLANCE_PERIOD_S: f32 = 7.0;
 /// While walking the eyes look this far below the horizon (the ground a few metres ahead).
 const WALKING_PITCH_DEG: f32 = -4.0;
+/// A move between two steps longer than this is a cut (the second pass's start).
+const CUT_M: f32 = 1.0;
 /// Passes over the route.
 pub(crate) const PASSES: u32 = 2;
 
@@ -50,105 +52,6 @@ pub(crate) struct Route {
     pub fov_y_deg: f32,
 }
 
-fn stop(look_at: [f32; 3], seconds: f32, what: &'static str) -> Leg {
-    Leg::Stop {
-        look_at,
-        seconds,
-        what,
-    }
-}
-
-/// The built-in Roman town (`scene::builtin::bracara`): from outside the city wall through the
-/// gate, up the colonnaded street, round the pool to the temple front, and back to the street's
-/// end looking down it to the gate. About 173 m and eight stops: 165 s a pass.
-pub(crate) fn bracara() -> Route {
-    use Leg::To;
-    Route {
-        scene: "bracara",
-        start: (2.0, 110.0),
-        fov_y_deg: 60.0,
-        legs: vec![
-            stop(
-                [0.0, 6.0, 80.0],
-                5.0,
-                "the city wall and its gate (view MC)",
-            ),
-            To(0.5, 92.0),
-            To(0.0, 79.5),
-            To(-1.5, 60.0),
-            stop(
-                [0.5, 3.0, -20.0],
-                3.0,
-                "down the street to the temple (view VR)",
-            ),
-            To(-3.5, 40.0),
-            stop([6.0, 1.5, 33.0], 2.0, "the east portico in the low sun"),
-            To(2.5, 20.0),
-            stop([-9.0, 4.0, 14.0], 4.0, "the west portico and houses"),
-            To(0.0, 0.0),
-            To(-9.0, -11.0),
-            stop(
-                [0.0, 6.0, -40.0],
-                8.0,
-                "the temple front past the pool (view VT)",
-            ),
-            To(-6.5, -20.0),
-            stop([0.0, 0.35, -21.0], 3.0, "the pool's reflection"),
-            To(-6.5, -29.5),
-            stop([-4.5, 9.0, -36.0], 6.0, "the temple's columns, looking up"),
-            To(-6.5, -12.0),
-            To(3.0, -6.0),
-            stop([0.0, 4.0, 78.0], 10.0, "back down the street to the gate"),
-        ],
-    }
-}
-
-/// Dabrovic Sponza (`scenes/sponza.toml`): round the courtyard, through the gaps between the
-/// ground-floor pillars (x ≈ -9.0, 0.1, 4.7, 9.15) into both galleries, and back to the start,
-/// so the second pass follows on without a cut. About 90 m and eight stops: 104 s a pass.
-pub(crate) fn sponza() -> Route {
-    use Leg::To;
-    Route {
-        scene: "sponza",
-        start: (-10.0, 1.5),
-        fov_y_deg: 60.0,
-        legs: vec![
-            stop(
-                [4.0, 0.8, -2.5],
-                5.0,
-                "the courtyard floor, pillar shadows (view S1)",
-            ),
-            To(-2.0, 0.5),
-            stop(
-                [2.0, 9.0, -3.5],
-                4.0,
-                "the arches of the -z facade, looking up",
-            ),
-            To(6.0, 0.0),
-            stop([6.0, 1.5, 6.0], 3.0, "into the shaded +z gallery"),
-            To(9.15, 0.0),
-            To(9.15, -5.2),
-            stop([-10.0, 1.2, -5.2], 6.0, "along the -z gallery, sun patches"),
-            To(0.1, -5.2),
-            stop([0.1, 0.5, 0.0], 3.0, "out to the sunlit courtyard floor"),
-            To(-10.5, -5.2),
-            stop(
-                [3.0, 1.0, -3.4],
-                8.0,
-                "the -z gallery from its end (view S2)",
-            ),
-            To(-9.0, -2.8),
-            To(-9.0, 2.8),
-            To(-9.0, 5.2),
-            stop([10.0, 1.2, 5.2], 4.0, "along the +z gallery"),
-            To(4.7, 5.2),
-            To(4.7, 0.0),
-            stop([-4.0, 6.0, -3.5], 7.0, "the -z facade in the sun"),
-            To(-10.0, 1.5),
-        ],
-    }
-}
-
 impl Route {
     /// A short walk for smoke runs: the first stop, a few metres of the first stretch, and a
     /// stop at its end looking at the second stop's subject; stops of `stop_s`.
@@ -169,7 +72,11 @@ impl Route {
         let (from, to) = (flat(self.start), flat(first_to));
         let end = from + (to - from).normalize_or_zero() * metres.min(from.distance(to));
         let shorten = |leg: &Leg| match *leg {
-            Leg::Stop { look_at, what, .. } => stop(look_at, stop_s, what),
+            Leg::Stop { look_at, what, .. } => Leg::Stop {
+                look_at,
+                seconds: stop_s,
+                what,
+            },
             Leg::To(..) => *leg,
         };
         let mut legs = vec![shorten(stops[0]), Leg::To(end.x, end.z)];
@@ -530,30 +437,34 @@ impl WalkPlan {
             if inside_hold {
                 continue;
             }
-            let _ = writeln!(
-                text,
-                "{:.3} {:.3} {:.3} {:.3} {:.3} {:.3} {:.3} {}",
-                c.time_s(),
-                c.eye.x,
-                c.eye.y,
-                c.eye.z,
-                c.target.x,
-                c.target.y,
-                c.target.z,
-                self.fov_y_deg
-            );
+            self.keyframe(&mut text, c.time_s(), c);
+            // Where the second pass starts with a cut, the last camera holds until just before
+            // it: the viewer's interpolation would sweep across the site within one step.
+            let next = k + 1;
+            if next == self.steps_per_pass && self.cameras[next].eye.distance(c.eye) > CUT_M {
+                self.keyframe(&mut text, next as f64 / STEPS_PER_SECOND - 0.001, c);
+            }
         }
         text
+    }
+
+    fn keyframe(&self, text: &mut String, t: f64, c: &WalkCamera) {
+        let _ = writeln!(
+            text,
+            "{t:.3} {:.3} {:.3} {:.3} {:.3} {:.3} {:.3} {}",
+            c.eye.x, c.eye.y, c.eye.z, c.target.x, c.target.y, c.target.z, self.fov_y_deg
+        );
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::walk::sites;
 
     #[test]
     fn walks_at_walking_speed_and_holds_still_at_the_stops() {
-        let plan = generate(&bracara(), 30);
+        let plan = generate(&sites::bracara(), 30);
         for w in plan.cameras.windows(2) {
             let moved = w[0].eye.distance(w[1].eye) * STEPS_PER_SECOND as f32;
             let cut = w[1].step == plan.steps_per_pass;
@@ -573,7 +484,7 @@ mod tests {
 
     #[test]
     fn the_second_pass_repeats_the_first_and_moments_are_while_walking() {
-        for route in [bracara(), sponza()] {
+        for route in [sites::bracara(), sites::sponza()] {
             let plan = generate(&route, 30);
             let (first, second) = plan.cameras.split_at(plan.steps_per_pass);
             assert!(
@@ -600,7 +511,7 @@ mod tests {
 
     #[test]
     fn the_head_turns_towards_a_stop_before_reaching_it() {
-        let plan = generate(&bracara(), 30);
+        let plan = generate(&sites::bracara(), 30);
         let stop = &plan.stops[2];
         let subject = (stop.camera.target - stop.camera.eye).normalize();
         let look = |step: usize| {
@@ -612,8 +523,25 @@ mod tests {
     }
 
     #[test]
+    fn the_cut_to_the_second_pass_holds_the_last_camera_until_it() {
+        let plan = generate(&sites::bracara(), 30);
+        let text = plan.path_text();
+        let cut = plan.steps_per_pass as f64 / STEPS_PER_SECOND;
+        let keys: Vec<Vec<f64>> = text
+            .lines()
+            .filter(|l| !l.starts_with('#'))
+            .map(|l| l.split(' ').map(|f| f.parse().unwrap()).collect())
+            .collect();
+        let at = keys.iter().position(|k| k[0] >= cut - 0.0015).unwrap();
+        assert_eq!(keys[at][1..], keys[at - 1][1..], "held until the cut");
+        assert!(keys[at + 1][0] - keys[at][0] < 0.002);
+        let last = plan.cameras[plan.steps_per_pass - 1].eye;
+        assert_eq!(keys[at][1], f64::from(last.x));
+    }
+
+    #[test]
     fn a_quick_walk_is_short_and_keeps_two_stops() {
-        let plan = generate(&bracara().quick(3.0, 1.0), 3);
+        let plan = generate(&sites::bracara().quick(3.0, 1.0), 3);
         assert_eq!(plan.stops.len(), 4);
         assert!(plan.seconds() < 12.0, "{}", plan.seconds());
         assert_eq!(plan.moments.len(), 6);
@@ -621,7 +549,7 @@ mod tests {
 
     #[test]
     fn the_path_text_holds_every_walking_step_and_each_stop_s_ends() {
-        let plan = generate(&sponza(), 30);
+        let plan = generate(&sites::sponza(), 30);
         let keys = plan
             .path_text()
             .lines()

@@ -168,6 +168,14 @@ fn scene_section(md: &mut String, config: &WalkConfig, result: &SceneResult, svg
         (gt.stops.seconds + gt.moments.seconds) / 60.0,
         config.gt_cache.display()
     );
+    if result.late > 0 {
+        let _ = writeln!(
+            md,
+            "{} of the system's snapshots came too late to show the camera asked for (the viewer's loop was \
+             held up) and are left out.\n",
+            result.late
+        );
+    }
     walk_figures(md, result);
     stop_table(md, result);
     memory_figures(md, result);
