@@ -36,6 +36,7 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Cost(args) => crate::cost::run(args.config()),
         BenchCommand::MeshOptions(args) => crate::mesh_options::run(args.config()),
         BenchCommand::LoopbackSink { listen } => crate::protocol::loopback_sink(&listen),
+        BenchCommand::Walk(args) => crate::walk::run(args.config()),
         BenchCommand::Reproduction { runs } => {
             crate::reproduction::run(crate::reproduction::ReproductionConfig { runs })
         }
@@ -65,6 +66,9 @@ pub enum BenchCommand {
     /// The thesis's neighbour rule and merging by uniformity against today's default mesh, on
     /// the same views at equal paths (thesis §4.2, §6; DESIGN.md §4).
     MeshOptions(MeshOptionsArgs),
+    /// A person walks each scene's scripted path twice, stopping to look: both the system and a
+    /// per-pixel progressive viewport judged at the stops and along the walk (DESIGN.md §3, §10).
+    Walk(WalkArgs),
     /// The thesis's findings beside ours (thesis §5.2–5.3), from `convergence` runs on MC, VR and
     /// VT with rnd, nld-is and nld-os: one with `--profile thesis`, one with today's defaults.
     Reproduction {
@@ -199,6 +203,55 @@ pub struct AccuracyArgs {
     /// Do not write docs/bench/accuracy.md nor BENCHMARKS.md.
     #[arg(long)]
     pub no_report: bool,
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct WalkArgs {
+    /// One scene: bracara or Sponza's TOML. Default: bracara, and Sponza when ../shared/scenes
+    /// is there.
+    #[arg(long)]
+    pub scene: Option<String>,
+    /// A short walk at 96×72 with low-sample ground truths (a smoke run).
+    #[arg(long)]
+    pub quick: bool,
+    /// CSVs and plots (committed: keep it small).
+    #[arg(long, default_value = "docs/walk")]
+    pub out: PathBuf,
+    /// Raw snapshots and process logs (big: an ignored folder).
+    #[arg(long, default_value = "out/walk")]
+    pub runs: PathBuf,
+    /// Ground truth EXRs (big: an ignored folder).
+    #[arg(long, default_value = "out/gt")]
+    pub gt_cache: PathBuf,
+    /// Moments judged per pass (default 30, quick 2; at most 30: the 60 a walk).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=30))]
+    pub moments: Option<u16>,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Flags passed on to `walkthrough sma`, e.g. `--sma-flags=--work-while-walking,off`.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub sma_flags: Vec<String>,
+    /// Do not write docs/bench/walk.md nor BENCHMARKS.md.
+    #[arg(long)]
+    pub no_report: bool,
+    /// Write the scenes' path files (crates/bench/walks) from their routes and measure nothing.
+    #[arg(long)]
+    pub write_paths: bool,
+}
+
+impl WalkArgs {
+    fn config(self) -> crate::walk::WalkConfig {
+        let defaults = crate::walk::WalkConfig::new(self.quick, self.out, self.runs, self.gt_cache);
+        crate::walk::WalkConfig {
+            moments: self.moments.map_or(defaults.moments, usize::from),
+            scene: self.scene,
+            seed: self.seed,
+            sma_flags: self.sma_flags,
+            no_report: self.no_report,
+            write_paths: self.write_paths,
+            ..defaults
+        }
+    }
 }
 
 /// The image size and ground truth shared by the end-to-end benchmarks.

@@ -9,6 +9,7 @@
 //!   with [`metrics`], [`plots`] and [`strips`]; [`reproduction`]: the thesis's findings beside
 //!   ours, from convergence runs of both profiles; [`mesh_options`]: the thesis's neighbour rule
 //!   and merging by uniformity against the default mesh;
+//! - [`walk`]: a scripted walk of each scene, the system against a per-pixel viewport;
 //! - [`ray_throughput`]: the ray-throughput table of the [`renderer`] section;
 //! - [`stats`] (medians, least squares) and [`machine`]: shared by all;
 //! - [`product`]: where the `walkthrough` binary the benchmarks start is;
@@ -35,3 +36,4 @@ pub mod sma_service;
 pub mod stats;
 pub mod strips;
 pub mod viewer;
+pub mod walk;

@@ -1,6 +1,6 @@
 //! Convergence plots (DESIGN.md §10): the error against time and against paths traced, and the
 //! renderers' busy share over time, one line per criterion and one for the run without
-//! refinement. SVG, because text in plotters' bitmap backend
+//! refinement; and panels of lines of any series (`bench walk`). SVG, because text in plotters' bitmap backend
 //! needs system font libraries (DEPENDENCY-NOTES.md).
 
 use std::path::Path;
@@ -32,6 +32,38 @@ pub fn error_panels(path: &Path, title: &str, rows: &[Measurement]) -> anyhow::R
     let panels = root.split_evenly((2, 2));
     for (panel, (metric, axis)) in panels.iter().zip(PANELS) {
         panel_chart(panel, rows, metric, axis)?;
+    }
+    root.present().map_err(plot_error)?;
+    Ok(())
+}
+
+/// One panel of [`line_panels`]: its title, axes' names and one line per named series.
+pub struct Panel {
+    pub title: String,
+    pub x_name: &'static str,
+    pub y_name: &'static str,
+    pub series: Vec<(String, Vec<(f64, f64)>)>,
+}
+
+/// An SVG of panels two a row, each with linear axes from 0 (the walk's plots).
+pub fn line_panels(path: &Path, title: &str, panels: &[Panel]) -> anyhow::Result<()> {
+    let rows = panels.len().div_ceil(2).max(1);
+    let root = SVGBackend::new(path, (1100, 380 * rows as u32)).into_drawing_area();
+    root.fill(&WHITE).map_err(plot_error)?;
+    let root = root.titled(title, ("sans-serif", 22)).map_err(plot_error)?;
+    let areas = root.split_evenly((rows, 2));
+    for (area, panel) in areas.iter().zip(panels) {
+        let points = panel.series.iter().flat_map(|(_, p)| p.iter());
+        let x_max = points.clone().map(|p| p.0).fold(1.0, f64::max);
+        let y_max = points.map(|p| p.1).fold(0.0, f64::max).max(1e-3) * 1.05;
+        let chart = ChartBuilder::on(area)
+            .caption(&panel.title, ("sans-serif", 16))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(55)
+            .build_cartesian_2d(0.0..x_max, 0.0..y_max)
+            .map_err(plot_error)?;
+        draw_chart(chart, (panel.x_name, panel.y_name), &panel.series)?;
     }
     root.present().map_err(plot_error)?;
     Ok(())
@@ -128,6 +160,28 @@ fn plot_error(e: impl std::fmt::Display) -> anyhow::Error {
 mod tests {
     use super::*;
     use crate::convergence::record::test_measurement;
+
+    #[test]
+    fn line_panels_name_every_panel_and_series() {
+        let panel = |title: &str, series: &str| Panel {
+            title: title.into(),
+            x_name: "step",
+            y_name: "FLIP",
+            series: vec![(series.into(), vec![(0.0, 0.5), (10.0, 0.2)])],
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("w.svg");
+        line_panels(
+            &path,
+            "walk",
+            &[panel("along", "system"), panel("memory", "pass 2")],
+        )
+        .unwrap();
+        let svg = std::fs::read_to_string(&path).unwrap();
+        for word in ["walk", "along", "memory", "system", "pass 2"] {
+            assert!(svg.contains(word), "{word}");
+        }
+    }
 
     #[test]
     fn writes_an_svg_with_every_run_in_the_legend() {

@@ -17,13 +17,14 @@ const SECTIONS: &[Section] = &[
 ];
 
 /// Sections written by the long end-to-end benchmarks (`convergence`, `accuracy`, `cost`,
-/// `mesh-options`) and from their runs (`reproduction`).
+/// `mesh-options`, `walk`) and from their runs (`reproduction`).
 const EXTERNAL_SECTIONS: &[&str] = &[
     "convergence",
     "accuracy",
     "cost",
     "mesh-options",
     "reproduction",
+    "walk",
 ];
 
 const SECTION_DIR: &str = "docs/bench";

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use renderer::reference::{ReferenceSettings, camera_for, render};
+use renderer::reference::{Image, ReferenceSettings, camera_for, render};
 use renderer::world::World;
 
 /// The ground truth's terms.
@@ -68,18 +68,25 @@ impl GroundTruth {
             seed: self.seed,
         };
         let (image, _) = render(&world, &camera, &settings, None);
-        // Written under a temporary name first: an interrupted render leaves no truncated cache entry.
-        let partial = path.with_extension("partial.exr");
-        let width = image.width as usize;
-        exr::prelude::write_rgba_file(&partial, width, image.height as usize, |x, y| {
-            let i = y * width + x;
-            let p = image.pixels[i];
-            (p.x, p.y, p.z, if image.covered[i] { 1.0f32 } else { 0.0 })
-        })
-        .with_context(|| format!("writing {}", partial.display()))?;
-        std::fs::rename(&partial, &path)?;
+        write_covered_exr(&path, &image)?;
         let took = started.elapsed();
         eprintln!("ground truth rendered in {:.0} s", took.as_secs_f64());
         Ok((path, Some(took)))
     }
+}
+
+/// Writes a per-pixel render as a ground truth EXR, its coverage as alpha (0 where no camera ray
+/// of the pixel hit geometry). Written under a temporary name first: an interrupted render leaves
+/// no truncated cache entry.
+pub fn write_covered_exr(path: &Path, image: &Image) -> anyhow::Result<()> {
+    let partial = path.with_extension("partial.exr");
+    let width = image.width as usize;
+    exr::prelude::write_rgba_file(&partial, width, image.height as usize, |x, y| {
+        let i = y * width + x;
+        let p = image.pixels[i];
+        (p.x, p.y, p.z, if image.covered[i] { 1.0f32 } else { 0.0 })
+    })
+    .with_context(|| format!("writing {}", partial.display()))?;
+    std::fs::rename(&partial, path)?;
+    Ok(())
 }

@@ -50,7 +50,12 @@ pub struct System {
     logs: PathBuf,
     sma_addr: SocketAddr,
     servers: Vec<Process>,
+    /// See [`System::sma_rss`].
+    sma_rss: Vec<(f64, u64)>,
 }
+
+/// How often a viewer run samples the SMA's resident memory.
+pub const RSS_EVERY: Duration = Duration::from_millis(250);
 
 impl System {
     /// Starts the renderer(s), waits for their addresses, then the SMA, and waits for its address,
@@ -83,6 +88,7 @@ impl System {
             logs: logs.to_path_buf(),
             sma_addr: sma.addr,
             servers,
+            sma_rss: Vec::new(),
         })
     }
 
@@ -94,14 +100,28 @@ impl System {
     /// Runs a headless viewer to its end, writing snapshots into `out`, and tells the CPU time
     /// each process used meanwhile. Fails when the viewer fails, overruns, or a server dies.
     pub fn run_viewer(&mut self, config: &ViewerConfig, out: &Path) -> anyhow::Result<CpuShares> {
+        self.run_viewer_with(config, &[], out)
+    }
+
+    /// As [`run_viewer`](Self::run_viewer), with more `walkthrough viewer` flags (e.g. a
+    /// `--camera-path`), and the SMA's resident memory sampled meanwhile ([`Self::sma_rss`]).
+    pub fn run_viewer_with(
+        &mut self,
+        config: &ViewerConfig,
+        more_flags: &[String],
+        out: &Path,
+    ) -> anyhow::Result<CpuShares> {
         let started = Instant::now();
         let servers_before: Vec<f64> = self.server_cpu();
+        let mut args = viewer_args(config, self.sma_addr, out);
+        args.extend(more_flags.iter().cloned());
         let mut viewer = Process::spawn(
             &self.exe,
             "viewer",
-            &viewer_args(config, self.sma_addr, out),
+            &args,
             Some(&self.logs.join("viewer.log")),
         )?;
+        self.sma_rss.clear();
         let deadline = Instant::now() + config.time_limit;
         let mut viewer_cpu = 0.0;
         // The CPU times and wall time when the viewer's run ended, once its log says so: after
@@ -110,6 +130,7 @@ impl System {
         loop {
             // Read while the viewer runs: once it is reaped, /proc no longer has it.
             viewer_cpu = viewer.cpu_seconds().unwrap_or(viewer_cpu);
+            self.sample_sma_rss(started);
             if at_run_end.is_none() && viewer.log_text().contains(HEADLESS_RUN_OVER) {
                 at_run_end = Some(self.shares_since(started, &servers_before, viewer_cpu));
             }
@@ -144,6 +165,27 @@ impl System {
 }
 
 impl System {
+    /// The SMA's resident set size during the last viewer run, sampled every
+    /// [`RSS_EVERY`]: (seconds since the viewer was started, bytes).
+    pub fn sma_rss(&self) -> &[(f64, u64)] {
+        &self.sma_rss
+    }
+
+    fn sample_sma_rss(&mut self, started: Instant) {
+        let t = started.elapsed().as_secs_f64();
+        if self
+            .sma_rss
+            .last()
+            .is_some_and(|(last, _)| t - last < RSS_EVERY.as_secs_f64())
+        {
+            return;
+        }
+        let sma = self.servers.last().expect("an SMA");
+        if let Some(bytes) = sma.resident_bytes() {
+            self.sma_rss.push((t, bytes));
+        }
+    }
+
     /// Where the time went since `started`, given the servers' CPU seconds then and the
     /// viewer's now.
     fn shares_since(&self, started: Instant, servers_before: &[f64], viewer_s: f64) -> CpuShares {

@@ -58,6 +58,10 @@ pub struct Cli {
     /// Headless: a snapshot when the SMA's sample count first reaches each of these.
     #[arg(long, value_delimiter = ',')]
     pub snapshot_at_samples: Vec<u64>,
+    /// Headless: a snapshot when the run's clock (t = 0 at the first camera) first reaches each
+    /// of these seconds, e.g. the stops of a `--camera-path`.
+    #[arg(long, value_delimiter = ',')]
+    pub snapshot_at: Vec<f64>,
     /// Headless: a snapshot the first time the SMA has no shading request outstanding for the
     /// current camera.
     #[arg(long)]
@@ -123,6 +127,7 @@ impl Cli {
             height: self.height,
             snapshot_every: self.snapshot_every,
             snapshot_at_samples: self.snapshot_at_samples,
+            snapshot_at: self.snapshot_at,
             snapshot_when_idle: self.snapshot_when_idle,
             hold_snapshots: self.hold_snapshots,
             seconds: self.seconds,

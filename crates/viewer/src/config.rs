@@ -18,6 +18,8 @@ pub struct ViewerConfig {
     pub snapshot_every: Option<f64>,
     /// Headless: a snapshot when the SMA's sample count first reaches each of these.
     pub snapshot_at_samples: Vec<u64>,
+    /// Headless: a snapshot when the run's clock first reaches each of these seconds.
+    pub snapshot_at: Vec<f64>,
     /// Headless: a snapshot the first time the SMA has no shading request outstanding for the
     /// current camera.
     pub snapshot_when_idle: bool,

@@ -33,6 +33,8 @@ pub struct SnapshotPlan {
     next_periodic_s: f64,
     /// Sample counts not yet reached, ascending.
     thresholds: Vec<u64>,
+    /// Times (seconds) not yet reached, ascending.
+    times: Vec<f64>,
     when_idle: bool,
     seconds: Option<f64>,
     /// No trigger was asked for: one snapshot at the end.
@@ -43,16 +45,22 @@ impl SnapshotPlan {
     pub fn new(
         every_s: Option<f64>,
         mut thresholds: Vec<u64>,
+        mut times: Vec<f64>,
         when_idle: bool,
         seconds: Option<f64>,
     ) -> SnapshotPlan {
         thresholds.sort_unstable();
         thresholds.dedup();
-        let at_end_only = every_s.is_none() && thresholds.is_empty() && !when_idle;
+        times.retain(|t| t.is_finite());
+        times.sort_by(f64::total_cmp);
+        times.dedup();
+        let at_end_only =
+            every_s.is_none() && thresholds.is_empty() && times.is_empty() && !when_idle;
         SnapshotPlan {
             every_s,
             next_periodic_s: 0.0,
             thresholds,
+            times,
             when_idle,
             seconds,
             at_end_only,
@@ -71,6 +79,12 @@ impl SnapshotPlan {
             while self.next_periodic_s <= t {
                 self.next_periodic_s += every;
             }
+            due = true;
+        }
+        // Times passed between two ticks give one snapshot, as skipped periodic slots do.
+        let passed = self.times.partition_point(|&at| at <= t);
+        if passed > 0 {
+            self.times.drain(..passed);
             due = true;
         }
         if let Some(e) = epoch {
@@ -95,6 +109,7 @@ impl SnapshotPlan {
     pub fn finished(&self, t: f64) -> bool {
         let triggers_done = self.every_s.is_none()
             && self.thresholds.is_empty()
+            && self.times.is_empty()
             && !self.when_idle
             && !self.at_end_only;
         self.out_of_time(t) || triggers_done
@@ -105,8 +120,10 @@ pub fn run(config: &ViewerConfig) -> anyhow::Result<()> {
     anyhow::ensure!(
         config.seconds.is_some()
             || !config.snapshot_at_samples.is_empty()
+            || !config.snapshot_at.is_empty()
             || config.snapshot_when_idle,
-        "headless needs an end: --seconds, --snapshot-at-samples or --snapshot-when-idle"
+        "headless needs an end: --seconds, --snapshot-at, --snapshot-at-samples or \
+         --snapshot-when-idle"
     );
     let path_text = config
         .camera_path
@@ -129,6 +146,7 @@ pub fn run(config: &ViewerConfig) -> anyhow::Result<()> {
         plan: SnapshotPlan::new(
             config.snapshot_every,
             config.snapshot_at_samples.clone(),
+            config.snapshot_at.clone(),
             config.snapshot_when_idle,
             config.seconds,
         ),
@@ -340,7 +358,7 @@ mod tests {
 
     #[test]
     fn periodic_snapshots_start_at_zero_and_stop_at_the_end() {
-        let mut plan = SnapshotPlan::new(Some(1.0), vec![], false, Some(2.0));
+        let mut plan = SnapshotPlan::new(Some(1.0), vec![], vec![], false, Some(2.0));
         let taken: Vec<f64> = [0.0, 0.5, 1.02, 1.5, 2.3, 3.5]
             .into_iter()
             .filter(|&t| plan.due(t, None, 1))
@@ -351,7 +369,7 @@ mod tests {
 
     #[test]
     fn sample_thresholds_fire_once_and_end_the_run() {
-        let mut plan = SnapshotPlan::new(None, vec![200, 100], false, None);
+        let mut plan = SnapshotPlan::new(None, vec![200, 100], vec![], false, None);
         assert!(!plan.due(0.1, Some(&epoch(50, 9, 1)), 1));
         assert!(plan.due(0.2, Some(&epoch(150, 9, 1)), 1));
         assert!(!plan.due(0.3, Some(&epoch(150, 9, 1)), 1));
@@ -362,7 +380,7 @@ mod tests {
 
     #[test]
     fn idle_means_nothing_outstanding_for_the_current_camera() {
-        let mut plan = SnapshotPlan::new(None, vec![], true, Some(60.0));
+        let mut plan = SnapshotPlan::new(None, vec![], vec![], true, Some(60.0));
         assert!(
             !plan.due(0.1, Some(&epoch(10, 0, 1)), 2),
             "an epoch of an older camera"
@@ -374,8 +392,17 @@ mod tests {
 
     #[test]
     fn without_triggers_one_snapshot_at_the_end() {
-        let mut plan = SnapshotPlan::new(None, vec![], false, Some(1.0));
+        let mut plan = SnapshotPlan::new(None, vec![], vec![], false, Some(1.0));
         assert!(!plan.due(0.5, Some(&epoch(1, 0, 1)), 1) && !plan.finished(0.5));
         assert!(plan.due(1.0, None, 1) && plan.finished(1.0));
+    }
+
+    #[test]
+    fn set_times_fire_once_each_and_end_the_run() {
+        let mut plan = SnapshotPlan::new(None, vec![], vec![2.0, 0.5, 0.6], false, None);
+        assert!(!plan.due(0.4, None, 1));
+        assert!(plan.due(0.7, None, 1), "0.5 and 0.6 passed: one snapshot");
+        assert!(!plan.due(1.0, None, 1) && !plan.finished(1.0));
+        assert!(plan.due(2.0, None, 1) && plan.finished(2.0));
     }
 }

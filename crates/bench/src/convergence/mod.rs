@@ -35,7 +35,12 @@ pub const GROUND_TRUTH_SEED: u64 = 1;
 
 /// Where Sponza lives when the shared scenes are there (DESIGN.md §11).
 const SHARED_SCENES: &str = "../shared/scenes";
-const SPONZA: &str = "scenes/sponza.toml";
+pub(crate) const SPONZA: &str = "scenes/sponza.toml";
+
+/// Whether Sponza can be loaded here: the shared scenes are beside the repository.
+pub(crate) fn sponza_is_here() -> bool {
+    Path::new(SHARED_SCENES).is_dir() && Path::new(SPONZA).is_file()
+}
 
 pub const SECTION: &str = "docs/bench/convergence.md";
 
@@ -168,7 +173,7 @@ pub(crate) fn views(scene: Option<&str>, views: &[String]) -> anyhow::Result<Vec
         Some(scene) => vec![(scene.to_string(), vec![])],
         None => {
             let mut s = vec![("bracara".to_string(), strings(&["MC", "VR", "VT"]))];
-            if Path::new(SHARED_SCENES).is_dir() && Path::new(SPONZA).is_file() {
+            if sponza_is_here() {
                 s.push((SPONZA.to_string(), strings(&["S1", "S2", "S3"])));
             }
             s
