@@ -97,6 +97,11 @@ pub struct LaunchArgs {
     /// Where headless snapshots go (default: out/run-<unix time>).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Start from an empty cache and keep nothing: without it the SMA keeps the mesh and the
+    /// samples in one file per scene under the user's cache directory
+    /// (`$XDG_CACHE_HOME/walkthrough/` or `~/.cache/walkthrough/`; delete it to start afresh).
+    #[arg(long)]
+    pub no_cache_file: bool,
 }
 
 /// `--profile`: one of the SMA's profiles, by name.
@@ -121,6 +126,11 @@ impl LaunchArgs {
             seconds: self.seconds,
             headless: self.headless,
             out: self.out,
+            cache_dir: if self.no_cache_file {
+                None
+            } else {
+                crate::launch::user_cache_dir()
+            },
         })
     }
 }

@@ -34,6 +34,9 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Convergence(args) => convergence::run(args.config()),
         BenchCommand::Accuracy(args) => accuracy::run(args.config()),
         BenchCommand::Cost(args) => crate::cost::run(args.config()),
+        BenchCommand::CacheFile { quick, out } => {
+            crate::report::write(&out, quick, &["cache-file".to_string()])
+        }
         BenchCommand::LoopbackSink { listen } => crate::protocol::loopback_sink(&listen),
         BenchCommand::Reproduction { runs } => {
             crate::reproduction::run(crate::reproduction::ReproductionConfig { runs })
@@ -51,9 +54,18 @@ pub enum BenchCommand {
         #[arg(long, default_value = "BENCHMARKS.md")]
         out: PathBuf,
         /// Only the sections whose name contains one of these (protocol, scene, renderer, sma-core,
-        /// sma-service, viewer, convergence).
+        /// sma-service, cache-file, viewer, convergence).
         #[arg(long, value_delimiter = ',')]
         only: Vec<String>,
+    },
+    /// The SMA's cache file: saving and loading 1 M leaves, an incremental save, the schedule's
+    /// pause (docs/bench/cache-file.md, then BENCHMARKS.md); `report --only cache-file`.
+    CacheFile {
+        /// A quarter of the leaves, one run.
+        #[arg(long)]
+        quick: bool,
+        #[arg(long, default_value = "BENCHMARKS.md")]
+        out: PathBuf,
     },
     /// Convergence per viewpoint against the ground truth, per criterion (DESIGN.md §10).
     Convergence(ConvergenceArgs),

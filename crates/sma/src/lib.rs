@@ -5,7 +5,8 @@
 //! - [`cache`]: the object-space vertex shading cache (§5);
 //! - [`visible_set`]: the visible set V_t keyed by (leaf, side);
 //! - [`nld`]: the NLD metric (eq. 4.3);
-//! - [`criteria`]: refinement criteria, one file each behind one trait (§4.3).
+//! - [`criteria`]: refinement criteria, one file each behind one trait (§4.3);
+//! - [`cache_file`]: the mesh and the cache kept on disk between runs (§5, persistence).
 //!
 //! Service:
 //! - [`visibility`]: GPU ID-buffer passes with wgpu, headless (§3 steps 2–3);
@@ -23,6 +24,7 @@
 //! triangles covers). The SMA's own tests enable it through their dev-dependency on this crate.
 
 pub mod cache;
+pub mod cache_file;
 pub mod criteria;
 pub mod mesh;
 pub(crate) mod nld;

@@ -40,6 +40,7 @@ mod ladder;
 mod need;
 mod pace;
 mod pending;
+mod persistence;
 mod plan;
 mod refinement;
 mod requests;
@@ -59,6 +60,7 @@ use scene::Scene;
 use tokio::sync::{mpsc, watch};
 
 use crate::cache::ShadingCache;
+use crate::cache_file::CacheFile;
 use crate::clock::sleep_until;
 use crate::config::ScheduleConfig;
 use crate::mesh::SubdivisionMesh;
@@ -68,6 +70,7 @@ use crate::visibility::{Gpu, LuminancePass, Visibility, carry_over};
 use answers::Answers;
 use counters::{Counters, Gauges, Work};
 use pace::{Allowed, Paces, PassesOwed};
+pub use persistence::CacheFileSetup;
 use plan::{MorePaths, NeedsInput, PlanRules};
 use refinement::{Refinement, Round};
 use requests::{BatchLimit, Requests};
@@ -98,24 +101,31 @@ pub struct Schedule {
     owed: Owed,
     paces: Paces,
     counters: Counters,
+    cache_file: Option<CacheFile>,
 }
 
 impl Schedule {
     pub fn new(
         config: ScheduleConfig,
         scene: &Scene,
-        mesh: SubdivisionMesh,
+        mut mesh: SubdivisionMesh,
         gpu: Gpu,
         pool: PoolHandle,
+        cache_file: Option<&CacheFileSetup>,
     ) -> Schedule {
         let now = Instant::now();
+        let rules = PlanRules::new(&config, scene);
+        let mut cache = ShadingCache::new(config.cache_budget_bytes)
+            .with_l_white_outliers(config.l_white_outliers);
+        let cache_file = cache_file.and_then(|setup| {
+            persistence::open(setup, scene, &config, &rules, &mut mesh, &mut cache)
+        });
         let luminance = LuminancePass::new(&gpu);
         let visibility = Visibility::new(gpu, &mesh, scene.mesh.bounds());
         Schedule {
             refinement: Refinement::new(mesh.base_count(), &config),
-            rules: PlanRules::new(&config, scene),
-            cache: ShadingCache::new(config.cache_budget_bytes)
-                .with_l_white_outliers(config.l_white_outliers),
+            rules,
+            cache,
             requests: Requests::new(config.seed, config.top_up_share),
             criteria: Criteria::new(&config),
             paces: Paces::new(config.round_share, now),
@@ -130,6 +140,7 @@ impl Schedule {
             viewers: Viewers::default(),
             owed: Owed::default(),
             counters: Counters::new(now),
+            cache_file,
         }
     }
 
@@ -137,9 +148,20 @@ impl Schedule {
         self.visibility.gpu().describe()
     }
 
-    /// Runs until shutdown or until both channels close.
+    /// Runs until shutdown or until both channels close; then saves the cache file.
     pub async fn run(
         mut self,
+        viewers: mpsc::Receiver<ViewerEvent>,
+        pool: mpsc::Receiver<PoolEvent>,
+        shutdown: watch::Receiver<bool>,
+    ) -> anyhow::Result<()> {
+        let outcome = self.serve(viewers, pool, shutdown).await;
+        self.close_cache_file();
+        outcome
+    }
+
+    async fn serve(
+        &mut self,
         mut viewers: mpsc::Receiver<ViewerEvent>,
         mut pool: mpsc::Receiver<PoolEvent>,
         mut shutdown: watch::Receiver<bool>,
@@ -185,6 +207,7 @@ impl Schedule {
         match event {
             PoolEvent::Shaded { batch, radiance } => {
                 self.requests.finished(&batch);
+                self.samples_changed(&batch);
                 let answered = self.answers.shaded(
                     &batch,
                     &radiance,
@@ -244,6 +267,7 @@ impl Schedule {
             self.timed(Work::Round, |s| s.refine_round(id))?;
         }
         self.note_convergence();
+        self.save_if_due();
         Ok(())
     }
 
@@ -547,7 +571,11 @@ impl Schedule {
         let passes = turns::passes_owed(&views, self.config.work_while_walking);
         let allowed = self.paces.allowed(self.owed, passes, false, now);
         let candidate = turns::refinement_candidate(&gate, &views, self.refinement.rounds, now);
-        let wake = [turns::next_ready(&gate, &views, now), allowed.wake_at()];
+        let wake = [
+            turns::next_ready(&gate, &views, now),
+            allowed.wake_at(),
+            self.save_due_at(),
+        ];
         (
             turns::has_work_now(self.owed, &allowed, candidate),
             wake.into_iter().flatten().min(),
