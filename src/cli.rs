@@ -35,8 +35,8 @@ pub struct Cli {
 pub enum Command {
     /// The path-tracing renderer service (`serve`) and reference images (`reference`).
     Renderer(renderer::cli::Cli),
-    /// The Shading Management Agent.
-    Sma(sma::cli::Cli),
+    /// The Shading Management Agent (boxed: its flags outweigh the other commands' many times).
+    Sma(Box<sma::cli::Cli>),
     /// The viewer, in a window or headless.
     Viewer(viewer::cli::Cli),
     /// Scene tools.
@@ -51,7 +51,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             crate::launch::run(cli.launch.config()?)
         }
         Some(Command::Renderer(c)) => renderer::cli::run(c),
-        Some(Command::Sma(c)) => sma::cli::run(c),
+        Some(Command::Sma(c)) => sma::cli::run(*c),
         Some(Command::Viewer(c)) => viewer::cli::run(c),
         Some(Command::Scene(SceneCommand::Info {
             scene,

@@ -133,7 +133,7 @@ fn no_arguments_runs_headless_writes_snapshots_and_leaves_nothing_behind() {
     // By default the SMA keeps its cache file in the user's cache directory, one per scene.
     let cache_files: Vec<_> = std::fs::read_dir(dir.path().join("cache/walkthrough"))
         .map(|d| {
-            d.filter_map(|e| Some(e.ok()?.file_name().into_string().ok()?))
+            d.filter_map(|e| e.ok()?.file_name().into_string().ok())
                 .collect()
         })
         .unwrap_or_default();

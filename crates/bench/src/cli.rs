@@ -37,6 +37,7 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
         BenchCommand::CacheFile { quick, out } => {
             crate::report::write(&out, quick, &["cache-file".to_string()])
         }
+        BenchCommand::CacheFileCrashChild { file } => crate::cache_file::crash_child(&file),
         BenchCommand::LoopbackSink { listen } => crate::protocol::loopback_sink(&listen),
         BenchCommand::Reproduction { runs } => {
             crate::reproduction::run(crate::reproduction::ReproductionConfig { runs })
@@ -81,6 +82,9 @@ pub enum BenchCommand {
         #[arg(long, default_value = "docs/reproduction")]
         runs: PathBuf,
     },
+    /// The process the cache file's crash trials kill (started by `cache-file` as a child).
+    #[command(hide = true)]
+    CacheFileCrashChild { file: PathBuf },
     /// The receiving end of the loopback protocol benchmark (started by `report` as a child).
     #[command(hide = true)]
     LoopbackSink {

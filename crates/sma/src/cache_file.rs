@@ -45,8 +45,10 @@ pub use writer::WriterStats;
 
 /// How long one periodic snapshot may hold the schedule's thread: the base triangles left over
 /// wait for the next turn (DESIGN.md §3: a new view must not wait behind bookkeeping; the
-/// schedule may pause at most 20 ms for a save).
-pub const SNAPSHOT_SLICE: Duration = Duration::from_millis(10);
+/// schedule may pause at most 20 ms for a save). A quarter of that: on two cores shared with
+/// the renderers and the writer thread, wall time runs well past CPU time (BENCHMARKS.md,
+/// cache file section).
+pub const SNAPSHOT_SLICE: Duration = Duration::from_millis(5);
 
 /// Where the cache file is and how often it is saved.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -149,7 +151,9 @@ impl CacheFile {
                 return None;
             }
         };
-        let (restored, owners) = restore::restore(&records, mesh, cache);
+        let read = start.elapsed();
+        let (mut restored, owners) = restore::restore(&records, mesh, cache);
+        restored.read = read;
         let writer = match Writer::spawn(opened, label.clone()) {
             Ok(writer) => writer,
             Err(e) => {
@@ -185,6 +189,7 @@ impl CacheFile {
             ms = start.elapsed().as_millis() as u64,
             "cache file loaded"
         );
+        file.restored.total = start.elapsed();
         Some(file)
     }
 
@@ -307,23 +312,17 @@ impl CacheFile {
         }
         let mut records = Vec::new();
         let mut taken = 0;
-        for &base in &self.dirty {
-            if until.is_some_and(|t| Instant::now() >= t) {
-                break;
-            }
+        while taken < self.dirty.len() && until.is_none_or(|t| Instant::now() < t) {
+            let base = self.dirty[taken];
             let (record, vertices) = BaseRecord::snapshot(mesh, cache, base);
-            records.push((base, (!record.is_empty()).then_some(record), vertices));
+            self.note_owner(&vertices, base);
+            records.push((base, (!record.is_empty()).then_some(record)));
             taken += 1;
         }
-        let done: Vec<u32> = self.dirty.drain(..taken).collect();
-        done.iter().for_each(|&b| self.is_dirty[b as usize] = false);
+        for base in self.dirty.drain(..taken) {
+            self.is_dirty[base as usize] = false;
+        }
         records
-            .into_iter()
-            .map(|(base, record, vertices)| {
-                self.note_owner(&vertices, base);
-                (base, record)
-            })
-            .collect()
     }
 }
 

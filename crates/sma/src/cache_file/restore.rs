@@ -89,13 +89,20 @@ impl Parsed {
 }
 
 /// What a restore brought back.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Restored {
     pub bases: usize,
     pub samples: usize,
     /// Stored vertices whose node the rebuilt mesh does not have (its splits came out otherwise):
     /// their samples are left out.
     pub unmatched_vertices: usize,
+    /// Time opening the file (integrity check included), reading and checking the records.
+    pub read: std::time::Duration,
+    /// Time replaying the splits, and putting the samples into the cache.
+    pub replay: std::time::Duration,
+    pub samples_time: std::time::Duration,
+    /// The whole load.
+    pub total: std::time::Duration,
 }
 
 /// Replays every record's splits into `mesh` and puts their samples into `cache`; returns what
@@ -105,7 +112,9 @@ pub fn restore(
     mesh: &mut SubdivisionMesh,
     cache: &mut ShadingCache,
 ) -> (Restored, Vec<(VertexId, u32)>) {
+    let start = std::time::Instant::now();
     replay_splits(records, mesh);
+    let replay = start.elapsed();
     let mut best: HashMap<SampleKey, CachedSample> = HashMap::new();
     let mut owners = Vec::new();
     let mut unmatched_vertices = 0;
@@ -148,6 +157,9 @@ pub fn restore(
         bases: records.len(),
         samples,
         unmatched_vertices,
+        replay,
+        samples_time: start.elapsed() - replay,
+        ..Restored::default()
     };
     (restored, owners)
 }

@@ -154,3 +154,35 @@ fn work_while_walking_is_on_today_off_under_the_thesis_and_a_flag_sets_it() {
     assert!(Cli::try_parse_from(flag("yes")).is_err());
     assert!(!walks(thesis(&[])) && walks(thesis(&["--work-while-walking", "on"])));
 }
+
+#[test]
+fn a_cache_file_is_used_only_when_asked_for_and_never_under_the_thesis_profile() {
+    let config = |args: &[&str]| {
+        let base = ["sma", "--renderer", "r:1"].into_iter();
+        Cli::try_parse_from(base.chain(args.iter().copied()))
+            .unwrap()
+            .config()
+            .unwrap()
+            .cache_file
+    };
+    assert_eq!(config(&[]), None);
+    let file = config(&["--cache-file", "/c/site.redb", "--cache-file-save-s", "2"]).unwrap();
+    assert_eq!(file.location, Location::File(PathBuf::from("/c/site.redb")));
+    assert_eq!(file.save_every, Duration::from_secs(2));
+    let per_scene = config(&["--cache-dir", "/c"]).unwrap();
+    assert_eq!(per_scene.location, Location::PerScene(PathBuf::from("/c")));
+    assert_eq!(per_scene.save_every, CacheFileConfig::SAVE_EVERY);
+    assert_eq!(config(&["--cache-dir", "/c", "--profile", "thesis"]), None);
+    assert!(
+        Cli::try_parse_from([
+            "sma",
+            "--renderer",
+            "r:1",
+            "--cache-file",
+            "a",
+            "--cache-dir",
+            "b"
+        ])
+        .is_err()
+    );
+}
