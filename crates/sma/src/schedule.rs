@@ -571,14 +571,10 @@ impl Schedule {
         let passes = turns::passes_owed(&views, self.config.work_while_walking);
         let allowed = self.paces.allowed(self.owed, passes, false, now);
         let candidate = turns::refinement_candidate(&gate, &views, self.refinement.rounds, now);
-        let wake = [
-            turns::next_ready(&gate, &views, now),
-            allowed.wake_at(),
-            self.save_due_at(),
-        ];
+        let wake = [turns::next_ready(&gate, &views, now), allowed.wake_at()];
         (
             turns::has_work_now(self.owed, &allowed, candidate),
-            wake.into_iter().flatten().min(),
+            wake.into_iter().flatten().chain(self.save_due_at()).min(),
         )
     }
 
