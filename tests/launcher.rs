@@ -13,8 +13,9 @@ use std::time::{Duration, Instant};
 
 const MARKER: &str = "WALKTHROUGH_LAUNCHER_TEST";
 /// What the default run may print besides the progress line: the headless notice, the
-/// connections, where snapshots go, the first picture, convergence, the end.
-const MAX_LINES: usize = 10;
+/// connections, where snapshots go, the first picture, convergence, the end, and the two
+/// servers' word that they stop (asked to, so that the SMA saves its cache file).
+const MAX_LINES: usize = 12;
 
 /// The launcher in `dir` (its default snapshot folder is relative), without a display. Its cache
 /// directory is in `dir` too: a test never touches the user's cache file, whatever its flags.

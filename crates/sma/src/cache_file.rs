@@ -180,15 +180,20 @@ impl CacheFile {
         }
         // The restore's own splits are in the file already.
         mesh.take_changed_bases();
-        tracing::info!(
-            file = %file.label,
-            bases = restored.bases,
-            leaves = mesh.leaf_count(),
-            samples = restored.samples,
-            unmatched_vertices = restored.unmatched_vertices,
-            ms = start.elapsed().as_millis() as u64,
-            "cache file loaded"
-        );
+        // Only a file that brought something back is news to a person; an empty one is not.
+        if restored.bases == 0 {
+            tracing::debug!(file = %file.label, "cache file empty: the SMA starts empty");
+        } else {
+            tracing::info!(
+                file = %file.label,
+                bases = restored.bases,
+                leaves = mesh.leaf_count(),
+                samples = restored.samples,
+                unmatched_vertices = restored.unmatched_vertices,
+                ms = start.elapsed().as_millis() as u64,
+                "cache file loaded"
+            );
+        }
         file.restored.total = start.elapsed();
         Some(file)
     }
@@ -263,7 +268,7 @@ impl CacheFile {
         self.save_now(mesh, cache);
         self.writer.close();
         let (stats, pauses) = (self.writer.stats(), self.pauses);
-        tracing::info!(
+        tracing::debug!(
             file = %self.label,
             commits = stats.commits,
             failed_commits = stats.failed_commits,
