@@ -35,7 +35,7 @@ pub struct Cli {
 pub enum Command {
     /// The path-tracing renderer service (`serve`) and reference images (`reference`).
     Renderer(renderer::cli::Cli),
-    /// The Shading Management Agent.
+    /// The Shading Management Agent (boxed: its flags outweigh the other commands' many times).
     Sma(Box<sma::cli::Cli>),
     /// The viewer, in a window or headless.
     Viewer(viewer::cli::Cli),
@@ -102,6 +102,11 @@ pub struct LaunchArgs {
     /// Where headless snapshots go (default: out/run-<unix time>).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Start from an empty cache and keep nothing: without it the SMA keeps the mesh and the
+    /// samples in one file per scene under the user's cache directory
+    /// (`$XDG_CACHE_HOME/walkthrough/` or `~/.cache/walkthrough/`; delete it to start afresh).
+    #[arg(long)]
+    pub no_cache_file: bool,
 }
 
 /// `--profile`: one of the SMA's profiles, by name.
@@ -135,6 +140,11 @@ impl LaunchArgs {
             seconds: self.seconds,
             headless: self.headless,
             out: self.out,
+            cache_dir: if self.no_cache_file {
+                None
+            } else {
+                crate::launch::user_cache_dir()
+            },
         })
     }
 }

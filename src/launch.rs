@@ -38,6 +38,20 @@ pub struct LaunchConfig {
     pub headless: bool,
     /// Where headless snapshots go (default: out/run-<unix time>).
     pub out: Option<PathBuf>,
+    /// Where the SMA keeps its cache file, one per scene (`sma --cache-dir`); none: no file.
+    pub cache_dir: Option<PathBuf>,
+}
+
+/// The launcher's cache files: `$XDG_CACHE_HOME/walkthrough`, or `~/.cache/walkthrough` (the XDG
+/// base directory rule: a relative `XDG_CACHE_HOME` is ignored). None without either.
+pub fn user_cache_dir() -> Option<PathBuf> {
+    let absolute = |v: &str| {
+        std::env::var_os(v)
+            .map(PathBuf::from)
+            .filter(|p| p.is_absolute())
+    };
+    let base = absolute("XDG_CACHE_HOME").or_else(|| absolute("HOME").map(|h| h.join(".cache")));
+    base.map(|b| b.join("walkthrough"))
 }
 
 /// The SMA's `--indirect-filter` flag, when the launcher was given one.
@@ -123,6 +137,12 @@ async fn run_async(args: LaunchConfig) -> anyhow::Result<()> {
         args.profile.name(),
     ]);
     sma.extend(indirect_filter_args(&args));
+    if let Some(dir) = &args.cache_dir {
+        sma.extend([
+            "--cache-dir".to_string(),
+            dir.to_string_lossy().into_owned(),
+        ]);
+    }
     // The renderers load their scenes side by side; then each reports its address.
     for renderer in &mut servers {
         sma.extend(["--renderer".to_string(), listening_addr(renderer)?]);
@@ -179,7 +199,8 @@ async fn run_async(args: LaunchConfig) -> anyhow::Result<()> {
     if interrupted {
         servers.push(viewer);
     }
-    stop_all(&mut servers, interrupted).await;
+    // An SMA with a cache file saves it at a clean stop: it is asked to stop, like after a signal.
+    stop_all(&mut servers, interrupted || args.cache_dir.is_some()).await;
     if let Ok(Some(last)) = progress.join() {
         tracing::info!(
             samples = last.samples,
@@ -229,8 +250,8 @@ const GRACEFUL_STOP: Duration = Duration::from_secs(8);
 /// Ends every child. After a signal each is asked to stop (SIGINT: the renderer and the SMA shut
 /// down their listeners, the viewer simply exits) and all together get a few seconds before the
 /// rest are killed; a signal sent to the launcher alone, not to its process group as a terminal's
-/// Ctrl-C is, thus still reaches them. When the viewer ended the run, the servers are killed at
-/// once: they hold nothing worth saving.
+/// Ctrl-C is, thus still reaches them. When the viewer ended the run and the SMA keeps no cache
+/// file, the servers are killed at once: they hold nothing worth saving.
 async fn stop_all(children: &mut [Child], ask_first: bool) {
     if ask_first {
         for pid in children.iter().filter_map(Child::id) {

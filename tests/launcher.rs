@@ -13,14 +13,17 @@ use std::time::{Duration, Instant};
 
 const MARKER: &str = "WALKTHROUGH_LAUNCHER_TEST";
 /// What the default run may print besides the progress line: the headless notice, the
-/// connections, where snapshots go, the first picture, convergence, the end.
-const MAX_LINES: usize = 10;
+/// connections, where snapshots go, the first picture, convergence, the end, and the two
+/// servers' word that they stop (asked to, so that the SMA saves its cache file).
+const MAX_LINES: usize = 12;
 
-/// The launcher in `dir` (its default snapshot folder is relative), without a display.
+/// The launcher in `dir` (its default snapshot folder is relative), without a display. Its cache
+/// directory is in `dir` too: a test never touches the user's cache file, whatever its flags.
 fn launcher(dir: &Path, marker: &str, args: &[&str]) -> Command {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_walkthrough"));
     cmd.args(args)
         .current_dir(dir)
+        .env("XDG_CACHE_HOME", dir.join("cache"))
         .env_remove("DISPLAY")
         .env_remove("WAYLAND_DISPLAY")
         .env_remove("RUST_LOG")
@@ -128,6 +131,19 @@ fn no_arguments_runs_headless_writes_snapshots_and_leaves_nothing_behind() {
         "a 20-s headless run wrote {} snapshots",
         shots.len()
     );
+    // By default the SMA keeps its cache file in the user's cache directory, one per scene.
+    let cache_files: Vec<_> = std::fs::read_dir(dir.path().join("cache/walkthrough"))
+        .map(|d| {
+            d.filter_map(|e| e.ok()?.file_name().into_string().ok())
+                .collect()
+        })
+        .unwrap_or_default();
+    assert!(
+        cache_files
+            .iter()
+            .any(|f| f.starts_with("bracara-") && f.ends_with(".redb")),
+        "no cache file for bracara in the cache directory: {cache_files:?}"
+    );
     assert_eq!(
         left_behind(&marker, Duration::from_secs(5)),
         Vec::<u32>::new()
@@ -139,11 +155,15 @@ fn headless_flag_runs_without_a_display_even_when_one_is_named() {
     let dir = tempfile::tempdir().expect("a temporary folder");
     let marker = unique_marker("headless-flag");
     // A display that does not exist: a window would fail to open.
-    let status = launcher(dir.path(), &marker, &["--headless", "--seconds", "3"])
-        .env("DISPLAY", ":4711")
-        .stdout(Stdio::null())
-        .status()
-        .expect("starting the launcher");
+    let status = launcher(
+        dir.path(),
+        &marker,
+        &["--headless", "--seconds", "3", "--no-cache-file"],
+    )
+    .env("DISPLAY", ":4711")
+    .stdout(Stdio::null())
+    .status()
+    .expect("starting the launcher");
     assert!(
         status.success(),
         "walkthrough --headless exited with {status}"
@@ -161,11 +181,15 @@ fn sigint_to_the_launcher_stops_every_child_cleanly() {
     let marker = unique_marker("sigint");
     // A file, not a pipe: a pipe nobody reads could fill and stall the children writing to it.
     let log = dir.path().join("stderr.log");
-    let mut child = launcher(dir.path(), &marker, &["--seconds", "120"])
-        .stdout(Stdio::null())
-        .stderr(std::fs::File::create(&log).expect("a log file"))
-        .spawn()
-        .expect("starting the launcher");
+    let mut child = launcher(
+        dir.path(),
+        &marker,
+        &["--seconds", "120", "--no-cache-file"],
+    )
+    .stdout(Stdio::null())
+    .stderr(std::fs::File::create(&log).expect("a log file"))
+    .spawn()
+    .expect("starting the launcher");
     let start = Instant::now();
     while snapshots(dir.path()).is_empty() {
         assert!(

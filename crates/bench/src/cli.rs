@@ -35,6 +35,10 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Accuracy(args) => accuracy::run(args.config()),
         BenchCommand::Cost(args) => crate::cost::run(args.config()),
         BenchCommand::MeshOptions(args) => crate::mesh_options::run(args.config()),
+        BenchCommand::CacheFile { quick, out } => {
+            crate::report::write(&out, quick, &["cache-file".to_string()])
+        }
+        BenchCommand::CacheFileCrashChild { file } => crate::cache_file::crash_child(&file),
         BenchCommand::LoopbackSink { listen } => crate::protocol::loopback_sink(&listen),
         BenchCommand::Walk(args) => crate::walk::run(args.config()),
         BenchCommand::Reproduction { runs } => {
@@ -53,9 +57,18 @@ pub enum BenchCommand {
         #[arg(long, default_value = "BENCHMARKS.md")]
         out: PathBuf,
         /// Only the sections whose name contains one of these (protocol, scene, renderer, sma-core,
-        /// sma-service, viewer, convergence).
+        /// sma-service, cache-file, viewer, convergence).
         #[arg(long, value_delimiter = ',')]
         only: Vec<String>,
+    },
+    /// The SMA's cache file: saving and loading 1 M leaves, an incremental save, the schedule's
+    /// pause (docs/bench/cache-file.md, then BENCHMARKS.md); `report --only cache-file`.
+    CacheFile {
+        /// A quarter of the leaves, one run.
+        #[arg(long)]
+        quick: bool,
+        #[arg(long, default_value = "BENCHMARKS.md")]
+        out: PathBuf,
     },
     /// Convergence per viewpoint against the ground truth, per criterion (DESIGN.md §10).
     Convergence(ConvergenceArgs),
@@ -77,6 +90,9 @@ pub enum BenchCommand {
         #[arg(long, default_value = "docs/reproduction")]
         runs: PathBuf,
     },
+    /// The process the cache file's crash trials kill (started by `cache-file` as a child).
+    #[command(hide = true)]
+    CacheFileCrashChild { file: PathBuf },
     /// The receiving end of the loopback protocol benchmark (started by `report` as a child).
     #[command(hide = true)]
     LoopbackSink {

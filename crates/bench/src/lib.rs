@@ -2,8 +2,8 @@
 //! memory targets are checked here, never by timed tests; `walkthrough-bench report` regenerates
 //! BENCHMARKS.md in one command, one section per part:
 //!
-//! - [`protocol`], [`scene`], [`renderer`], [`sma_core`], [`sma_service`], [`viewer`], [`farm`]:
-//!   the sections of `bench report` (internals through each crate's `bench` feature; the farm's
+//! - [`protocol`], [`scene`], [`renderer`], [`sma_core`], [`sma_service`], [`cache_file`],
+//!   [`viewer`], [`farm`]: the sections of `bench report` (internals through each crate's `bench` feature; the farm's
 //!   faults and uneven hosts with real processes);
 //! - [`convergence`], [`accuracy`] and [`cost`]: the end-to-end measurements of DESIGN.md §10,
 //!   with [`metrics`], [`plots`] and [`strips`]; [`reproduction`]: the thesis's findings beside
@@ -16,6 +16,7 @@
 //! - [`cli`]: the command line of `walkthrough-bench`, the only module that knows clap.
 
 pub mod accuracy;
+pub mod cache_file;
 pub mod cli;
 pub mod convergence;
 pub mod cost;

@@ -12,6 +12,7 @@ const SECTIONS: &[Section] = &[
     ("renderer", super::renderer::section),
     ("sma-core", super::sma_core::section),
     ("sma-service", super::sma_service::section),
+    ("cache-file", super::cache_file::section),
     ("viewer", super::viewer::section),
     ("farm", super::farm::section),
 ];

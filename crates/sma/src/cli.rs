@@ -4,6 +4,7 @@
 //! on each flag here. The only module of the library that knows clap: it turns flags into an
 //! [`SmaConfig`] and runs [`server::start`](crate::server::start).
 
+use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::Context;
@@ -12,6 +13,7 @@ use clap::builder::{PossibleValuesParser, TypedValueParser};
 use protocol::admission::PortLimits;
 use protocol::liveness::Liveness;
 
+use crate::cache_file::{CacheFileConfig, Location};
 use crate::config::{Profile, ScheduleConfig, SmaConfig};
 use crate::criteria::{CriterionKind, CriterionSettings};
 use crate::indirect_filter::IndirectFilterSettings;
@@ -280,6 +282,18 @@ pub struct Cli {
     /// stop subdividing a leaf once its vertices differ by no more, beyond their noise.
     #[arg(long, default_value_t = defaults().schedule.display_error)]
     pub display_error: f32,
+    /// Keep the mesh and the samples in this file between runs, and start from what it holds
+    /// (DESIGN.md §5); a file of another scene, version or settings is renamed to
+    /// `PATH.rejected` [default: none; none under --profile thesis].
+    #[arg(long, value_name = "PATH")]
+    pub cache_file: Option<PathBuf>,
+    /// Keep the cache file in this directory, one per scene: `DIR/<scene>-<fingerprint>.redb`
+    /// (the launcher's default, in the user's cache directory).
+    #[arg(long, value_name = "DIR", conflicts_with = "cache_file")]
+    pub cache_dir: Option<PathBuf>,
+    /// Seconds between saves of the cache file (a crash loses at most this much).
+    #[arg(long, default_value_t = CacheFileConfig::SAVE_EVERY.as_secs_f64())]
+    pub cache_file_save_s: f64,
     /// Shading cache budget, MiB.
     #[arg(long, default_value_t = defaults().schedule.cache_budget_bytes >> 20)]
     pub cache_mib: usize,
@@ -390,7 +404,20 @@ impl Cli {
                 neighbour_rule: mesh_defaults().neighbour_rule,
             },
             schedule: self.schedule_config(),
+            cache_file: self.cache_file_config(),
         }
+    }
+
+    fn cache_file_config(&self) -> Option<CacheFileConfig> {
+        let location = match (&self.cache_file, &self.cache_dir) {
+            (Some(path), _) => Location::File(path.clone()),
+            (None, Some(dir)) => Location::PerScene(dir.clone()),
+            (None, None) => return None,
+        };
+        Some(CacheFileConfig {
+            location,
+            save_every: Duration::from_secs_f64(self.cache_file_save_s.clamp(0.1, 86_400.0)),
+        })
     }
 
     fn criterion_settings(&self) -> CriterionSettings {

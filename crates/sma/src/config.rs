@@ -9,6 +9,7 @@ use protocol::frame::DEFAULT_MAX_FRAME;
 use protocol::liveness::Liveness;
 
 use crate::cache::L_WHITE_OUTLIERS;
+use crate::cache_file::CacheFileConfig;
 use crate::criteria::{CriterionKind, CriterionSettings, Passes};
 use crate::indirect_filter::IndirectFilterSettings;
 use crate::mesh::{MeshParams, NeighbourRule};
@@ -44,6 +45,9 @@ pub struct SmaConfig {
     /// The subdivision mesh: minimum edge, weld tolerance, neighbour rule (DESIGN.md §4).
     pub mesh: MeshParams,
     pub schedule: ScheduleConfig,
+    /// The cache file the mesh and the samples are kept in between runs (DESIGN.md §5); none:
+    /// everything learnt is lost at the stop.
+    pub cache_file: Option<CacheFileConfig>,
 }
 
 impl Default for SmaConfig {
@@ -67,6 +71,7 @@ impl Default for SmaConfig {
             viewer_port: PortLimits::default(),
             mesh: MeshParams::default(),
             schedule: ScheduleConfig::default(),
+            cache_file: None,
         }
     }
 }
@@ -94,15 +99,17 @@ impl SmaConfig {
     /// - no object-space filter of the indirect part (`indirect_filter`): the thesis shows each
     ///   vertex's sample as the renderer answered it;
     /// - refinement only while the camera rests (DESIGN.md §3 step 6): no work while walking
-    ///   (step 9), and every camera's pass at once.
+    ///   (step 9), and every camera's pass at once;
+    /// - no cache file: every run starts from an empty cache, as the thesis's SMA did.
     ///
     /// What the thesis never gave a value for keeps today's measured default: S_ref's start and
     /// step, S_min, R, K, the large-triangle fraction, RND's and NLD_IS's fractions, the other
     /// criteria's leaf minimum, and the bound on the neighbour rule's propagation
     /// (`mesh::neighbour_rule`'s 9 splits per step).
     ///
-    /// Every addition beyond the thesis (merging by uniformity today; per-pixel direct light, an
-    /// object-space filter, textures, a cache file, coarsening by a memory budget to come) has a
+    /// Every addition beyond the thesis (merging by uniformity and the cache file today;
+    /// per-pixel direct light, an object-space filter, textures, coarsening by a memory budget
+    /// to come) has a
     /// setting of its own, turned off here under `Profile::Thesis`.
     pub fn with_profile(mut self, profile: Profile) -> Result<SmaConfig, CriterionRefused> {
         let schedule = &mut self.schedule;
@@ -120,6 +127,7 @@ impl SmaConfig {
                 schedule.indirect_filter.enabled = false;
                 schedule.work_while_walking = false;
                 self.mesh.neighbour_rule = NeighbourRule::Thesis;
+                self.cache_file = None;
             }
         }
         Ok(self)

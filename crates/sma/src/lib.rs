@@ -6,6 +6,7 @@
 //! - [`visible_set`]: the visible set V_t keyed by (leaf, side);
 //! - [`nld`]: the NLD metric (eq. 4.3);
 //! - [`criteria`]: refinement criteria, one file each behind one trait (§4.3);
+//! - [`cache_file`]: the mesh and the cache kept on disk between runs (§5, persistence).
 //! - [`indirect_filter`]: the object-space filter of the samples' indirect part (§5).
 //!
 //! Service:
@@ -24,6 +25,7 @@
 //! triangles covers). The SMA's own tests enable it through their dev-dependency on this crate.
 
 pub mod cache;
+pub mod cache_file;
 pub mod criteria;
 pub mod indirect_filter;
 pub mod mesh;

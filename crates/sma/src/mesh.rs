@@ -34,6 +34,7 @@
 
 mod adjacency;
 mod angles;
+mod changed;
 mod coarsen;
 pub(crate) mod fast_hash;
 #[cfg(any(test, feature = "testing"))]
@@ -285,6 +286,8 @@ pub struct SubdivisionMesh {
     leaf_count: usize,
     /// Triangle splits so far (see [`SubdivisionMesh::split_count`]).
     splits: u64,
+    /// Base triangles whose subtree changed since the cache file last asked.
+    changed: changed::ChangedBases,
 }
 
 /// Flag in `vertex_point` of a vertex whose point may hold other vertices (a seam side, or a
@@ -357,6 +360,7 @@ impl SubdivisionMesh {
                 }
             })
             .collect();
+        let base_count = nodes.len();
         SubdivisionMesh {
             min_split_edge: 2.0
                 * params
@@ -378,7 +382,14 @@ impl SubdivisionMesh {
             edge_splits: HashMap::default(),
             seam_midpoints: HashMap::default(),
             splits: 0,
+            changed: changed::ChangedBases::new(base_count),
         }
+    }
+
+    /// The base triangles whose subtree was split or coarsened since the last call (the cache
+    /// file's incremental save).
+    pub(crate) fn take_changed_bases(&mut self) -> Vec<u32> {
+        self.changed.take()
     }
 
     /// Base triangles are nodes `0..base_count`.

@@ -40,6 +40,7 @@ mod ladder;
 mod need;
 mod pace;
 mod pending;
+mod persistence;
 mod plan;
 mod refinement;
 mod requests;
@@ -54,11 +55,11 @@ use std::time::Instant;
 
 use anyhow::Context;
 use protocol::renderer_link::Quality;
-use protocol::viewer_link::SmaToViewer;
 use scene::Scene;
 use tokio::sync::{mpsc, watch};
 
 use crate::cache::ShadingCache;
+use crate::cache_file::CacheFile;
 use crate::clock::sleep_until;
 use crate::config::ScheduleConfig;
 use crate::indirect_filter::IndirectFilter;
@@ -67,8 +68,9 @@ use crate::pool::{Lane, PoolEvent, PoolHandle};
 use crate::viewer_link::{ViewerEvent, ViewerId};
 use crate::visibility::{Gpu, LuminancePass, Visibility, carry_over};
 use answers::Answers;
-use counters::{Counters, Gauges, Work};
+use counters::{Counters, Work};
 use pace::{Allowed, Paces, PassesOwed};
+pub use persistence::CacheFileSetup;
 use plan::{MorePaths, NeedsInput, PlanRules};
 use refinement::{Refinement, Round};
 use requests::{BatchLimit, Requests};
@@ -103,25 +105,32 @@ pub struct Schedule {
     /// views changed since the last run.
     indirect_filter: IndirectFilter,
     filter_due: bool,
+    cache_file: Option<CacheFile>,
 }
 
 impl Schedule {
     pub fn new(
         config: ScheduleConfig,
         scene: &Scene,
-        mesh: SubdivisionMesh,
+        mut mesh: SubdivisionMesh,
         gpu: Gpu,
         pool: PoolHandle,
+        cache_file: Option<&CacheFileSetup>,
     ) -> Schedule {
         let now = Instant::now();
+        let rules = PlanRules::new(&config, scene);
+        let mut cache = ShadingCache::new(config.cache_budget_bytes)
+            .with_l_white_outliers(config.l_white_outliers);
+        let cache_file = cache_file.and_then(|setup| {
+            persistence::open(setup, scene, &config, &rules, &mut mesh, &mut cache)
+        });
         let luminance = LuminancePass::new(&gpu);
         let visibility = Visibility::new(gpu, &mesh, scene.mesh.bounds());
         let indirect_filter = IndirectFilter::new(config.indirect_filter, &mesh);
         Schedule {
             refinement: Refinement::new(mesh.base_count(), &config),
-            rules: PlanRules::new(&config, scene),
-            cache: ShadingCache::new(config.cache_budget_bytes)
-                .with_l_white_outliers(config.l_white_outliers),
+            rules,
+            cache,
             requests: Requests::new(config.seed, config.top_up_share),
             criteria: Criteria::new(&config),
             paces: Paces::new(config.round_share, now),
@@ -138,6 +147,7 @@ impl Schedule {
             counters: Counters::new(now),
             indirect_filter,
             filter_due: false,
+            cache_file,
         }
     }
 
@@ -145,9 +155,20 @@ impl Schedule {
         self.visibility.gpu().describe()
     }
 
-    /// Runs until shutdown or until both channels close.
+    /// Runs until shutdown or until both channels close; then saves the cache file.
     pub async fn run(
         mut self,
+        viewers: mpsc::Receiver<ViewerEvent>,
+        pool: mpsc::Receiver<PoolEvent>,
+        shutdown: watch::Receiver<bool>,
+    ) -> anyhow::Result<()> {
+        let outcome = self.serve(viewers, pool, shutdown).await;
+        self.close_cache_file();
+        outcome
+    }
+
+    async fn serve(
+        &mut self,
         mut viewers: mpsc::Receiver<ViewerEvent>,
         mut pool: mpsc::Receiver<PoolEvent>,
         mut shutdown: watch::Receiver<bool>,
@@ -193,6 +214,7 @@ impl Schedule {
         match event {
             PoolEvent::Shaded { batch, radiance } => {
                 self.requests.finished(&batch);
+                self.samples_changed(&batch);
                 let answered = self.answers.shaded(
                     &batch,
                     &radiance,
@@ -253,6 +275,7 @@ impl Schedule {
             self.timed(Work::Round, |s| s.refine_round(id))?;
         }
         self.note_convergence();
+        self.save_if_due();
         Ok(())
     }
 
@@ -568,29 +591,7 @@ impl Schedule {
         let wake = [turns::next_ready(&gate, &views, now), allowed.wake_at()];
         (
             turns::has_work_now(self.owed, &allowed, candidate),
-            wake.into_iter().flatten().min(),
+            wake.into_iter().flatten().chain(self.save_due_at()).min(),
         )
-    }
-
-    fn report_stats(&mut self) {
-        let gauges = Gauges {
-            renderer_busy: self.pool.take_busy(),
-            renderers: self.renderers,
-            viewers: self.viewers.len(),
-            leaves: self.mesh.leaf_count(),
-            cached_samples: self.cache.len(),
-            cache_bytes: self.cache.bytes(),
-            mesh_bytes: self.mesh.heap_bytes(),
-            queued: self.requests.queued(),
-            in_flight: self.requests.in_flight_keys(),
-            pending_steps: self.refinement.pending.len(),
-            uniform_merges: self.refinement.uniform_merges(),
-            neighbour_bound_hits: self.mesh.neighbour_stats().bound_hits,
-            split_shapes: self.mesh.split_shapes(),
-        };
-        let stats = self.counters.report(gauges);
-        for viewer in self.viewers.iter() {
-            viewer.send(SmaToViewer::Stats(stats));
-        }
     }
 }

@@ -11,10 +11,11 @@ use protocol::admission::{Admission, ConnectionLimit};
 use tokio::net::TcpListener;
 use tokio::sync::{mpsc, watch};
 
+use crate::cache_file::MeshKey;
 use crate::config::SmaConfig;
 use crate::mesh::SubdivisionMesh;
 use crate::pool::{self, PoolConfig, PoolEvent};
-use crate::schedule::Schedule;
+use crate::schedule::{CacheFileSetup, Schedule};
 use crate::viewer_link::{
     self, ViewerEvent, ViewerId, ViewerLinkConfig, scene_identity, scene_info,
 };
@@ -113,7 +114,18 @@ pub async fn start(
         scene = %scene.name,
         "sma starting"
     );
-    let schedule = Schedule::new(config.schedule, &scene, mesh, gpu, pool);
+    let cache_file = config.cache_file.map(|file| CacheFileSetup {
+        config: file,
+        mesh: MeshKey::of(&config.mesh),
+    });
+    let schedule = Schedule::new(
+        config.schedule,
+        &scene,
+        mesh,
+        gpu,
+        pool,
+        cache_file.as_ref(),
+    );
     tracing::debug!(adapter = %schedule.adapter(), scene = %scene.name, "visibility device");
     let listener = TcpListener::bind(&config.listen)
         .await

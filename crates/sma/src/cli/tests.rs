@@ -185,3 +185,35 @@ fn the_indirect_filter_is_on_by_default_and_off_by_flag_or_thesis_profile() {
     assert_eq!(radius("0.003").unwrap(), 0.003);
     assert!(radius("1.5").is_err());
 }
+
+#[test]
+fn a_cache_file_is_used_only_when_asked_for_and_never_under_the_thesis_profile() {
+    let config = |args: &[&str]| {
+        let base = ["sma", "--renderer", "r:1"].into_iter();
+        Cli::try_parse_from(base.chain(args.iter().copied()))
+            .unwrap()
+            .config()
+            .unwrap()
+            .cache_file
+    };
+    assert_eq!(config(&[]), None);
+    let file = config(&["--cache-file", "/c/site.redb", "--cache-file-save-s", "2"]).unwrap();
+    assert_eq!(file.location, Location::File(PathBuf::from("/c/site.redb")));
+    assert_eq!(file.save_every, Duration::from_secs(2));
+    let per_scene = config(&["--cache-dir", "/c"]).unwrap();
+    assert_eq!(per_scene.location, Location::PerScene(PathBuf::from("/c")));
+    assert_eq!(per_scene.save_every, CacheFileConfig::SAVE_EVERY);
+    assert_eq!(config(&["--cache-dir", "/c", "--profile", "thesis"]), None);
+    assert!(
+        Cli::try_parse_from([
+            "sma",
+            "--renderer",
+            "r:1",
+            "--cache-file",
+            "a",
+            "--cache-dir",
+            "b"
+        ])
+        .is_err()
+    );
+}

@@ -151,6 +151,7 @@ impl SubdivisionMesh {
     /// Removes the children (all leaves) of `id`, which becomes a leaf again.
     pub(super) fn remove_children(&mut self, id: NodeId, step: &mut StepRecorder) {
         let node = *self.node(id);
+        self.changed.mark(self.base_of(id));
         step.before_change(self, id);
         for child in node.children() {
             debug_assert!(self.is_leaf(child), "only leaves are removed");
@@ -179,6 +180,7 @@ impl SubdivisionMesh {
         step: &mut StepRecorder,
     ) -> NodeId {
         step.before_change(self, parent);
+        self.changed.mark(self.base_of(parent));
         let first = self.nodes.len() as NodeId;
         for (i, &vertices) in children.iter().enumerate() {
             step.before_change(self, first + i as NodeId);
