@@ -215,6 +215,31 @@ impl Counters {
     }
 }
 
+impl super::Schedule {
+    /// Sends every viewer the `Stats` since the last ones, with what the schedule holds now.
+    pub(super) fn report_stats(&mut self) {
+        let gauges = Gauges {
+            renderer_busy: self.pool.take_busy(),
+            renderers: self.renderers,
+            viewers: self.viewers.len(),
+            leaves: self.mesh.leaf_count(),
+            cached_samples: self.cache.len(),
+            cache_bytes: self.cache.bytes(),
+            mesh_bytes: self.mesh.heap_bytes(),
+            queued: self.requests.queued(),
+            in_flight: self.requests.in_flight_keys(),
+            pending_steps: self.refinement.pending.len(),
+            uniform_merges: self.refinement.uniform_merges(),
+            neighbour_bound_hits: self.mesh.neighbour_stats().bound_hits,
+            split_shapes: self.mesh.split_shapes(),
+        };
+        let stats = self.counters.report(gauges);
+        for viewer in self.viewers.iter() {
+            viewer.send(SmaToViewer::Stats(stats));
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -250,30 +275,5 @@ mod tests {
             (3 * batch.points, 3 * batch.paths, 3 * batch.points)
         );
         assert_eq!(counters.report(Gauges::default()).rejected_points, 3);
-    }
-}
-
-impl super::Schedule {
-    /// Sends every viewer the `Stats` since the last ones, with what the schedule holds now.
-    pub(super) fn report_stats(&mut self) {
-        let gauges = Gauges {
-            renderer_busy: self.pool.take_busy(),
-            renderers: self.renderers,
-            viewers: self.viewers.len(),
-            leaves: self.mesh.leaf_count(),
-            cached_samples: self.cache.len(),
-            cache_bytes: self.cache.bytes(),
-            mesh_bytes: self.mesh.heap_bytes(),
-            queued: self.requests.queued(),
-            in_flight: self.requests.in_flight_keys(),
-            pending_steps: self.refinement.pending.len(),
-            uniform_merges: self.refinement.uniform_merges(),
-            neighbour_bound_hits: self.mesh.neighbour_stats().bound_hits,
-            split_shapes: self.mesh.split_shapes(),
-        };
-        let stats = self.counters.report(gauges);
-        for viewer in self.viewers.iter() {
-            viewer.send(SmaToViewer::Stats(stats));
-        }
     }
 }
