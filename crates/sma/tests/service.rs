@@ -13,6 +13,7 @@ use protocol::renderer_link::{Quality, SampleKey};
 use protocol::viewer_link::{Camera, SmaToViewer, ViewerToSma};
 use scene::{Material, Scene, SceneBuilder, SceneSettings, ViewpointSetting};
 use sma::config::{Profile, SmaConfig};
+use sma::criteria::CriterionKind;
 use sma::server::Running;
 use sma::visibility::Gpu;
 use testkit::fake_renderer::{self, Fault, Log};
@@ -110,6 +111,9 @@ fn config(renderers: Vec<String>, refine: bool) -> SmaConfig {
         ..SmaConfig::default()
     };
     config.schedule.refine = refine;
+    // The schedule's tests refine with the object-space NLD_OS, which subdivides the fake
+    // renderer's smooth gradients; today's default, nld-px, judges pixels of the shown image.
+    config.schedule.criterion = CriterionKind::NldOs;
     config.schedule.rest = Duration::ZERO;
     config.schedule.stats_every = Duration::from_secs(60);
     config
