@@ -15,6 +15,7 @@ const N: u32 = 16;
 /// Settings whose radius is 2.5 grid cells at 64 paths on an `N` × `N` patch (diagonal N√2).
 fn settings() -> IndirectFilterSettings {
     IndirectFilterSettings {
+        enabled: true,
         radius: 2.5 / (N as f32 * std::f32::consts::SQRT_2),
         ..IndirectFilterSettings::default()
     }
