@@ -148,15 +148,18 @@ fn write_criterion_speed(md: &mut String, runs: usize) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The median time of one run of the indirect filter (default settings) over every visible
-/// sample, and the mean number of neighbours a sample borrows from.
+/// The median time of one run of the indirect filter (default settings, turned on) over every
+/// visible sample, and the mean number of neighbours a sample borrows from.
 fn filter_cost(
     mesh: &SubdivisionMesh,
     cache: &ShadingCache,
     visible: &VisibleSet,
     runs: usize,
 ) -> (f64, f64) {
-    let settings = IndirectFilterSettings::default();
+    let settings = IndirectFilterSettings {
+        enabled: true,
+        ..IndirectFilterSettings::default()
+    };
     let mut borrowed = 0.0;
     let secs = median(
         (0..runs)

@@ -8,8 +8,8 @@
 //! what the person sees; the raw estimate is what further paths merge with.
 //!
 //! Storage is dense: a slot per (vertex, side) indexing a packed sample array, so the per-leaf
-//! lookups of NLD_OS are two array reads, not hashing. A sample is packed into 60 bytes: per part
-//! mean RGB and luminance variance, the shown indirect part, paths, the time it was last seen,
+//! lookups of NLD_OS are two array reads, not hashing. A sample is packed into 24 bytes: per part
+//! mean RGB and luminance variance, the shown indirect part (quantised: `cache::quantised`), paths, the time it was last seen,
 //! its bounce depth and whether it is view-dependent; the eye, which only view-dependent samples
 //! need, lives in a side table. A
 //! view-dependent sample keeps a few eyes there, each with its own estimate: viewers looking at
@@ -139,10 +139,10 @@ impl ShadingCache {
     fn unpack(&self, slot: usize, p: &PackedSample) -> CachedSample {
         // Diffuse samples, nearly all of them, skip the hash lookup.
         let eye = p
-            .view_dependent
+            .view_dependent()
             .then(|| self.eyes.get(&(slot as u32))?.last().map(|v| v.eye))
             .flatten();
-        sample_of(&p.estimate(), p.view_dependent, eye, p.last_seen)
+        sample_of(&p.estimate(), p.view_dependent(), eye, p.last_seen)
     }
 
     /// The sample as seen from `eye`: for a view-dependent one, the kept eye nearest to it;
@@ -151,7 +151,7 @@ impl ShadingCache {
         let slot = slot_index(key);
         let p = self.packed(slot)?;
         let nearest = eye
-            .filter(|_| p.view_dependent)
+            .filter(|_| p.view_dependent())
             .and_then(|eye| self.nearest_eye(slot, eye));
         Some(match nearest {
             Some(v) => sample_of(&v.estimate, true, Some(v.eye), p.last_seen),
@@ -218,7 +218,7 @@ impl ShadingCache {
             return CacheInsert::New;
         }
         let s = s as usize;
-        self.samples[s].view_dependent = sample.view_dependent;
+        self.samples[s].set_view_dependent(sample.view_dependent);
         let Some(eye) = eye else {
             let mut kept = self.samples[s].raw();
             if kept.accumulate(&new) == Merge::Kept {
@@ -258,7 +258,7 @@ impl ShadingCache {
         let slot = slot_index(key);
         let p = self.packed(slot)?;
         let nearest = eye
-            .filter(|_| p.view_dependent)
+            .filter(|_| p.view_dependent())
             .and_then(|eye| self.nearest_eye(slot, eye));
         Some(nearest.map_or_else(|| p.estimate(), |v| v.estimate))
     }
@@ -267,7 +267,7 @@ impl ShadingCache {
     /// the object-space filter reads (`indirect_filter`).
     pub(crate) fn answered(&self, key: SampleKey) -> Option<(Estimate, bool)> {
         self.packed(slot_index(key))
-            .map(|p| (p.raw(), p.view_dependent))
+            .map(|p| (p.raw(), p.view_dependent()))
     }
 
     /// Sets the indirect part a sample is shown with (`indirect_filter`); it holds until the
@@ -276,7 +276,7 @@ impl ShadingCache {
         if let Some(&s) = self.slots.get(slot_index(key))
             && s != NO_SLOT
         {
-            self.samples[s as usize].shown_indirect = shown;
+            self.samples[s as usize].set_shown_indirect(&shown);
         }
     }
 
@@ -504,6 +504,7 @@ impl ShadingCache {
 pub const L_WHITE_OUTLIERS: f64 = 0.001;
 
 mod packed;
+mod quantised;
 pub use packed::CachedSample;
 use packed::{PackedSample, Stamp, sample_of, stamp};
 

@@ -335,7 +335,8 @@ pub struct ScheduleConfig {
     /// (`schedule::uniformity`). Off until measured.
     pub merge_uniform: bool,
     /// The object-space filter of the samples' indirect part (DESIGN.md §5,
-    /// `indirect_filter`): on by default, off under the thesis profile.
+    /// `indirect_filter`): off until measured to help (it did not on Sponza), and under the
+    /// thesis profile.
     pub indirect_filter: IndirectFilterSettings,
     /// Seed of the criteria's random streams.
     pub seed: u64,

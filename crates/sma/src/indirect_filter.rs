@@ -60,7 +60,10 @@ pub struct IndirectFilterSettings {
 impl Default for IndirectFilterSettings {
     fn default() -> Self {
         IndirectFilterSettings {
-            enabled: true,
+            // Off until it helps: on Sponza S1–S3 (512×384, nld-px, two runs each) it raised
+            // mean FLIP at 5 s by a fifth to a half against the unfiltered picture, at equal
+            // paths too (`walkthrough-bench convergence --sma-flags=--indirect-filter,on`).
+            enabled: false,
             // A hundredth of the scene: about a metre of bracara, a few leaves of a refined
             // wall, well within the range over which its indirect light is smooth. Not a
             // measured optimum: the noise test keeps a larger one from blurring.

@@ -195,11 +195,10 @@ async fn first_picture_then_refinement_stays_consistent_and_covers_the_visible_s
     );
     for t in probe.table.values() {
         for (p, rgb) in t.positions.iter().zip(t.radiance) {
-            let lit = if p[0] > 0.3 { 1.0 } else { 0.1 };
-            assert!(
-                (rgb[0] - lit).abs() < 1e-6 || (rgb[0] - 0.5 * lit).abs() < 1e-6,
-                "{p:?}: {rgb:?}"
-            );
+            let lit: f32 = if p[0] > 0.3 { 1.0 } else { 0.1 };
+            // The cache stores means within 1/511 of their largest channel (`cache::quantised`).
+            let near = |want: f32| (rgb[0] - want).abs() <= want / 511.0;
+            assert!(near(lit) || near(0.5 * lit), "{p:?}: {rgb:?}");
         }
     }
 

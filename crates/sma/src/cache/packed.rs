@@ -5,6 +5,7 @@ use glam::Vec3;
 use protocol::renderer_link::Quality;
 use protocol::{PartEstimate, SampleParts};
 
+use super::quantised::{SharedExponentRgb, ShortVariances};
 use crate::sample::{Depth, Estimate};
 
 /// A sample as callers build and read it; stored packed (`PackedSample`).
@@ -50,56 +51,120 @@ pub(super) fn stamp(time: u64) -> Stamp {
 }
 
 /// What the sample array holds per sample: for a view-dependent one, its latest eye's estimate
-/// (the eyes are in `ShadingCache::eyes`).
+/// (the eyes are in `ShadingCache::eyes`). The parts are quantised (`quantised`: means within
+/// about 2^-9 of their largest channel, variances within 2^-5) and the paths share a word with
+/// the depth, so that a sample in parts takes 24 bytes, less than a single-part one took in
+/// `f32`s.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct PackedSample {
-    pub(super) parts: SampleParts,
-    /// The indirect part as shown: the object-space filter's estimate (`indirect_filter`), in
-    /// the units of `parts.indirect` (its variance is per path, the filtered mean's variance
-    /// times `paths`); `parts.indirect` itself until the filter runs after a change.
-    pub(super) shown_indirect: PartEstimate,
-    pub(super) paths: u32,
+    /// The direct part, the indirect part as answered, and the indirect part as shown: the
+    /// object-space filter's estimate (`indirect_filter`), in the units of the answered one (its
+    /// variance is per path, the filtered mean's variance times `paths`); the answered one until
+    /// the filter runs after a change.
+    means: [SharedExponentRgb; 3],
+    /// The luminance variances of the same three.
+    variances: ShortVariances,
+    paths_and_depth: PathsAndDepth,
     pub(super) last_seen: Stamp,
-    pub(super) depth: Depth,
-    pub(super) view_dependent: bool,
 }
 
-const _: () = assert!(size_of::<PackedSample>() == 60);
+const _: () = assert!(size_of::<PackedSample>() == 24);
+
+const DIRECT: usize = 0;
+const INDIRECT: usize = 1;
+const SHOWN_INDIRECT: usize = 2;
 
 impl PackedSample {
     pub(super) fn new(e: &Estimate, view_dependent: bool, last_seen: Stamp) -> Self {
+        let parts = [&e.parts.direct, &e.parts.indirect, &e.parts.indirect];
         PackedSample {
-            parts: e.parts,
-            shown_indirect: e.parts.indirect,
-            paths: e.paths,
+            means: parts.map(|p| SharedExponentRgb::encode(p.rgb)),
+            variances: ShortVariances::encode(parts.map(|p| p.luminance_variance)),
+            paths_and_depth: PathsAndDepth::new(e.paths, e.depth, view_dependent),
             last_seen,
-            depth: e.depth,
-            view_dependent,
+        }
+    }
+
+    fn part(&self, part: usize, variances: &[f32; 3]) -> PartEstimate {
+        PartEstimate {
+            rgb: self.means[part].decode(),
+            luminance_variance: variances[part],
         }
     }
 
     /// What further paths merge with.
     pub(super) fn raw(&self) -> Estimate {
-        Estimate {
-            parts: self.parts,
-            paths: self.paths,
-            depth: self.depth,
-        }
+        self.with_indirect(INDIRECT)
     }
 
     /// What the person sees, and every reader judges.
     pub(super) fn estimate(&self) -> Estimate {
+        self.with_indirect(SHOWN_INDIRECT)
+    }
+
+    fn with_indirect(&self, indirect: usize) -> Estimate {
+        let variances = self.variances.decode();
         Estimate {
             parts: SampleParts {
-                indirect: self.shown_indirect,
-                ..self.parts
+                direct: self.part(DIRECT, &variances),
+                indirect: self.part(indirect, &variances),
             },
-            ..self.raw()
+            paths: self.paths_and_depth.paths(),
+            depth: self.paths_and_depth.depth(),
         }
     }
 
+    pub(super) fn view_dependent(&self) -> bool {
+        self.paths_and_depth.view_dependent()
+    }
+
+    pub(super) fn set_view_dependent(&mut self, view_dependent: bool) {
+        let p = self.paths_and_depth;
+        self.paths_and_depth = PathsAndDepth::new(p.paths(), p.depth(), view_dependent);
+    }
+
+    /// Sets the indirect part shown until the sample changes (`indirect_filter`).
+    pub(super) fn set_shown_indirect(&mut self, shown: &PartEstimate) {
+        self.means[SHOWN_INDIRECT] = SharedExponentRgb::encode(shown.rgb);
+        let mut variances = self.variances.decode();
+        variances[SHOWN_INDIRECT] = shown.luminance_variance;
+        self.variances = ShortVariances::encode(variances);
+    }
+
     pub(super) fn set(&mut self, e: &Estimate) {
-        *self = PackedSample::new(e, self.view_dependent, self.last_seen);
+        *self = PackedSample::new(e, self.view_dependent(), self.last_seen);
+    }
+}
+
+/// A sample's paths (24 bits), bounce depth (7) and view dependence (1) in one word.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct PathsAndDepth(u32);
+
+/// Paths beyond this many are stored as this many: a vertex is settled long before (its
+/// standard error is 1/4096 of one path's), and further batches then merge with a little more
+/// weight than their share.
+const MAX_PATHS: u32 = (1 << 24) - 1;
+/// The depth code of unbounded paths (Russian roulette); bounded depths beyond it minus one are
+/// stored as it minus one (the scenes trace at most a few dozen bounces).
+const UNBOUNDED: u32 = 127;
+
+impl PathsAndDepth {
+    fn new(paths: u32, depth: Depth, view_dependent: bool) -> Self {
+        let depth = depth.bounces().map_or(UNBOUNDED, |b| b.min(UNBOUNDED - 1));
+        PathsAndDepth(paths.min(MAX_PATHS) | depth << 24 | u32::from(view_dependent) << 31)
+    }
+
+    fn paths(self) -> u32 {
+        self.0 & MAX_PATHS
+    }
+
+    fn depth(self) -> Depth {
+        let code = (self.0 >> 24) & UNBOUNDED;
+        Depth::of((code != UNBOUNDED).then_some(code))
+    }
+
+    fn view_dependent(self) -> bool {
+        self.0 >> 31 == 1
     }
 }
 
@@ -116,5 +181,32 @@ pub(super) fn sample_of(
         view_dependent,
         eye,
         last_seen: u64::from(seen),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Paths, depth and view dependence come back as stored; beyond their ranges, saturated.
+    #[test]
+    fn paths_and_depth_round_trip() {
+        for (paths, bounces, view_dependent) in [
+            (1, Some(0), false),
+            (64, Some(3), true),
+            (MAX_PATHS, None, true),
+            (12_345, Some(126), false),
+        ] {
+            let p = PathsAndDepth::new(paths, Depth::of(bounces), view_dependent);
+            assert_eq!(
+                (p.paths(), p.depth(), p.view_dependent()),
+                (paths, Depth::of(bounces), view_dependent)
+            );
+        }
+        let beyond = PathsAndDepth::new(u32::MAX, Depth::of(Some(200)), false);
+        assert_eq!(
+            (beyond.paths(), beyond.depth(), beyond.view_dependent()),
+            (MAX_PATHS, Depth::of(Some(126)), false)
+        );
     }
 }

@@ -149,7 +149,9 @@ fn l_white_leaves_out_a_lone_outlier() {
         let l = if v == 7 { 1e5 } else { 1.0 + v as f32 * 1e-4 };
         cache.insert(key(v), sample(l, Quality::DIRECT, 0));
     }
-    let below = 1.0 + (mesh.vertex_count() - 1) as f32 * 1e-4;
+    // The largest but the outlier, as stored (`cache::quantised`).
+    let stored = |v: u32| conventions::luminance(cache.get(key(v)).unwrap().rgb());
+    let below = stored(mesh.vertex_count() as u32 - 1);
     assert!((cache.l_white(&mesh, &visible) - below).abs() < 2e-3);
     assert_eq!(ShadingCache::new(1).l_white(&mesh, &visible), 0.0);
 }
@@ -175,10 +177,8 @@ fn l_white_without_outliers_is_the_maximum() {
         let l = if v == 7 { 1e5 } else { 1.0 + v as f32 * 1e-4 };
         cache.insert(key(v), sample(l, Quality::DIRECT, 0));
     }
-    let lum = |v: u32| {
-        let l = if v == 7 { 1e5 } else { 1.0 + v as f32 * 1e-4 };
-        conventions::luminance([l; 3])
-    };
+    // As stored (`cache::quantised`).
+    let lum = |v: u32| conventions::luminance(cache.get(key(v)).unwrap().rgb());
     assert_eq!(cache.l_white(&mesh, &visible), lum(7));
     // Not visible, not counted.
     let one = VisibleSet {
@@ -207,7 +207,7 @@ fn eviction_keeps_memory_under_budget_over_a_long_walk() {
         let start = rng.random_range(0..vertices - 300);
         let visible: Vec<SampleKey> = (start..start + 300).map(key).collect();
         for &k in &visible {
-            cache.insert(k, sample(k.vertex as f32, Quality::DIRECT, now));
+            cache.insert(k, marked(k.vertex, now));
             cache.touch(k, now);
         }
         cache.evict(now, &|_| false);
@@ -217,13 +217,23 @@ fn eviction_keeps_memory_under_budget_over_a_long_walk() {
             cache.bytes()
         );
         assert!(
-            visible
-                .iter()
-                .all(|&k| cache.get(k).is_some_and(|s| s.rgb()[0] == k.vertex as f32)),
+            visible.iter().all(|&k| cache
+                .get(k)
+                .is_some_and(|s| s.rgb() == marked(k.vertex, now).rgb())),
             "a visible sample was evicted or moved to another key"
         );
     }
     assert!(cache.len() > 300);
+}
+
+/// A sample whose colour names its vertex (below 65,536), exactly: channels of 256 to 511 keep
+/// every bit in the cache's shared-exponent encoding (`cache::quantised`).
+fn marked(vertex: u32, seen: u64) -> CachedSample {
+    let channel = |byte: u32| 256.0 + (byte & 0xff) as f32;
+    CachedSample {
+        parts: SampleParts::direct_only([channel(vertex), channel(vertex >> 8), 256.0], 0.25),
+        ..sample(0.0, Quality::DIRECT, seen)
+    }
 }
 
 fn glossy(eye: Vec3, seen: u64) -> CachedSample {
