@@ -57,6 +57,9 @@ pub struct Dialed {
     pub events: mpsc::Sender<LinkEvent>,
 }
 
+/// Why a link ended when the pool dropped its batch queue.
+const GIVEN_UP_BY_THE_POOL: &str = "given up on by the pool";
+
 impl Dialed {
     pub async fn run(self, mut shutdown: watch::Receiver<bool>) {
         let mut backoff = self.config.backoff_min;
@@ -74,7 +77,13 @@ impl Dialed {
                 }
                 Err(e) => e.to_string(),
             };
-            tracing::info!(renderer = %self.addr, %reason, retry_in = ?backoff, "renderer link down");
+            // A link the pool let go of (at a stop, or a renderer it gave up on and said so) is
+            // not news: only a link that failed on its own is worth a line.
+            if *shutdown.borrow() || reason == GIVEN_UP_BY_THE_POOL {
+                tracing::debug!(renderer = %self.addr, %reason, "renderer link down");
+            } else {
+                tracing::info!(renderer = %self.addr, %reason, retry_in = ?backoff, "renderer link down");
+            }
             tokio::select! {
                 _ = tokio::time::sleep(backoff) => {}
                 _ = shutdown.changed() => return,
@@ -228,7 +237,7 @@ async fn serve(
         let out = tokio::select! {
             batch = batches.recv() => match batch {
                 Some(batch) => ToRenderer::ShadeBatch(batch),
-                None => break "given up on by the pool".to_string(),
+                None => break GIVEN_UP_BY_THE_POOL.to_string(),
             },
             _ = heartbeat.tick() => {
                 nonce += 1;
