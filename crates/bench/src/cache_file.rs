@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use protocol::renderer_link::{Quality, SampleKey};
 use protocol::{PartEstimate, SampleParts, Side};
 use sma::cache::{CachedSample, ShadingCache};
-use sma::cache_file::{CacheFile, MeshKey, SampleMeaning, StoreKey};
+use sma::cache_file::{CacheFile, StoreKey};
 use sma::mesh::{MeshParams, SubdivisionMesh, grid_mesh};
 
 use super::stats::median;
@@ -23,17 +23,7 @@ const LEVELS: usize = 4;
 const QUICK_LEVELS: usize = 3;
 
 fn key() -> StoreKey {
-    StoreKey {
-        scene: [0x5a; 32],
-        mesh: MeshKey::of(&MeshParams::default()),
-        samples: SampleMeaning::new(
-            true,
-            Quality {
-                paths: 64,
-                bounces: Some(2),
-            },
-        ),
-    }
+    StoreKey::of_test_scene(90)
 }
 
 fn fresh() -> (SubdivisionMesh, ShadingCache) {

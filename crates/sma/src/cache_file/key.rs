@@ -63,6 +63,23 @@ impl SampleMeaning {
 }
 
 impl StoreKey {
+    /// A key of default mesh settings and samples of 64 paths at 2 bounces, for a scene whose
+    /// fingerprint is `scene` repeated: the fixture of the store's tests and benchmark.
+    #[cfg(any(test, feature = "testing"))]
+    pub fn of_test_scene(scene: u8) -> StoreKey {
+        StoreKey {
+            scene: [scene; 32],
+            mesh: MeshKey::of(&MeshParams::default()),
+            samples: SampleMeaning::new(
+                true,
+                Quality {
+                    paths: 64,
+                    bounces: Some(2),
+                },
+            ),
+        }
+    }
+
     /// Why a stored key does not fit this one, in words for the warning; None when it does.
     pub fn mismatch(&self, stored: &StoreKey) -> Option<String> {
         if stored.scene != self.scene {
@@ -92,17 +109,7 @@ mod tests {
     use super::*;
 
     fn key() -> StoreKey {
-        StoreKey {
-            scene: [7; 32],
-            mesh: MeshKey::of(&MeshParams::default()),
-            samples: SampleMeaning::new(
-                true,
-                Quality {
-                    paths: 64,
-                    bounces: Some(2),
-                },
-            ),
-        }
+        StoreKey::of_test_scene(7)
     }
 
     #[test]

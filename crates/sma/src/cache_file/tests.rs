@@ -10,17 +10,7 @@ use crate::mesh::MeshParams;
 use crate::mesh::test_meshes::grid;
 
 fn key() -> StoreKey {
-    StoreKey {
-        scene: [3; 32],
-        mesh: MeshKey::of(&MeshParams::default()),
-        samples: SampleMeaning::new(
-            true,
-            Quality {
-                paths: 64,
-                bounces: Some(2),
-            },
-        ),
-    }
+    StoreKey::of_test_scene(3)
 }
 
 fn fresh() -> (SubdivisionMesh, ShadingCache) {
