@@ -299,9 +299,10 @@ pub struct Cli {
     /// Memory budget of the SMA's own structures, MiB: the subdivision mesh, the shading cache
     /// and the viewers' state, counted by capacity. Near it, what was seen least recently is
     /// coarsened and evicted first; when the current views alone need more, refinement stops
-    /// and the SMA reports itself memory-bound. The default, 2 GiB, is about ten million
-    /// leaves, several 1080p views' worth: it binds only on long walks, and leaves most of an
-    /// 8-GiB machine to renderers on the same host.
+    /// and the SMA reports itself memory-bound. The default, 2 GiB, the cache's earlier budget
+    /// and as much again for the mesh and viewers, is some twenty million leaves at about 100
+    /// bytes a leaf: it binds only on long walks, and leaves most of an 8-GiB machine to
+    /// renderers on the same host.
     #[arg(long, default_value_t = defaults().schedule.memory_budget_bytes >> 20)]
     pub memory_mib: usize,
     /// Largest protocol frame accepted or sent, bytes.

@@ -393,9 +393,9 @@ impl Default for ScheduleConfig {
             // One glint otherwise sets it for the whole view (see `ShadingCache::l_white`).
             l_white_outliers: L_WHITE_OUTLIERS,
             // The cache's earlier budget alone (1 GiB) and as much again for the mesh and the
-            // viewers: at 200–250 bytes a leaf all included, about ten million leaves, several
-            // 1080p views' worth, so it binds only on long walks, and it leaves most of an 8-GiB
-            // machine to the renderers on the same host.
+            // viewers: at about 100 bytes a leaf for mesh and cache (BENCHMARKS.md), some twenty
+            // million leaves, many 1080p views' worth, so it binds only on long walks, and it
+            // leaves most of an 8-GiB machine to renderers on the same host.
             memory_budget_bytes: 2048 << 20,
             coarsen_after_passes: 300,
             merge_uniform: false,

@@ -172,19 +172,34 @@ impl super::Schedule {
         }
     }
 
-    /// Whether a refinement round for viewer `id` fits the budget. When it does not, the viewer
-    /// waits for new input (samples, or a pass that may collapse something), and when the last
-    /// pressed pass found nothing out of view to collapse, the current views alone need more:
-    /// the SMA is memory-bound.
+    /// Whether a refinement round for viewer `id` fits the budget. When it does not, what was
+    /// seen least recently and is in no view is collapsed, and the viewer waits for the pass
+    /// that follows (or for new input); when nothing out of view is left to collapse, the
+    /// current views alone need more: the SMA is memory-bound, and the viewer's samples get
+    /// their paths as when its criterion runs dry (its stated end, DESIGN.md §5).
     pub(super) fn round_fits(&mut self, id: ViewerId) -> bool {
         let account = self.memory_account();
-        let fits = self.round_fits_mesh(&account) && !self.memory.exceeded(&account);
-        let bound = !fits && self.refinement.pressed_in_vain();
-        self.memory.set_bound(bound, &account);
-        if !fits && let Some(viewer) = self.viewers.get_mut(id) {
-            viewer.wait.exhausted();
+        if self.round_fits_mesh(&account) && !self.memory.exceeded(&account) {
+            self.memory.set_bound(false, &account);
+            return true;
         }
-        fits
+        let share = PRESSED_COLLAPSE_SHARE;
+        if self
+            .refinement
+            .coarsen_pressed(&mut self.mesh, self.frame, share)
+        {
+            self.viewers.leaves_changed();
+        }
+        let bound = self.refinement.pressed_in_vain();
+        self.memory.set_bound(bound, &account);
+        if let Some(viewer) = self.viewers.get_mut(id) {
+            viewer.wait.exhausted();
+            if bound && !viewer.criterion_dry {
+                viewer.criterion_dry = true;
+                self.owed.queue_changed();
+            }
+        }
+        false
     }
 
     fn round_fits_mesh(&self, account: &MemoryAccount) -> bool {
