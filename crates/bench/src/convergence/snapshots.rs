@@ -272,8 +272,14 @@ mod tests {
                    1,1.002,1,700,737,37,1500,96000,0,0.950,0,3900,4000,9000,1,snapshot_001.png,snapshot_001.exr\n";
         let run = parse(csv, Path::new("/r")).unwrap();
         let budget = |i: usize| run[i].budget.unwrap();
-        assert_eq!((budget(0).accounted_bytes, budget(0).memory_bound), (1000, false));
-        assert_eq!((budget(1).accounted_bytes, budget(1).budget_bytes), (3900, 4000));
+        assert_eq!(
+            (budget(0).accounted_bytes, budget(0).memory_bound),
+            (1000, false)
+        );
+        assert_eq!(
+            (budget(1).accounted_bytes, budget(1).budget_bytes),
+            (3900, 4000)
+        );
         assert!(budget(1).memory_bound);
     }
 }
