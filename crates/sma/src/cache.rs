@@ -432,6 +432,13 @@ impl ShadingCache {
             self.remove(slot as usize);
             removed += 1;
         }
+        // The budget counts capacity, and a budget that shrank (the mesh grew) must free it:
+        // arrays left far larger than what stays are cut to a quarter above it.
+        let lean = self.samples.len() + self.samples.len() / 4 + 16;
+        if removed > 0 && self.samples.capacity() > lean {
+            self.samples.shrink_to(lean);
+            self.owners.shrink_to(lean);
+        }
         removed
     }
 

@@ -302,9 +302,9 @@ pub struct Cli {
     /// and the SMA reports itself memory-bound. The default, 2 GiB, the cache's earlier budget
     /// and as much again for the mesh and viewers, is some twenty million leaves at about 100
     /// bytes a leaf: it binds only on long walks, and leaves most of an 8-GiB machine to
-    /// renderers on the same host.
-    #[arg(long, default_value_t = defaults().schedule.memory_budget_bytes >> 20)]
-    pub memory_mib: usize,
+    /// renderers on the same host. A fraction is allowed (small scenes, tests).
+    #[arg(long, default_value_t = (defaults().schedule.memory_budget_bytes >> 20) as f64)]
+    pub memory_mib: f64,
     /// Largest protocol frame accepted or sent, bytes.
     #[arg(long, default_value_t = defaults().max_frame)]
     pub max_frame: usize,
@@ -464,7 +464,7 @@ impl Cli {
             view_angle_deg: self.view_angle_deg,
             stats_every: Duration::from_secs_f32(self.stats_secs.max(0.1)),
             l_white_outliers: defaults().schedule.l_white_outliers,
-            memory_budget_bytes: self.memory_mib << 20,
+            memory_budget_bytes: (self.memory_mib.max(0.0) * f64::from(1 << 20)) as usize,
             coarsen_after_passes: defaults().schedule.coarsen_after_passes,
             merge_uniform: defaults().schedule.merge_uniform,
             indirect_filter: IndirectFilterSettings {
