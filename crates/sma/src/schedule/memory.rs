@@ -3,19 +3,21 @@
 //! outbox, counted by capacity (what is allocated, not what is used).
 //!
 //! The cache gets what the mesh and the viewers leave, and evicts what was seen least recently
-//! (`ShadingCache::evict`). The mesh may hold a share of the budget: past it, the subdivision of
-//! the base triangles seen least recently, and in no current view, is collapsed first, and the
-//! removed nodes are reused (`mesh::free_nodes`). When the current views alone need more,
-//! refinement stops and the SMA says it is memory-bound (`Stats`, and one log line each way).
+//! (`ShadingCache::evict`). A refinement round goes on while everything, grown by what the
+//! round may add, stays under nine tenths of the budget: past it, the subdivision of the base
+//! triangles seen least recently, and in no current view, is collapsed first, and the removed
+//! nodes are reused (`mesh::free_nodes`). When the current views alone need more, refinement
+//! stops and the SMA says it is memory-bound (`Stats`, and one log line each way).
 
 use protocol::viewer_link::SmaMemory;
 
 use crate::mesh::MeshMemory;
 use crate::viewer_link::ViewerId;
 
-/// The share of the budget the mesh and the viewers may hold before coarsening frees some:
-/// the rest is the cache's, so the samples of what the mesh keeps fit beside it.
-const MESH_SHARE: f64 = 0.6;
+/// Near the budget: past this share of it, refinement gives way to coarsening. The cache shrinks
+/// as the mesh grows (it gets a share of what the mesh leaves), so with a full cache the mesh
+/// stops near half the budget, and with a cache that needs little it may take most of it.
+const PRESSED: f64 = 0.9;
 
 /// The cache's arrays grow by a quarter (`mesh::push_lean`), so a cache evicting down to this
 /// share of what is left stays within it by capacity.
@@ -65,14 +67,9 @@ impl MemoryBudget {
         (left as f64 * CACHE_FILL) as usize
     }
 
-    /// Whether the mesh, grown by `growth` bytes, stays within its share.
-    pub fn mesh_fits(&self, account: &MemoryAccount, growth: usize) -> bool {
-        (account.fixed() + growth) as f64 <= MESH_SHARE * self.budget as f64
-    }
-
-    /// Whether what is held now is over the budget.
-    pub fn exceeded(&self, account: &MemoryAccount) -> bool {
-        account.total() > self.budget
+    /// Whether everything, the mesh grown by `growth` bytes, stays under the pressed share.
+    pub fn fits(&self, account: &MemoryAccount, growth: usize) -> bool {
+        (account.total() + growth) as f64 <= PRESSED * self.budget as f64
     }
 
     /// Splits a round of `selections` may make, for [`crate::mesh::SubdivisionMesh::growth_bytes`].
@@ -147,10 +144,10 @@ impl super::Schedule {
 
     /// Before the passes: recycles removed nodes where nothing names them (no refinement step
     /// pending; every view is drawn afresh next), collapses what no viewer has seen lately, and
-    /// more, least recently seen first, when a round would not fit the mesh's share; then gives
-    /// the cache what is left.
+    /// more, least recently seen first, when a round would not fit; then gives the cache what
+    /// is left.
     pub(super) fn keep_memory_budget(&mut self) -> Kept {
-        let pressed = !self.round_fits_mesh(&self.memory_account());
+        let pressed = !self.round_fits_budget(&self.memory_account());
         let retired = self.mesh.retired_nodes() as f64;
         let recycled = self.refinement.pending.is_empty()
             && (pressed || retired > RECYCLE_SHARE * self.mesh.node_count() as f64)
@@ -179,7 +176,7 @@ impl super::Schedule {
     /// their paths as when its criterion runs dry (its stated end, DESIGN.md §5).
     pub(super) fn round_fits(&mut self, id: ViewerId) -> bool {
         let account = self.memory_account();
-        if self.round_fits_mesh(&account) && !self.memory.exceeded(&account) {
+        if self.round_fits_budget(&account) {
             self.memory.set_bound(false, &account);
             return true;
         }
@@ -202,10 +199,9 @@ impl super::Schedule {
         false
     }
 
-    fn round_fits_mesh(&self, account: &MemoryAccount) -> bool {
+    fn round_fits_budget(&self, account: &MemoryAccount) -> bool {
         let splits = MemoryBudget::round_splits(self.config.max_selections);
-        self.memory
-            .mesh_fits(account, self.mesh.growth_bytes(splits))
+        self.memory.fits(account, self.mesh.growth_bytes(splits))
     }
 }
 
@@ -241,14 +237,16 @@ mod tests {
     }
 
     #[test]
-    fn the_cache_gets_what_the_mesh_and_viewers_leave_and_the_mesh_its_share() {
+    fn the_cache_gets_what_the_mesh_and_viewers_leave_and_rounds_stop_near_the_budget() {
         let budget = MemoryBudget::new(1000);
         assert_eq!(budget.cache_budget(&account(300, 500, 100)), 480);
         assert_eq!(budget.cache_budget(&account(900, 0, 200)), 0);
-        assert!(budget.mesh_fits(&account(400, 999, 100), 100));
-        assert!(!budget.mesh_fits(&account(400, 0, 100), 101));
-        assert!(!budget.exceeded(&account(400, 500, 100)));
-        assert!(budget.exceeded(&account(400, 501, 100)));
+        assert!(budget.fits(&account(400, 300, 100), 100));
+        assert!(!budget.fits(&account(400, 300, 100), 101));
+        assert!(
+            budget.fits(&account(800, 0, 0), 100),
+            "a cache that needs little"
+        );
     }
 
     #[test]
