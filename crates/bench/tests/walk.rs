@@ -114,6 +114,10 @@ fn a_quick_walk_judges_every_stop_and_moment_of_both_systems() {
     let last = by_time.last().unwrap();
     assert!(number(last, "samples") > 0.0 && number(last, "leaves") > 0.0);
     assert!(
+        number(last, "sma_accounted_mb") > 0.0,
+        "the SMA's accounted memory is read from its Stats"
+    );
+    assert!(
         system.iter().all(|r| number(r, "sma_rss_mb") > 1.0),
         "the SMA's memory is sampled"
     );

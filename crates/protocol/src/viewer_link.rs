@@ -83,13 +83,38 @@ pub struct Stats {
     pub mesh: MeshShape,
 }
 
-/// The SMA's memory by part, counted by capacity (what is allocated, not what is used).
+/// The SMA's memory by part, counted by capacity (what is allocated, not what is used), against
+/// its budget (`--memory-mib`), with the process's resident memory beside it.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct SmaMemory {
-    /// The subdivision mesh: nodes, vertices, edge and midpoint tables.
-    pub mesh_bytes: u64,
+    /// The subdivision mesh's nodes, with the base triangles' adjacency.
+    pub nodes_bytes: u64,
+    /// The mesh's vertices and their welded points.
+    pub vertices_bytes: u64,
+    /// The mesh's tables of split edges and seam midpoints.
+    pub edge_tables_bytes: u64,
     /// The shading cache.
     pub cache_bytes: u64,
+    /// Per-viewer state: views, shown sets, targets, and what waits in each outbox.
+    pub viewers_bytes: u64,
+    /// What the parts above may hold together.
+    pub budget_bytes: u64,
+    /// The SMA process's resident memory (`/proc/self/statm`), where the system says it.
+    pub rss_bytes: Option<u64>,
+    /// The current views alone need more than the budget: refinement has stopped.
+    pub memory_bound: bool,
+}
+
+impl SmaMemory {
+    /// The subdivision mesh: nodes, vertices, edge and midpoint tables.
+    pub fn mesh_bytes(&self) -> u64 {
+        self.nodes_bytes + self.vertices_bytes + self.edge_tables_bytes
+    }
+
+    /// Every accounted part: what the budget bounds.
+    pub fn accounted_bytes(&self) -> u64 {
+        self.mesh_bytes() + self.cache_bytes + self.viewers_bytes
+    }
 }
 
 /// The subdivision mesh's shape (thesis §4.2; DESIGN.md §4), to compare neighbour rules and

@@ -355,8 +355,14 @@ fn viewer_link_seeds() -> Vec<(String, Vec<u8>)> {
                 converged: true,
                 rejected_points: 3,
                 memory: SmaMemory {
-                    mesh_bytes: 1 << 20,
+                    nodes_bytes: 1 << 20,
+                    vertices_bytes: 1 << 19,
+                    edge_tables_bytes: 1 << 18,
                     cache_bytes: 3 << 20,
+                    viewers_bytes: 1 << 21,
+                    budget_bytes: 64 << 20,
+                    rss_bytes: Some(200 << 20),
+                    memory_bound: true,
                 },
                 mesh: MeshShape {
                     smallest_split_angle_deg: Some(12.5),

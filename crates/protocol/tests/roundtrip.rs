@@ -238,8 +238,14 @@ fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
                     converged: leaves % 2 == 0,
                     rejected_points: cached_samples / 3,
                     memory: SmaMemory {
-                        mesh_bytes: leaves.wrapping_mul(100),
+                        nodes_bytes: leaves.wrapping_mul(100),
+                        vertices_bytes: leaves / 2,
+                        edge_tables_bytes: leaves / 3,
                         cache_bytes: cached_samples,
+                        viewers_bytes: cached_samples / 2,
+                        budget_bytes: leaves ^ cached_samples,
+                        rss_bytes: (leaves % 2 == 1).then_some(cached_samples),
+                        memory_bound: leaves % 5 == 0,
                     },
                     mesh: MeshShape {
                         smallest_split_angle_deg: (leaves % 3 > 0).then_some(samples_per_sec),

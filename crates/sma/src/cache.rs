@@ -23,7 +23,7 @@ use protocol::renderer_link::SampleKey;
 use protocol::{PartEstimate, Side};
 
 use crate::mesh::fast_hash::FastHash;
-use crate::mesh::{NodeId, SubdivisionMesh};
+use crate::mesh::{NodeId, SubdivisionMesh, push_lean, set_bytes, table_bytes};
 use crate::sample::{Estimate, Merge};
 use crate::visible_set::VisibleSet;
 use conventions::luminance;
@@ -203,6 +203,10 @@ impl ShadingCache {
         }
         let slot = slot_index(key);
         if slot >= self.slots.len() {
+            let more = (slot + 1 - self.slots.len()).max(self.slots.len() / 4 + 16);
+            if slot >= self.slots.capacity() {
+                self.slots.reserve_exact(more);
+            }
             self.slots.resize(slot + 1, NO_SLOT);
         }
         self.failed.remove(&(slot as u32));
@@ -211,9 +215,12 @@ impl ShadingCache {
         if s == NO_SLOT {
             self.slots[slot] = self.samples.len() as u32;
             let seen = stamp(sample.last_seen);
-            self.samples
-                .push(PackedSample::new(&new, sample.view_dependent, seen));
-            self.owners.push(slot as u32);
+            // Grown by a quarter, as the mesh's arrays: capacity is what the memory budget counts.
+            push_lean(
+                &mut self.samples,
+                PackedSample::new(&new, sample.view_dependent, seen),
+            );
+            push_lean(&mut self.owners, slot as u32);
             self.set_eye(slot, eye, new);
             return CacheInsert::New;
         }
@@ -425,6 +432,13 @@ impl ShadingCache {
             self.remove(slot as usize);
             removed += 1;
         }
+        // The budget counts capacity, and a budget that shrank (the mesh grew) must free it:
+        // arrays left far larger than what stays are cut to a quarter above it.
+        let lean = self.samples.len() + self.samples.len() / 4 + 16;
+        if removed > 0 && self.samples.capacity() > lean {
+            self.samples.shrink_to(lean);
+            self.owners.shrink_to(lean);
+        }
         removed
     }
 
@@ -457,6 +471,23 @@ impl ShadingCache {
 
     pub fn budget_bytes(&self) -> usize {
         self.budget_bytes
+    }
+
+    /// A new budget for [`Self::evict`]: the SMA's memory budget leaves the cache what the mesh
+    /// and the viewers do not hold (`schedule::memory`).
+    pub fn set_budget_bytes(&mut self, budget_bytes: usize) {
+        self.budget_bytes = budget_bytes;
+    }
+
+    /// Heap bytes by capacity, as the SMA's memory budget counts them: the arrays as allocated,
+    /// the eye and failure tables by their buckets.
+    pub fn capacity_bytes(&self) -> usize {
+        self.slots.capacity() * size_of::<u32>()
+            + self.samples.capacity() * size_of::<PackedSample>()
+            + self.owners.capacity() * size_of::<u32>()
+            + table_bytes(&self.eyes)
+            + self.eye_variants * size_of::<EyeVariant>()
+            + set_bytes(&self.failed)
     }
 
     /// Largest luminance of any cached sample.

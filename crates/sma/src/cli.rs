@@ -296,9 +296,15 @@ pub struct Cli {
     /// Seconds between saves of the cache file (a crash loses at most this much).
     #[arg(long, default_value_t = CacheFileConfig::SAVE_EVERY.as_secs_f64())]
     pub cache_file_save_s: f64,
-    /// Shading cache budget, MiB.
-    #[arg(long, default_value_t = defaults().schedule.cache_budget_bytes >> 20)]
-    pub cache_mib: usize,
+    /// Memory budget of the SMA's own structures, MiB: the subdivision mesh, the shading cache
+    /// and the viewers' state, counted by capacity. Near it, what was seen least recently is
+    /// coarsened and evicted first; when the current views alone need more, refinement stops
+    /// and the SMA reports itself memory-bound. The default, 2 GiB, the cache's earlier budget
+    /// and as much again for the mesh and viewers, is some twenty million leaves at about 100
+    /// bytes a leaf: it binds only on long walks, and leaves most of an 8-GiB machine to
+    /// renderers on the same host. A fraction is allowed (small scenes, tests).
+    #[arg(long, default_value_t = (defaults().schedule.memory_budget_bytes >> 20) as f64)]
+    pub memory_mib: f64,
     /// Largest protocol frame accepted or sent, bytes.
     #[arg(long, default_value_t = defaults().max_frame)]
     pub max_frame: usize,
@@ -458,7 +464,7 @@ impl Cli {
             view_angle_deg: self.view_angle_deg,
             stats_every: Duration::from_secs_f32(self.stats_secs.max(0.1)),
             l_white_outliers: defaults().schedule.l_white_outliers,
-            cache_budget_bytes: self.cache_mib << 20,
+            memory_budget_bytes: (self.memory_mib.max(0.0) * f64::from(1 << 20)) as usize,
             coarsen_after_passes: defaults().schedule.coarsen_after_passes,
             merge_uniform: defaults().schedule.merge_uniform,
             indirect_filter: IndirectFilterSettings {

@@ -326,7 +326,9 @@ pub struct ScheduleConfig {
     /// The fraction of the brightest visible samples that L_white leaves above it (DESIGN.md
     /// §6, `ShadingCache::l_white`); 0: their maximum, as the thesis has it.
     pub l_white_outliers: f64,
-    pub cache_budget_bytes: usize,
+    /// What the SMA's own structures may hold together, by capacity: the mesh, the shading
+    /// cache and the viewers' state (`schedule::memory`).
+    pub memory_budget_bytes: usize,
     /// Visibility passes a base triangle must be out of every view before its subdivision is
     /// collapsed; 0: never.
     pub coarsen_after_passes: u64,
@@ -390,7 +392,11 @@ impl Default for ScheduleConfig {
             stats_every: Duration::from_secs(2),
             // One glint otherwise sets it for the whole view (see `ShadingCache::l_white`).
             l_white_outliers: L_WHITE_OUTLIERS,
-            cache_budget_bytes: 1024 << 20,
+            // The cache's earlier budget alone (1 GiB) and as much again for the mesh and the
+            // viewers: at about 100 bytes a leaf for mesh and cache (BENCHMARKS.md), some twenty
+            // million leaves, many 1080p views' worth, so it binds only on long walks, and it
+            // leaves most of an 8-GiB machine to renderers on the same host.
+            memory_budget_bytes: 2048 << 20,
             coarsen_after_passes: 300,
             merge_uniform: false,
             indirect_filter: IndirectFilterSettings::default(),

@@ -37,8 +37,10 @@ mod angles;
 mod changed;
 mod coarsen;
 pub(crate) mod fast_hash;
+mod free_nodes;
 #[cfg(any(test, feature = "testing"))]
 mod grid;
+mod memory;
 mod neighbour_rule;
 mod refine;
 mod step;
@@ -60,10 +62,13 @@ pub use angles::{SplitShapes, angle_bound, min_angle};
 use fast_hash::FastHash;
 #[cfg(any(test, feature = "testing"))]
 pub use grid::grid_mesh;
+pub use memory::MeshMemory;
+pub(crate) use memory::{set_bytes, table_bytes};
 pub use neighbour_rule::{NeighbourRule, NeighbourStats};
 pub use step::RefinementStep;
 
-/// Any triangle of the hierarchy. Never reused: a removed node stays as a dead entry.
+/// Any triangle of the hierarchy. A removed node stays as a dead entry until the caller
+/// recycles removed nodes ([`SubdivisionMesh::recycle_removed`]); later splits then reuse it.
 pub type NodeId = u32;
 /// A mesh vertex: the scene's vertices first (same indices), then edge midpoints.
 pub type VertexId = u32;
@@ -288,6 +293,8 @@ pub struct SubdivisionMesh {
     splits: u64,
     /// Base triangles whose subtree changed since the cache file last asked.
     changed: changed::ChangedBases,
+    /// Removed children, reused by later splits once recycled.
+    free_nodes: free_nodes::FreeNodes,
 }
 
 /// Flag in `vertex_point` of a vertex whose point may hold other vertices (a seam side, or a
@@ -297,7 +304,7 @@ const SEAM_VERTEX: u32 = 1 << 31;
 /// Pushes onto a vector grown by a quarter when full rather than doubled: the node and vertex
 /// arrays are most of the mesh's memory (target: <= 100 bytes per leaf all included, BENCHMARKS.md), and the
 /// allocator moves a large block by remapping its pages, so the extra moves cost little.
-fn push_lean<T>(v: &mut Vec<T>, x: T) {
+pub(crate) fn push_lean<T>(v: &mut Vec<T>, x: T) {
     if v.len() == v.capacity() {
         v.reserve_exact(v.len() / 4 + 16);
     }
@@ -383,6 +390,7 @@ impl SubdivisionMesh {
             seam_midpoints: HashMap::default(),
             splits: 0,
             changed: changed::ChangedBases::new(base_count),
+            free_nodes: free_nodes::FreeNodes::default(),
         }
     }
 
@@ -397,7 +405,7 @@ impl SubdivisionMesh {
         self.base_count
     }
 
-    /// Every node ever made, dead ones included (ids are `0..node_count`).
+    /// Node slots, dead ones included (ids are `0..node_count`).
     pub fn node_count(&self) -> usize {
         self.nodes.len()
     }
@@ -480,25 +488,6 @@ impl SubdivisionMesh {
     /// The smallest angle any descendant of `base` can have (see the module documentation).
     pub fn base_angle_bound(&self, base: u32) -> f32 {
         angle_bound(self.leaf_positions(base))
-    }
-
-    /// Heap bytes held by the mesh structures (nodes, vertices, points, edge tables), for the
-    /// memory figures of BENCHMARKS.md. Hash tables count their buckets and control bytes.
-    pub fn heap_bytes(&self) -> usize {
-        use std::mem::size_of;
-        fn table<K, V>(t: &HashMap<K, V, FastHash>) -> usize {
-            // hashbrown keeps capacity at 7/8 of a power-of-two bucket count, one control byte each.
-            let buckets = (t.capacity() * 8 / 7).next_power_of_two();
-            buckets * (size_of::<(K, V)>() + 1)
-        }
-        self.nodes.capacity() * size_of::<Node>()
-            + self.vertices.capacity() * size_of::<MeshVertex>()
-            + self.vertex_point.capacity() * size_of::<u32>()
-            + self.degenerate.capacity()
-            + self.adjacency.heap_bytes()
-            + self.scene_triangles.heap_bytes()
-            + table(&self.edge_splits)
-            + table(&self.seam_midpoints)
     }
 
     fn point_of(&self, v: VertexId) -> u32 {

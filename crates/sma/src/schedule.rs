@@ -37,6 +37,7 @@ mod answers;
 mod coarsening;
 mod counters;
 mod ladder;
+mod memory;
 mod need;
 mod pace;
 mod pending;
@@ -54,7 +55,6 @@ mod waits;
 use std::time::Instant;
 
 use anyhow::Context;
-use protocol::renderer_link::Quality;
 use scene::Scene;
 use tokio::sync::{mpsc, watch};
 
@@ -75,7 +75,6 @@ use plan::{MorePaths, NeedsInput, PlanRules};
 use refinement::{Refinement, Round};
 use requests::{BatchLimit, Requests};
 use turns::RefineGate;
-use uniformity::JudgedView;
 use viewers::{Criteria, Heard, SyncInput, Viewer, Viewers};
 use waits::Owed;
 
@@ -101,6 +100,7 @@ pub struct Schedule {
     owed: Owed,
     paces: Paces,
     counters: Counters,
+    memory: memory::MemoryBudget,
     /// The object-space filter of the indirect part, run before each sync when samples or
     /// views changed since the last run.
     indirect_filter: IndirectFilter,
@@ -119,7 +119,7 @@ impl Schedule {
     ) -> Schedule {
         let now = Instant::now();
         let rules = PlanRules::new(&config, scene);
-        let mut cache = ShadingCache::new(config.cache_budget_bytes)
+        let mut cache = ShadingCache::new(config.memory_budget_bytes)
             .with_l_white_outliers(config.l_white_outliers);
         let cache_file = cache_file.and_then(|setup| {
             persistence::open(setup, scene, &config, &rules, &mut mesh, &mut cache)
@@ -134,6 +134,7 @@ impl Schedule {
             requests: Requests::new(config.seed, config.top_up_share),
             criteria: Criteria::new(&config),
             paces: Paces::new(config.round_share, now),
+            memory: memory::MemoryBudget::new(config.memory_budget_bytes),
             config,
             mesh,
             frame: 0,
@@ -324,7 +325,8 @@ impl Schedule {
         }
         let start = Instant::now();
         self.frame += 1;
-        if self.refinement.coarsen_stale(&mut self.mesh, self.frame) {
+        let kept = self.keep_memory_budget();
+        if kept.leaves_changed {
             self.viewers.leaves_changed();
         }
         let mut drew = false;
@@ -333,7 +335,7 @@ impl Schedule {
         // redraw keeps them from adding up over hundreds of rounds. (Single 20-s runs on
         // bracara VT, mean FLIP at 20 s: 0.0369 carried throughout, 0.0360 with this redraw,
         // 0.0355 with every view drawn; within the runs' spread, so not a measured cure.)
-        let redraw = self.counters.since_pass >= self.config.revisit_samples;
+        let redraw = self.counters.since_pass >= self.config.revisit_samples || kept.recycled;
         for viewer in self.viewers.iter_mut().filter(|v| v.wait.needs_pass()) {
             viewer.wait.pass_done();
             let Some(camera) = &viewer.camera else {
@@ -540,11 +542,17 @@ impl Schedule {
             self.viewers.leaves_changed();
             return Ok(());
         }
-        let viewer = self.viewers.get(id).expect("candidate exists");
-        if viewer.wait.is_exhausted() {
-            // Its turn came for the merge pass only (`RefineGate::merge_due`).
+        let exhausted = self
+            .viewers
+            .get(id)
+            .expect("candidate exists")
+            .wait
+            .is_exhausted();
+        // Exhausted: its turn came for the merge pass only (`RefineGate::merge_due`).
+        if exhausted || !self.round_fits(id) {
             return Ok(());
         }
+        let viewer = self.viewers.get(id).expect("candidate exists");
         let image =
             refinement::luminance_image(viewer, &self.mesh, &self.visibility, &mut self.luminance)?;
         let viewer = self.viewers.get_mut(id).expect("candidate exists");
@@ -558,26 +566,6 @@ impl Schedule {
             Round::Exhausted { newly_dry: false } | Round::TooSmall => {}
         }
         Ok(())
-    }
-
-    /// Coarsening by uniformity over every view shown with a tone map (thesis §6, DESIGN.md
-    /// §4): a sample has settled from the rung whose variance the ladder believes, at the
-    /// scene's depth. Returns whether the leaves changed.
-    fn merge_uniform(&mut self) -> bool {
-        let views: Vec<JudgedView> = self
-            .viewers
-            .iter()
-            .filter_map(|v| {
-                Some(JudgedView {
-                    visible: &v.view.as_ref()?.visible,
-                    l_white: v.last_l_white?,
-                })
-            })
-            .collect();
-        let qualities = self.rules.qualities;
-        let trusted = |q: Quality| q.bounces == qualities.full.bounces && qualities.trusts(q);
-        self.refinement
-            .merge_uniform(&views, &mut self.mesh, &self.cache, &trusted)
     }
 
     /// Whether a turn has work without any new event, and else when to wake: a camera coming to

@@ -1136,3 +1136,88 @@ async fn cameras_at_the_extremes_are_answered_in_full() {
     }
     sma.stop().await.unwrap();
 }
+
+/// A run of the wall refined to its stated end under `budget` bytes (`--memory-mib`), eight
+/// selections a round so a round's growth is small beside the wall's mesh: every `Stats` seen.
+async fn refined_under(budget: usize) -> Vec<protocol::viewer_link::Stats> {
+    let scene = diffuse_wall();
+    let (renderer, _) = fake_renderer(scene.clone(), Fault::None).await;
+    let mut config = config(vec![renderer], true);
+    config.schedule.memory_budget_bytes = budget;
+    config.schedule.max_selections = 8;
+    config.schedule.stats_every = Duration::from_millis(10);
+    let (sma, mut probe) = start_with_probe(&config, &scene).await;
+    view_completely(&mut probe, "front").await;
+    probe.until_converged(WAIT).await.unwrap();
+    sma.stop().await.unwrap();
+    std::mem::take(&mut probe.stats_seen)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_run_under_a_small_budget_stays_under_it_and_says_it_is_memory_bound() {
+    if !gpu_available() {
+        return;
+    }
+    let unbounded = refined_under(1 << 30).await;
+    let peak = |stats: &[protocol::viewer_link::Stats]| {
+        stats
+            .iter()
+            .map(|s| s.memory.accounted_bytes())
+            .max()
+            .unwrap()
+    };
+    let leaves = |stats: &[protocol::viewer_link::Stats]| stats.last().unwrap().leaves;
+    assert!(unbounded.iter().all(|s| !s.memory.memory_bound));
+    let first = unbounded[0].memory;
+    let grown = peak(&unbounded) - first.accounted_bytes();
+    // Half of what refinement added to the unbounded run (the view's pixels are most of the
+    // rest, at this image size), so the budget must stop refinement.
+    let budget = (peak(&unbounded) - grown / 2) as usize;
+    let bounded = refined_under(budget).await;
+    for s in &bounded {
+        assert!(
+            s.memory.accounted_bytes() <= budget as u64,
+            "over the budget of {budget}: {:?}",
+            s.memory
+        );
+        assert_eq!(s.memory.budget_bytes, budget as u64);
+    }
+    assert!(
+        bounded.iter().any(|s| s.memory.memory_bound),
+        "never said memory-bound"
+    );
+    assert!(leaves(&bounded) < leaves(&unbounded));
+}
+
+/// The wall refined from the front to its stated end, then out of view until its subdivision is
+/// collapsed, three times over: the removed nodes are reused (the mesh's nodes do not grow past
+/// the second time), and the viewer's table stays consistent at every epoch (the probe fails on
+/// an insert of a shown id or a remove of an unknown one) and conforming (a reused id still
+/// showing its old triangle would overlap the new ones).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn reused_node_ids_keep_the_viewers_table_consistent_at_every_epoch() {
+    if !gpu_available() {
+        return;
+    }
+    let scene = diffuse_wall();
+    let (renderer, _) = fake_renderer(scene.clone(), Fault::None).await;
+    let mut config = config(vec![renderer], true);
+    config.schedule.coarsen_after_passes = 2;
+    config.schedule.stats_every = Duration::from_millis(10);
+    let (sma, mut probe) = start_with_probe(&config, &scene).await;
+    let mut nodes = Vec::new();
+    for _ in 0..3 {
+        view_completely(&mut probe, "front").await;
+        probe.until_converged(WAIT).await.unwrap();
+        assert!(probe.table.len() >= 12, "refined");
+        assert_eq!(probe.conformity_problem(), None);
+        nodes.push(probe.stats.unwrap().memory.nodes_bytes);
+        for _ in 0..4 {
+            let away = probe.view("away", W, H).await.unwrap();
+            let epoch = probe.complete(away.seq, WAIT).await.unwrap();
+            assert_eq!(epoch.shown, 0, "something is in view looking away");
+        }
+    }
+    assert!(nodes[2] <= nodes[1], "nodes grew: {nodes:?}");
+    sma.stop().await.unwrap();
+}

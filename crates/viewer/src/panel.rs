@@ -177,16 +177,41 @@ fn status(ui: &mut egui::Ui, facts: &Facts) {
         row("fps", format!("{:.1}", facts.fps));
         row("SMA", facts.sma.to_string());
         row("renderers", facts.renderers.to_string());
-        let [total, mesh, cache] = memory_mib(facts.sma_memory);
-        row("SMA memory", format!("{total:.1} MiB"));
-        row("mesh / cache", format!("{mesh:.1} / {cache:.1} MiB"));
+        for (name, value) in memory_rows(&facts.sma_memory) {
+            row(name, value);
+        }
     });
 }
 
-/// The SMA's memory in MiB: in all, its mesh, its cache.
-fn memory_mib(m: SmaMemory) -> [f64; 3] {
-    [m.mesh_bytes + m.cache_bytes, m.mesh_bytes, m.cache_bytes]
-        .map(|bytes| bytes as f64 / f64::from(1 << 20))
+/// The SMA's memory as the panel's rows: accounted against the budget (and whether the budget
+/// stopped refinement), the parts, the process's resident memory.
+fn memory_rows(m: &SmaMemory) -> Vec<(&'static str, String)> {
+    let mib = |bytes: u64| bytes as f64 / f64::from(1 << 20);
+    let bound = if m.memory_bound { ", memory-bound" } else { "" };
+    vec![
+        (
+            "SMA memory",
+            format!(
+                "{:.1} of {:.0} MiB{bound}",
+                mib(m.accounted_bytes()),
+                mib(m.budget_bytes)
+            ),
+        ),
+        (
+            "mesh / cache / viewers",
+            format!(
+                "{:.1} / {:.1} / {:.1} MiB",
+                mib(m.mesh_bytes()),
+                mib(m.cache_bytes),
+                mib(m.viewers_bytes)
+            ),
+        ),
+        (
+            "SMA resident",
+            m.rss_bytes
+                .map_or("—".to_string(), |b| format!("{:.1} MiB", mib(b))),
+        ),
+    ]
 }
 
 fn controls(ui: &mut egui::Ui, facts: &Facts, actions: &mut Vec<Action>) {
@@ -246,5 +271,30 @@ mod tests {
                 assert!(!a.intersects(*b));
             }
         }
+    }
+
+    #[test]
+    fn memory_rows_say_the_accounted_total_against_the_budget_and_when_it_binds() {
+        let m = SmaMemory {
+            nodes_bytes: 1 << 20,
+            vertices_bytes: 1 << 20,
+            edge_tables_bytes: 0,
+            cache_bytes: 4 << 20,
+            viewers_bytes: 2 << 20,
+            budget_bytes: 16 << 20,
+            rss_bytes: None,
+            memory_bound: false,
+        };
+        let rows = memory_rows(&m);
+        assert_eq!(rows[0].1, "8.0 of 16 MiB");
+        assert_eq!(rows[1].1, "2.0 / 4.0 / 2.0 MiB");
+        assert_eq!(rows[2].1, "—");
+        let bound = memory_rows(&SmaMemory {
+            memory_bound: true,
+            rss_bytes: Some(100 << 20),
+            ..m
+        });
+        assert_eq!(bound[0].1, "8.0 of 16 MiB, memory-bound");
+        assert_eq!(bound[2].1, "100.0 MiB");
     }
 }

@@ -42,10 +42,15 @@ pub const CSV_NAME: &str = "snapshots.csv";
 /// `camera_seq`, `shown`, `samples`, `paths` and `outstanding` are the latest epoch's;
 /// the columns after `outstanding` are the latest `Stats`' (one interval of the SMA's, about a
 /// second): the renderers' busy share, convergence, the mesh's leaves and the samples cached, the
-/// SMA's memory by part and the mesh's shape (an empty cell before any split).
+/// SMA's memory by part (the mesh in all, the cache, then the mesh's nodes, vertices and edge
+/// tables, the viewers' state, all accounted, the budget, the SMA's resident memory, an empty
+/// cell where the system does not say, and whether the budget stopped refinement) and the
+/// mesh's shape (an empty cell before any split).
 pub const CSV_HEADER: &str = "index,time_s,camera_seq,shown,inserted,removed,samples,paths,\
                               outstanding,renderer_busy,converged,leaves,cached_samples,\
-                              mesh_bytes,cache_bytes,smallest_split_angle_deg,\
+                              mesh_bytes,cache_bytes,nodes_bytes,vertices_bytes,\
+                              edge_tables_bytes,viewers_bytes,accounted_bytes,budget_bytes,\
+                              rss_bytes,memory_bound,smallest_split_angle_deg,\
                               smallest_split_angle_ratio,neighbour_bound_hits,uniform_merges,\
                               png,exr";
 
@@ -326,7 +331,7 @@ impl SnapshotFiles {
         let optional = |x: Option<f32>| x.map_or(String::new(), |x| format!("{x:.4}"));
         writeln!(
             self.csv,
-            "{},{:.3},{},{},{},{},{},{},{},{:.3},{},{},{},{},{},{},{},{},{},{png},{exr}",
+            "{},{:.3},{},{},{},{},{},{},{},{:.3},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{png},{exr}",
             r.index,
             r.time_s,
             r.camera_seq,
@@ -340,8 +345,16 @@ impl SnapshotFiles {
             u8::from(s.converged),
             s.leaves,
             s.cached_samples,
-            s.memory.mesh_bytes,
+            s.memory.mesh_bytes(),
             s.memory.cache_bytes,
+            s.memory.nodes_bytes,
+            s.memory.vertices_bytes,
+            s.memory.edge_tables_bytes,
+            s.memory.viewers_bytes,
+            s.memory.accounted_bytes(),
+            s.memory.budget_bytes,
+            s.memory.rss_bytes.map_or(String::new(), |b| b.to_string()),
+            u8::from(s.memory.memory_bound),
             optional(s.mesh.smallest_split_angle_deg),
             optional(s.mesh.smallest_split_angle_ratio),
             s.mesh.neighbour_bound_hits,

@@ -190,7 +190,7 @@ fn headless_binary_writes_snapshots_when_the_sma_is_idle() {
     let fields: Vec<&str> = rows[1].split(',').collect();
     let (seq, n) = (camera.seq.to_string(), n.to_string());
     assert_eq!(
-        fields[2..19],
+        fields[2..27],
         [
             seq.as_str(),
             &n,
@@ -205,6 +205,14 @@ fn headless_binary_writes_snapshots_when_the_sma_is_idle() {
             "0",
             "0",
             "0",
+            "0",
+            "0",
+            "0",
+            "0",
+            "0",
+            "0",
+            "",
+            "0",
             "",
             "",
             "0",
@@ -212,7 +220,7 @@ fn headless_binary_writes_snapshots_when_the_sma_is_idle() {
         ]
     );
 
-    let png = image::open(out.path().join(fields[19]))
+    let png = image::open(out.path().join(fields[27]))
         .unwrap()
         .into_rgb8();
     let settings = DrawSettings {
@@ -230,7 +238,7 @@ fn headless_binary_writes_snapshots_when_the_sma_is_idle() {
     assert!(same, "the snapshot differs from the offscreen drawing");
 
     let exr = exr::prelude::read_first_rgba_layer_from_file(
-        out.path().join(fields[20]),
+        out.path().join(fields[28]),
         |size, _| vec![([0f32; 3], false); size.width() * size.height()],
         |pixels, pos, (r, g, b, a): (f32, f32, f32, f32)| {
             pixels[pos.y() * W as usize + pos.x()] = ([r, g, b], a > 0.5)

@@ -29,7 +29,22 @@ pub struct Snapshot {
     /// The mesh and the SMA's memory as the latest `Stats` gave them; `None` in a record
     /// written before the viewer wrote them.
     pub mesh: Option<MeshColumns>,
+    /// The SMA's memory against its budget as the latest `Stats` gave it; `None` in a record
+    /// written before the viewer wrote it.
+    pub budget: Option<BudgetColumns>,
 }
+
+/// The memory budget's columns of a snapshot (the viewer's `snapshot_files::CSV_HEADER`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BudgetColumns {
+    /// Every part the budget bounds (`--memory-mib`), by capacity.
+    pub accounted_bytes: u64,
+    pub budget_bytes: u64,
+    /// The current views alone needed more: refinement had stopped.
+    pub memory_bound: bool,
+}
+
+const BUDGET_COLUMNS: [&str; 3] = ["accounted_bytes", "budget_bytes", "memory_bound"];
 
 /// The mesh and memory columns of a snapshot (the viewer's `snapshot_files::CSV_HEADER`).
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -142,6 +157,11 @@ fn parse(text: &str, dir: &Path) -> anyhow::Result<Vec<Snapshot>> {
         .map(|name| header.get(name).copied())
         .collect::<Option<Vec<_>>>()
         .map(|v| v.try_into().expect("eight columns"));
+    let budget_at: Option<[usize; 3]> = BUDGET_COLUMNS
+        .iter()
+        .map(|name| header.get(name).copied())
+        .collect::<Option<Vec<_>>>()
+        .map(|v| v.try_into().expect("three columns"));
     let (mut total_inserted, mut total_removed) = (0, 0);
     lines
         .map(|line| {
@@ -176,6 +196,15 @@ fn parse(text: &str, dir: &Path) -> anyhow::Result<Vec<Snapshot>> {
                 converged: fields[converged] == "1",
                 exr: dir.join(fields[exr]),
                 mesh: mesh_at.map(|at| mesh_columns(&fields, at)).transpose()?,
+                budget: budget_at
+                    .map(|[accounted, budget, bound]| {
+                        anyhow::Ok(BudgetColumns {
+                            accounted_bytes: int(accounted)?,
+                            budget_bytes: int(budget)?,
+                            memory_bound: fields[bound] == "1",
+                        })
+                    })
+                    .transpose()?,
             })
         })
         .collect()
@@ -233,5 +262,24 @@ mod tests {
     #[test]
     fn a_missing_column_is_an_error() {
         assert!(parse("index,time_s\n0,0.0\n", Path::new(".")).is_err());
+    }
+
+    #[test]
+    fn reads_the_memory_budget_columns_where_the_viewer_wrote_them() {
+        let csv = "index,time_s,camera_seq,shown,inserted,removed,samples,paths,outstanding,\
+                   renderer_busy,converged,accounted_bytes,budget_bytes,rss_bytes,memory_bound,png,exr\n\
+                   0,0.000,1,0,0,0,0,0,12,0.000,0,1000,4000,,0,snapshot_000.png,snapshot_000.exr\n\
+                   1,1.002,1,700,737,37,1500,96000,0,0.950,0,3900,4000,9000,1,snapshot_001.png,snapshot_001.exr\n";
+        let run = parse(csv, Path::new("/r")).unwrap();
+        let budget = |i: usize| run[i].budget.unwrap();
+        assert_eq!(
+            (budget(0).accounted_bytes, budget(0).memory_bound),
+            (1000, false)
+        );
+        assert_eq!(
+            (budget(1).accounted_bytes, budget(1).budget_bytes),
+            (3900, 4000)
+        );
+        assert!(budget(1).memory_bound);
     }
 }

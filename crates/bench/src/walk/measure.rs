@@ -179,6 +179,10 @@ pub(crate) struct Row {
     pub leaves: u64,
     pub cached_samples: u64,
     pub rss_mb: f64,
+    /// The SMA's accounted memory (`Stats`, every part its budget bounds), MB, and whether it
+    /// was memory-bound (none for the viewport).
+    pub accounted_mb: f64,
+    pub memory_bound: bool,
     pub error: ImageError,
 }
 
@@ -245,6 +249,8 @@ pub(crate) fn judge(
                 leaves: s.mesh.as_ref().map_or(0, |m| m.leaves),
                 cached_samples: s.mesh.as_ref().map_or(0, |m| m.cached_samples),
                 rss_mb: memory_at(&rss_mb, s.time_s),
+                accounted_mb: s.budget.map_or(0.0, |b| b.accounted_bytes as f64 / MB),
+                memory_bound: s.budget.is_some_and(|b| b.memory_bound),
                 error,
             })
         })
@@ -267,6 +273,8 @@ pub(crate) fn judge(
                 leaves: 0,
                 cached_samples: 0,
                 rss_mb: 0.0,
+                accounted_mb: 0.0,
+                memory_bound: false,
                 error: refs.of(&ask.camera).error_of(image)?,
             })
         })
@@ -366,6 +374,7 @@ mod tests {
             converged: false,
             exr: format!("{t}.exr").into(),
             mesh: None,
+            budget: None,
         };
         let plan = route::generate(&sites::bracara().quick(2.5, 1.5), 1);
         let asks: Vec<Ask> = asks(&plan).into_iter().take(3).collect();

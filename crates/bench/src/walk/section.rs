@@ -15,7 +15,8 @@ use crate::stats::median;
 const LEVELS: [f64; 2] = [0.1, 0.05];
 
 const CSV_HEADER: &str = "system,kind,pass,number,step,time_s,since_stop_s,samples,paths,\
-                          renderer_busy,leaves,cached_samples,sma_rss_mb,flip,rmse";
+                          renderer_busy,leaves,cached_samples,sma_rss_mb,sma_accounted_mb,\
+                          memory_bound,flip,rmse";
 
 /// Writes every scene's CSV and plot into the output folder; returns the section.
 pub(crate) fn write(config: &WalkConfig, results: &[SceneResult]) -> anyhow::Result<String> {
@@ -56,7 +57,7 @@ fn write_csv(path: &Path, rows: &[Row]) -> anyhow::Result<()> {
         let since = r.since_stop_s.map_or(String::new(), |s| format!("{s:.3}"));
         let _ = writeln!(
             text,
-            "{},{},{},{},{},{:.3},{since},{},{},{:.3},{},{},{:.1},{:.5},{:.5}",
+            "{},{},{},{},{},{:.3},{since},{},{},{:.3},{},{},{:.1},{:.3},{},{:.5},{:.5}",
             r.system,
             r.kind,
             r.pass,
@@ -69,6 +70,8 @@ fn write_csv(path: &Path, rows: &[Row]) -> anyhow::Result<()> {
             r.leaves,
             r.cached_samples,
             r.rss_mb,
+            r.accounted_mb,
+            u8::from(r.memory_bound),
             r.error.flip,
             r.error.rmse
         );
@@ -302,13 +305,28 @@ fn memory_figures(md: &mut String, result: &SceneResult) {
     };
     let (l1, c1) = last(1);
     let (l2, c2) = last(2);
+    let accounted = |pass: u32| {
+        result
+            .rows
+            .iter()
+            .filter(|r| r.system == SYSTEM && r.pass == pass)
+            .map(|r| r.accounted_mb)
+            .fold(0.0, f64::max)
+    };
+    let bound = result
+        .rows
+        .iter()
+        .any(|r| r.system == SYSTEM && r.memory_bound);
     let _ = writeln!(
         md,
-        "SMA memory: resident set peak {:.0} MB on the first pass, {:.0} MB on the second; `Stats` at each \
-         pass's end: {l1} leaves and {c1} cached samples, then {l2} and {c2} (`Stats` reports no accounted \
-         memory by part yet).\n",
+        "SMA memory: resident set peak {:.0} MB on the first pass, {:.0} MB on the second; accounted \
+         (`Stats`: mesh, cache, viewers, by capacity) peak {:.1} MB, then {:.1} MB, at the judged snapshots{}; \
+         `Stats` at each pass's end: {l1} leaves and {c1} cached samples, then {l2} and {c2}.\n",
         peak(1),
-        peak(2)
+        peak(2),
+        accounted(1),
+        accounted(2),
+        if bound { ", memory-bound at some" } else { "" }
     );
 }
 

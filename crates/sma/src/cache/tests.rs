@@ -228,6 +228,25 @@ fn eviction_keeps_memory_under_budget_over_a_long_walk() {
 
 /// A sample whose colour names its vertex (below 65,536), exactly: channels of 256 to 511 keep
 /// every bit in the cache's shared-exponent encoding (`cache::quantised`).
+#[test]
+fn a_budget_that_shrinks_frees_the_samples_capacity_too() {
+    let mut cache = ShadingCache::new(1 << 30);
+    for v in 0..20_000 {
+        cache.insert(key(v), marked(v, 1));
+    }
+    let before = cache.capacity_bytes();
+    assert!(before >= cache.bytes());
+    cache.set_budget_bytes(cache.bytes() / 4);
+    assert!(cache.evict(2, &|_| false) > 0);
+    assert!(cache.bytes() <= cache.budget_bytes());
+    // The slot table (160 kB for 20,000 vertices) stays with the vertices; the samples go.
+    assert!(
+        cache.capacity_bytes() < before / 2,
+        "{} of {before} bytes still allocated",
+        cache.capacity_bytes()
+    );
+}
+
 fn marked(vertex: u32, seen: u64) -> CachedSample {
     let channel = |byte: u32| 256.0 + (byte & 0xff) as f32;
     CachedSample {

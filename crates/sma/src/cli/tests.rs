@@ -29,6 +29,17 @@ fn flag_defaults_are_the_config_defaults() {
 }
 
 #[test]
+fn the_memory_budget_is_given_in_mib_fractions_allowed() {
+    let budget = |mib: &str| {
+        let cli = Cli::try_parse_from(["sma", "--renderer", "r:1", "--memory-mib", mib]).unwrap();
+        cli.config().unwrap().schedule.memory_budget_bytes
+    };
+    assert_eq!(budget("64"), 64 << 20);
+    assert_eq!(budget("0.5"), 1 << 19);
+    assert!(Cli::try_parse_from(["sma", "--renderer", "r:1", "--cache-mib", "64"]).is_err());
+}
+
+#[test]
 fn renderers_are_dialed_or_join_a_renderer_port_but_one_way_is_given() {
     let cli = Cli::try_parse_from(["sma", "--renderer-listen", "0.0.0.0:7300"]).unwrap();
     let config = cli.config().unwrap();

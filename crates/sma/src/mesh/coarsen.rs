@@ -237,4 +237,46 @@ mod tests {
         assert_eq!(steps.len(), 2);
         assert_eq!(mesh.leaf_count(), 18);
     }
+
+    #[test]
+    fn refining_again_after_coarsening_reuses_recycled_nodes_and_grows_nothing() {
+        let scene = grid(3);
+        let mut mesh = SubdivisionMesh::new(&scene, MeshParams::default());
+        let base: Vec<NodeId> = mesh.leaves().collect();
+        let refine_all = |mesh: &mut SubdivisionMesh| {
+            for _ in 0..2 {
+                let leaves: Vec<NodeId> = mesh.leaves().collect();
+                mesh.refine(&leaves, &|_| false);
+            }
+        };
+        let coarsen_all = |mesh: &mut SubdivisionMesh| {
+            while !mesh
+                .coarsen_many(&(0..mesh.node_count() as NodeId).collect::<Vec<_>>())
+                .is_empty()
+            {}
+        };
+        refine_all(&mut mesh);
+        let (nodes, memory, leaves) = (mesh.node_count(), mesh.memory(), mesh.leaf_count());
+        coarsen_all(&mut mesh);
+        assert_eq!(mesh.leaves().collect::<Vec<_>>(), base);
+        assert!(mesh.retired_nodes() > 0);
+        refine_all(&mut mesh);
+        assert!(
+            mesh.node_count() > nodes,
+            "not recycled: removed nodes stay dead"
+        );
+        coarsen_all(&mut mesh);
+        assert!(mesh.recycle_removed());
+        let (grown, grown_memory) = (mesh.node_count(), mesh.memory());
+        for _ in 0..3 {
+            refine_all(&mut mesh);
+            assert_eq!(mesh.leaf_count(), leaves, "the same refinement");
+            assert_eq!(mesh.node_count(), grown, "recycled nodes reused");
+            assert_eq!(mesh.memory(), grown_memory, "no capacity grew");
+            crate::mesh::invariants::check(&mesh, &scene).unwrap();
+            coarsen_all(&mut mesh);
+            assert!(mesh.recycle_removed());
+        }
+        assert!(memory.nodes <= grown_memory.nodes);
+    }
 }

@@ -158,6 +158,8 @@ impl SubdivisionMesh {
             step.before_change(self, child);
             self.nodes[child as usize].kill();
         }
+        let children = node.children();
+        self.free_nodes.retire(children.start, children.len());
         let cut: &[usize] = match node.split() {
             Split::Green { edge, .. } => &[edge as usize],
             _ => &[0, 1, 2],
@@ -181,10 +183,17 @@ impl SubdivisionMesh {
     ) -> NodeId {
         step.before_change(self, parent);
         self.changed.mark(self.base_of(parent));
-        let first = self.nodes.len() as NodeId;
+        // A recycled block is dead, so the step sees its ids as new leaves, like pushed ones.
+        let reused = self.free_nodes.take(children.len());
+        let first = reused.unwrap_or(self.nodes.len() as NodeId);
         for (i, &vertices) in children.iter().enumerate() {
-            step.before_change(self, first + i as NodeId);
-            push_lean(&mut self.nodes, Node::new(vertices, Some(parent), kind));
+            let id = first + i as NodeId;
+            step.before_change(self, id);
+            let node = Node::new(vertices, Some(parent), kind);
+            match reused {
+                Some(_) => self.nodes[id as usize] = node,
+                None => push_lean(&mut self.nodes, node),
+            }
         }
         self.leaf_count += children.len() - 1;
         self.splits += 1;

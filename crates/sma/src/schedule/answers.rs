@@ -32,8 +32,9 @@ pub struct Answers {
 }
 
 impl Answers {
-    /// Caches a batch's answers, seen at `frame`. A point is view-dependent when its base
-    /// triangle's material is (`view_dependent`) or its renderer says so.
+    /// Caches a batch's answers, seen at `frame`, evicting what was seen least recently when
+    /// over budget. A point is view-dependent when its base triangle's material is
+    /// (`view_dependent`) or its renderer says so.
     pub fn shaded(
         &mut self,
         batch: &ShadeBatch,
@@ -64,6 +65,9 @@ impl Answers {
                 self.reject(point.key, &sample, cache);
             }
         }
+        // Within its share of the memory budget between passes too: a pass may be seconds
+        // away while renderers answer thousands of points (what was seen at `frame` stays).
+        cache.evict(frame, &|_| false);
         Answered {
             points: batch.points.len() as u64,
             paths: radiance.paths.iter().map(|&p| u64::from(p)).sum(),

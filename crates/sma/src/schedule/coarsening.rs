@@ -22,6 +22,8 @@ pub struct Coarsening {
     last_seen: Vec<u64>,
     /// Base triangles holding subdivision (their own, or a neighbour's green closure).
     refined: BTreeSet<u32>,
+    /// The last pressed collapse found nothing out of view to collapse.
+    pressed_in_vain: bool,
 }
 
 impl Coarsening {
@@ -30,6 +32,7 @@ impl Coarsening {
             after_passes,
             last_seen: vec![0; base_count],
             refined: BTreeSet::new(),
+            pressed_in_vain: false,
         }
     }
 
@@ -58,6 +61,47 @@ impl Coarsening {
             .copied()
             .filter(|&b| self.last_seen[b as usize] + self.after_passes <= pass)
             .collect();
+        self.collapse(mesh, stale)
+    }
+
+    /// Under the memory budget's pressure (`schedule::memory`): collapses the subdivision of the
+    /// `share` of refined base triangles in no view at `pass` that were seen least recently (one
+    /// at least; the next ones where those collapse nothing), whatever the set number of
+    /// passes; empty when nothing out of view collapses.
+    pub fn collapse_least_recent(
+        &mut self,
+        mesh: &mut SubdivisionMesh,
+        pass: u64,
+        share: f64,
+    ) -> Vec<RefinementStep> {
+        let mut unseen: Vec<(u64, u32)> = self
+            .refined
+            .iter()
+            .map(|&b| (self.last_seen[b as usize], b))
+            .filter(|&(seen, _)| seen < pass)
+            .collect();
+        unseen.sort_unstable();
+        let take = ((unseen.len() as f64 * share).ceil() as usize).max(1);
+        // A base refined only by a neighbour's closure goes with that neighbour: chunks that
+        // hold nothing to collapse alone are passed over.
+        for chunk in unseen.chunks(take) {
+            let steps = self.collapse(mesh, chunk.iter().map(|&(_, b)| b).collect());
+            if !steps.is_empty() {
+                self.pressed_in_vain = false;
+                return steps;
+            }
+        }
+        self.pressed_in_vain = true;
+        Vec::new()
+    }
+
+    /// Whether the last [`Self::collapse_least_recent`] found nothing out of view to collapse.
+    pub fn pressed_in_vain(&self) -> bool {
+        self.pressed_in_vain
+    }
+
+    /// Collapses the subdivision of `stale` bases as far as conformity allows, every level.
+    fn collapse(&mut self, mesh: &mut SubdivisionMesh, stale: Vec<u32>) -> Vec<RefinementStep> {
         let mut steps = Vec::new();
         loop {
             // Each call undoes the deepest red splits whose children are all leaves; the level
@@ -149,5 +193,32 @@ mod tests {
         let leaves = mesh.leaf_count();
         assert!(c.collapse_stale(&mut mesh, 1_000).is_empty());
         assert_eq!(mesh.leaf_count(), leaves);
+    }
+
+    #[test]
+    fn pressed_coarsening_takes_the_least_recently_seen_first_and_never_what_is_in_view() {
+        let mut mesh = SubdivisionMesh::new(&grid_mesh(4), Default::default());
+        let mut c = Coarsening::new(mesh.base_count(), 1_000);
+        // Corners of the grid, apart, split once (their neighbours bisected green): seen at
+        // passes 3, 1 and 2; base 24 is in view at pass 4.
+        let bases = [0, 31, 6, 24];
+        refine_bases(&mut mesh, &mut c, &bases, 1);
+        for (pass, b) in [(3, 0), (1, 31), (2, 6), (4, 24)] {
+            let leaves = mesh.leaves_of_base(b);
+            c.seen(&mesh, &VisibleSet::of_front_leaves(&leaves), pass);
+        }
+        let refined = |mesh: &SubdivisionMesh, b: u32| mesh.leaves_of_base(b).len() > 1;
+        assert!(!c.collapse_least_recent(&mut mesh, 4, 0.0).is_empty());
+        assert!(!c.pressed_in_vain());
+        assert!(!refined(&mesh, 31), "seen longest ago: first");
+        assert!(refined(&mesh, 6) && refined(&mesh, 0));
+        c.collapse_least_recent(&mut mesh, 4, 1.0);
+        assert!(!refined(&mesh, 6) && !refined(&mesh, 0));
+        assert!(refined(&mesh, 24), "in view");
+        assert!(c.collapse_least_recent(&mut mesh, 4, 1.0).is_empty());
+        assert!(
+            c.pressed_in_vain(),
+            "the greens beside base 24 go only with it"
+        );
     }
 }

@@ -102,8 +102,8 @@ pub struct Gauges {
     pub viewers: usize,
     pub leaves: usize,
     pub cached_samples: usize,
-    pub cache_bytes: usize,
-    pub mesh_bytes: usize,
+    /// The SMA's memory by part against its budget (`memory`).
+    pub memory: SmaMemory,
     pub queued: usize,
     pub in_flight: usize,
     pub pending_steps: usize,
@@ -179,10 +179,7 @@ impl Counters {
             renderers: gauges.renderers as u32,
             converged: self.converged,
             rejected_points: self.rejected_points,
-            memory: SmaMemory {
-                mesh_bytes: gauges.mesh_bytes as u64,
-                cache_bytes: gauges.cache_bytes as u64,
-            },
+            memory: gauges.memory,
             mesh: MeshShape {
                 smallest_split_angle_deg: gauges.split_shapes.smallest_angle().map(f32::to_degrees),
                 smallest_split_angle_ratio: gauges.split_shapes.smallest_ratio_to_base(),
@@ -190,7 +187,7 @@ impl Counters {
                 uniform_merges: gauges.uniform_merges,
             },
         };
-        let mib = |bytes: usize| format!("{:.1}", bytes as f64 / (1 << 20) as f64);
+        let mib = |bytes: u64| format!("{:.1}", bytes as f64 / (1 << 20) as f64);
         tracing::debug!(
             samples = self.samples,
             samples_per_sec = format!("{rate:.0}"),
@@ -198,8 +195,12 @@ impl Counters {
             renderer_busy = format!("{:.2}", stats.renderer_busy),
             leaves = stats.leaves,
             cached = stats.cached_samples,
-            cache_mib = mib(gauges.cache_bytes),
-            mesh_mib = mib(gauges.mesh_bytes),
+            cache_mib = mib(gauges.memory.cache_bytes),
+            mesh_mib = mib(gauges.memory.mesh_bytes()),
+            viewers_mib = mib(gauges.memory.viewers_bytes),
+            accounted_mib = mib(gauges.memory.accounted_bytes()),
+            rss_mib = gauges.memory.rss_bytes.map(mib),
+            memory_bound = gauges.memory.memory_bound,
             queued = gauges.queued,
             in_flight = gauges.in_flight,
             pending_steps = gauges.pending_steps,
@@ -224,8 +225,7 @@ impl super::Schedule {
             viewers: self.viewers.len(),
             leaves: self.mesh.leaf_count(),
             cached_samples: self.cache.len(),
-            cache_bytes: self.cache.bytes(),
-            mesh_bytes: self.mesh.heap_bytes(),
+            memory: self.memory.wire(&self.memory_account()),
             queued: self.requests.queued(),
             in_flight: self.requests.in_flight_keys(),
             pending_steps: self.refinement.pending.len(),

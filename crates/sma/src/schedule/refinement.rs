@@ -92,6 +92,32 @@ impl Refinement {
         true
     }
 
+    /// Under the memory budget's pressure (`memory`): collapses the `share` of the refined base
+    /// triangles in no view that were seen least recently, as [`Self::coarsen_stale`] does (and
+    /// not while refinement steps wait). Returns whether the leaves changed.
+    pub fn coarsen_pressed(&mut self, mesh: &mut SubdivisionMesh, frame: u64, share: f64) -> bool {
+        if !self.pending.is_empty() {
+            return false;
+        }
+        let steps = self.coarsening.collapse_least_recent(mesh, frame, share);
+        if steps.is_empty() {
+            return false;
+        }
+        tracing::debug!(
+            steps = steps.len(),
+            leaves = mesh.leaf_count(),
+            "coarsened what was seen least recently, for the memory budget"
+        );
+        self.pending.add(steps);
+        true
+    }
+
+    /// Whether the last coarsening under the memory budget's pressure found nothing out of view
+    /// to collapse.
+    pub fn pressed_in_vain(&self) -> bool {
+        self.coarsening.pressed_in_vain()
+    }
+
     /// Whether a pass of coarsening by uniformity is due (it is on, and samples or views came
     /// since the last one).
     pub fn merge_due(&self) -> bool {
@@ -260,7 +286,12 @@ pub fn luminance_image(
     let triangles: Vec<_> = viewer
         .shown
         .shown_triangles()
-        .map(|(node, rgb)| (mesh.leaf_positions(node), rgb.map(conventions::luminance)))
+        .map(|(corners, rgb)| {
+            (
+                corners.map(|v| mesh.vertex(v).position),
+                rgb.map(conventions::luminance),
+            )
+        })
         .collect();
     let pass_view = visibility.view(camera);
     let lum = luminance

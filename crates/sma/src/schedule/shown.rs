@@ -11,7 +11,7 @@ use protocol::viewer_link::{Recolour, ShownTriangle, SmaToViewer, TriangleId};
 
 use crate::cache::ShadingCache;
 use crate::mesh::fast_hash::FastHash;
-use crate::mesh::{NodeId, SubdivisionMesh};
+use crate::mesh::{NodeId, SubdivisionMesh, VertexId, table_bytes};
 use crate::visible_set::shown_id;
 
 /// What one viewer is shown, as this process last sent it.
@@ -34,6 +34,9 @@ pub struct ShownSet {
 #[derive(Clone, Copy, Debug)]
 struct Entry {
     radiance: [[f32; 3]; 3],
+    /// Its corners when sent: the mesh reuses removed nodes' ids (`mesh::free_nodes`), so an id
+    /// may come back as another triangle; vertices are never reused, so they tell.
+    vertices: [VertexId; 3],
     wanted_at: u64,
 }
 
@@ -45,7 +48,8 @@ impl ShownSet {
 
     /// Brings the viewer to `targets` (each node with the side it is seen from), as far as the
     /// cache allows, view-dependent samples as seen from `eye`. A shown triangle whose samples
-    /// were evicted stays as it is.
+    /// were evicted stays as it is. An id shown as another triangle (a reused node) is removed
+    /// and, once its samples are cached, inserted again, in that order, in the same epoch.
     pub fn sync(
         &mut self,
         targets: &[(NodeId, Side)],
@@ -57,9 +61,15 @@ impl ShownSet {
         let sync = self.syncs;
         let (mut inserts, mut updates) = (Vec::new(), Vec::new());
         self.unshown = 0;
+        let mut removed = Vec::new();
         for &(node, side) in targets {
             let id = shown_id(node, side);
             let radiance = cache.leaf_radiance_from(mesh, node, side, eye);
+            let vertices = mesh.node(node).vertices;
+            if self.shown.get(&id).is_some_and(|s| s.vertices != vertices) {
+                self.shown.remove(&id);
+                removed.push(id);
+            }
             match (self.shown.get_mut(&id), radiance) {
                 (Some(shown), radiance) => {
                     shown.wanted_at = sync;
@@ -73,6 +83,7 @@ impl ShownSet {
                         id,
                         Entry {
                             radiance,
+                            vertices,
                             wanted_at: sync,
                         },
                     );
@@ -85,7 +96,6 @@ impl ShownSet {
                 (None, None) => self.unshown += 1,
             }
         }
-        let mut removed = Vec::new();
         self.shown.retain(|&id, shown| {
             let wanted = shown.wanted_at == sync;
             if !wanted {
@@ -109,11 +119,17 @@ impl ShownSet {
         messages
     }
 
-    /// The shown triangles as (node, side, radiance), for the luminance image of `nld-is`.
-    pub fn shown_triangles(&self) -> impl Iterator<Item = (NodeId, [[f32; 3]; 3])> + '_ {
+    /// The shown triangles as (corners, radiance), for the luminance image of `nld-is`: the
+    /// corners as sent, whatever their node's id names now.
+    pub fn shown_triangles(&self) -> impl Iterator<Item = ([VertexId; 3], [[f32; 3]; 3])> + '_ {
         self.shown
-            .iter()
-            .map(|(&id, shown)| (crate::visible_set::split_shown_id(id).0, shown.radiance))
+            .values()
+            .map(|shown| (shown.vertices, shown.radiance))
+    }
+
+    /// Heap bytes of the table, by capacity.
+    pub fn heap_bytes(&self) -> usize {
+        table_bytes(&self.shown)
     }
 }
 
@@ -183,5 +199,42 @@ mod tests {
         let changed = shown.sync(&front(&[1, 2, 3, 4]), &mesh, &brighter, eye);
         assert_eq!(kinds(&changed), [("update", 4)]);
         assert_eq!((shown.inserted, shown.removed), (5, 1));
+    }
+
+    #[test]
+    fn a_reused_node_id_reaches_the_viewer_as_remove_then_insert_in_one_sync() {
+        let mut mesh = SubdivisionMesh::new(&grid_mesh(2), Default::default());
+        let eye = Vec3::new(1.0, 1.0, 3.0);
+        mesh.refine(&[0], &|_| false);
+        let red: Vec<NodeId> = mesh.node(0).children().collect();
+        let front: Vec<(NodeId, Side)> = red.iter().map(|&n| (n, Side::Front)).collect();
+        let mut cache = ShadingCache::new(1 << 20);
+        cache_all(&mesh, &mut cache, 0.5);
+        let mut shown = ShownSet::default();
+        assert_eq!(
+            kinds(&shown.sync(&front, &mesh, &cache, eye)),
+            [("insert", 4)]
+        );
+        mesh.coarsen(0).expect("allowed");
+        assert!(mesh.recycle_removed());
+        // The far corner's split takes the recycled block: the same ids, other triangles.
+        let far = mesh.base_count() as NodeId - 1;
+        mesh.refine(&[far], &|_| false);
+        assert_eq!(mesh.node(far).children().collect::<Vec<_>>(), red);
+        cache_all(&mesh, &mut cache, 0.5);
+        let messages = shown.sync(&front, &mesh, &cache, eye);
+        assert_eq!(kinds(&messages), [("remove", 4), ("insert", 4)]);
+        let SmaToViewer::Insert { triangles } = &messages[1] else {
+            unreachable!()
+        };
+        for t in triangles {
+            let node = crate::visible_set::split_shown_id(t.id).0;
+            assert_eq!(t.positions, mesh.leaf_positions(node).map(|p| p.to_array()));
+        }
+        assert!(
+            shown.sync(&front, &mesh, &cache, eye).is_empty(),
+            "in step again"
+        );
+        assert_eq!((shown.inserted, shown.removed), (8, 4));
     }
 }

@@ -333,5 +333,27 @@ fn corner_paths(
     })
 }
 
+impl super::Schedule {
+    /// Coarsening by uniformity over every view shown with a tone map (thesis §6, DESIGN.md
+    /// §4): a sample has settled from the rung whose variance the ladder believes, at the
+    /// scene's depth. Returns whether the leaves changed.
+    pub(super) fn merge_uniform(&mut self) -> bool {
+        let views: Vec<JudgedView> = self
+            .viewers
+            .iter()
+            .filter_map(|v| {
+                Some(JudgedView {
+                    visible: &v.view.as_ref()?.visible,
+                    l_white: v.last_l_white?,
+                })
+            })
+            .collect();
+        let qualities = self.rules.qualities;
+        let trusted = |q: Quality| q.bounces == qualities.full.bounces && qualities.trusts(q);
+        self.refinement
+            .merge_uniform(&views, &mut self.mesh, &self.cache, &trusted)
+    }
+}
+
 #[cfg(test)]
 mod tests;

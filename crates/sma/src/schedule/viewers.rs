@@ -81,6 +81,15 @@ impl Viewer {
         }
     }
 
+    /// What this viewer's state holds, by capacity: its view, targets and shown table, and what
+    /// waits in its outbox.
+    pub fn heap_bytes(&self) -> usize {
+        self.view.as_ref().map_or(0, LeafView::heap_bytes)
+            + self.targets.capacity() * size_of::<(NodeId, protocol::Side)>()
+            + self.shown.heap_bytes()
+            + self.outbox.waiting_bytes()
+    }
+
     pub fn send(&self, message: SmaToViewer) {
         // A viewer that left is removed by its `Left` event.
         self.outbox.send(message);

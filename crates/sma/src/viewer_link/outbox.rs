@@ -285,6 +285,11 @@ impl Outbox {
         }
     }
 
+    /// Bytes waiting for the viewer, at most (what the SMA's memory budget counts of it).
+    pub fn waiting_bytes(&self) -> usize {
+        self.shared.pending().bytes()
+    }
+
     /// Resolves once the waiting changes have passed the bound.
     pub(crate) async fn overflowed(&self) {
         self.shared.overflow.notified().await;

@@ -31,6 +31,15 @@ pub struct LeafView {
     pub submitted_leaves: usize,
 }
 
+impl LeafView {
+    /// Heap bytes by capacity: the visible leaves, their centroids and the per-pixel leaves.
+    pub fn heap_bytes(&self) -> usize {
+        self.visible.leaves.capacity() * size_of::<crate::visible_set::VisibleLeaf>()
+            + self.centroids.capacity() * size_of::<(f32, f32)>()
+            + self.pixel_leaves.capacity() * size_of::<Option<NodeId>>()
+    }
+}
+
 /// Cameras whose level-1 result is kept: one per viewer resting while another walks.
 const KEPT_LEVEL1: usize = 8;
 

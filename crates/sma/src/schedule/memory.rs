@@ -1,0 +1,276 @@
+//! One memory budget for the SMA's own structures (`--memory-mib`; DESIGN.md §4, §5): the mesh's
+//! nodes, vertices and edge tables, the shading cache, and each viewer's view, shown table and
+//! outbox, counted by capacity (what is allocated, not what is used).
+//!
+//! The cache gets what the mesh and the viewers leave, and evicts what was seen least recently
+//! (`ShadingCache::evict`). A refinement round goes on while everything, grown by what the
+//! round may add, stays under nine tenths of the budget: past it, the subdivision of the base
+//! triangles seen least recently, and in no current view, is collapsed first, and the removed
+//! nodes are reused (`mesh::free_nodes`). When the current views alone need more, refinement
+//! stops and the SMA says it is memory-bound (`Stats`, and one log line each way).
+
+use protocol::viewer_link::SmaMemory;
+
+use crate::mesh::MeshMemory;
+use crate::viewer_link::ViewerId;
+
+/// Near the budget: past this share of it, refinement gives way to coarsening. The cache shrinks
+/// as the mesh grows (it gets a share of what the mesh leaves), so with a full cache the mesh
+/// stops near half the budget, and with a cache that needs little it may take most of it.
+const PRESSED: f64 = 0.9;
+
+/// The cache's arrays grow by a quarter (`mesh::push_lean`), so a cache evicting down to this
+/// share of what is left stays within it by capacity.
+const CACHE_FILL: f64 = 0.8;
+
+/// Refinement splits made per selected leaf, at most, counted for the growth a round may cause:
+/// the leaf and its closure, which rarely reaches further than three neighbours.
+const SPLITS_PER_SELECTION: usize = 4;
+
+/// What the SMA's structures hold, by part.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MemoryAccount {
+    pub mesh: MeshMemory,
+    pub cache: usize,
+    pub viewers: usize,
+}
+
+impl MemoryAccount {
+    pub fn total(&self) -> usize {
+        self.fixed() + self.cache
+    }
+
+    /// What eviction cannot free: the mesh and the viewers.
+    fn fixed(&self) -> usize {
+        self.mesh.total() + self.viewers
+    }
+}
+
+/// The budget and whether it binds.
+#[derive(Debug)]
+pub struct MemoryBudget {
+    budget: usize,
+    bound: bool,
+}
+
+impl MemoryBudget {
+    pub fn new(budget_bytes: usize) -> Self {
+        MemoryBudget {
+            budget: budget_bytes,
+            bound: false,
+        }
+    }
+
+    /// What the cache may hold by its own count (`ShadingCache::bytes`).
+    pub fn cache_budget(&self, account: &MemoryAccount) -> usize {
+        let left = self.budget.saturating_sub(account.fixed());
+        (left as f64 * CACHE_FILL) as usize
+    }
+
+    /// Whether everything, the mesh grown by `growth` bytes, stays under the pressed share.
+    pub fn fits(&self, account: &MemoryAccount, growth: usize) -> bool {
+        (account.total() + growth) as f64 <= PRESSED * self.budget as f64
+    }
+
+    /// Splits a round of `selections` may make, for [`crate::mesh::SubdivisionMesh::growth_bytes`].
+    pub fn round_splits(selections: usize) -> usize {
+        selections * SPLITS_PER_SELECTION
+    }
+
+    /// Records whether the current views alone need more than the budget; logged once each way.
+    pub fn set_bound(&mut self, bound: bool, account: &MemoryAccount) {
+        if bound == self.bound {
+            return;
+        }
+        self.bound = bound;
+        let mib = |bytes: usize| format!("{:.1}", bytes as f64 / f64::from(1 << 20));
+        if bound {
+            tracing::warn!(
+                accounted_mib = mib(account.total()),
+                mesh_mib = mib(account.mesh.total()),
+                cache_mib = mib(account.cache),
+                viewers_mib = mib(account.viewers),
+                budget_mib = mib(self.budget),
+                "memory-bound: the current views need more than --memory-mib, refinement stops"
+            );
+        } else {
+            tracing::info!(
+                accounted_mib = mib(account.total()),
+                budget_mib = mib(self.budget),
+                "no longer memory-bound: refinement goes on"
+            );
+        }
+    }
+
+    /// The account as `Stats` carries it, with the process's resident memory.
+    pub fn wire(&self, account: &MemoryAccount) -> SmaMemory {
+        SmaMemory {
+            nodes_bytes: account.mesh.nodes as u64,
+            vertices_bytes: account.mesh.vertices as u64,
+            edge_tables_bytes: account.mesh.edge_tables as u64,
+            cache_bytes: account.cache as u64,
+            viewers_bytes: account.viewers as u64,
+            budget_bytes: self.budget as u64,
+            rss_bytes: process_rss_bytes(),
+            memory_bound: self.bound,
+        }
+    }
+}
+
+/// Removed nodes are recycled once they are this share of the nodes, or when the mesh is
+/// pressed: recycling makes every view be drawn afresh (a carried-over view may name them).
+const RECYCLE_SHARE: f64 = 1.0 / 16.0;
+
+/// The share of the refined base triangles out of view that one pressed pass collapses, seen
+/// least recently first.
+const PRESSED_COLLAPSE_SHARE: f64 = 0.125;
+
+/// What keeping the budget before the passes did.
+pub struct Kept {
+    /// Coarsening changed the leaves.
+    pub leaves_changed: bool,
+    /// Removed nodes were recycled: no view may be carried over.
+    pub recycled: bool,
+}
+
+impl super::Schedule {
+    pub(super) fn memory_account(&self) -> MemoryAccount {
+        MemoryAccount {
+            mesh: self.mesh.memory(),
+            cache: self.cache.capacity_bytes(),
+            viewers: self.viewers.iter().map(super::Viewer::heap_bytes).sum(),
+        }
+    }
+
+    /// Before the passes: recycles removed nodes where nothing names them (no refinement step
+    /// pending; every view is drawn afresh next), collapses what no viewer has seen lately, and
+    /// more, least recently seen first, when a round would not fit; then gives the cache what
+    /// is left.
+    pub(super) fn keep_memory_budget(&mut self) -> Kept {
+        let pressed = !self.round_fits_budget(&self.memory_account());
+        let retired = self.mesh.retired_nodes() as f64;
+        let recycled = self.refinement.pending.is_empty()
+            && (pressed || retired > RECYCLE_SHARE * self.mesh.node_count() as f64)
+            && self.mesh.recycle_removed();
+        if recycled {
+            self.viewers.leaves_changed();
+        }
+        let mut leaves_changed = self.refinement.coarsen_stale(&mut self.mesh, self.frame);
+        if pressed {
+            leaves_changed |=
+                self.refinement
+                    .coarsen_pressed(&mut self.mesh, self.frame, PRESSED_COLLAPSE_SHARE);
+        }
+        let cache_budget = self.memory.cache_budget(&self.memory_account());
+        self.cache.set_budget_bytes(cache_budget);
+        Kept {
+            leaves_changed,
+            recycled,
+        }
+    }
+
+    /// Whether a refinement round for viewer `id` fits the budget. When it does not, what was
+    /// seen least recently and is in no view is collapsed, and the viewer waits for the pass
+    /// that follows (or for new input); when nothing out of view is left to collapse, the
+    /// current views alone need more: the SMA is memory-bound, and the viewer's samples get
+    /// their paths as when its criterion runs dry (its stated end, DESIGN.md §5).
+    pub(super) fn round_fits(&mut self, id: ViewerId) -> bool {
+        let account = self.memory_account();
+        if self.round_fits_budget(&account) {
+            self.memory.set_bound(false, &account);
+            return true;
+        }
+        let share = PRESSED_COLLAPSE_SHARE;
+        if self
+            .refinement
+            .coarsen_pressed(&mut self.mesh, self.frame, share)
+        {
+            self.viewers.leaves_changed();
+        }
+        let bound = self.refinement.pressed_in_vain();
+        self.memory.set_bound(bound, &account);
+        if let Some(viewer) = self.viewers.get_mut(id) {
+            viewer.wait.exhausted();
+            if bound && !viewer.criterion_dry {
+                viewer.criterion_dry = true;
+                self.owed.queue_changed();
+            }
+        }
+        false
+    }
+
+    fn round_fits_budget(&self, account: &MemoryAccount) -> bool {
+        let splits = MemoryBudget::round_splits(self.config.max_selections);
+        self.memory.fits(account, self.mesh.growth_bytes(splits))
+    }
+}
+
+/// The process's resident memory: `/proc/self/statm`'s second field, in pages.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+fn process_rss_bytes() -> Option<u64> {
+    let statm = std::fs::read_to_string("/proc/self/statm").ok()?;
+    let pages: u64 = statm.split_whitespace().nth(1)?.parse().ok()?;
+    // SAFETY: sysconf only reads a system constant.
+    let page = unsafe { libc::sysconf(libc::_SC_PAGESIZE) };
+    Some(pages * u64::try_from(page).ok()?)
+}
+
+#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+fn process_rss_bytes() -> Option<u64> {
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn account(mesh: usize, cache: usize, viewers: usize) -> MemoryAccount {
+        MemoryAccount {
+            mesh: MeshMemory {
+                nodes: mesh,
+                vertices: 0,
+                edge_tables: 0,
+            },
+            cache,
+            viewers,
+        }
+    }
+
+    #[test]
+    fn the_cache_gets_what_the_mesh_and_viewers_leave_and_rounds_stop_near_the_budget() {
+        let budget = MemoryBudget::new(1000);
+        assert_eq!(budget.cache_budget(&account(300, 500, 100)), 480);
+        assert_eq!(budget.cache_budget(&account(900, 0, 200)), 0);
+        assert!(budget.fits(&account(400, 300, 100), 100));
+        assert!(!budget.fits(&account(400, 300, 100), 101));
+        assert!(
+            budget.fits(&account(800, 0, 0), 100),
+            "a cache that needs little"
+        );
+    }
+
+    #[test]
+    fn being_memory_bound_is_said_in_the_wire_form_with_the_parts() {
+        let mut budget = MemoryBudget::new(1 << 20);
+        let a = MemoryAccount {
+            mesh: MeshMemory {
+                nodes: 1,
+                vertices: 2,
+                edge_tables: 3,
+            },
+            cache: 4,
+            viewers: 5,
+        };
+        budget.set_bound(true, &a);
+        let wire = budget.wire(&a);
+        assert!(wire.memory_bound);
+        assert_eq!(wire.mesh_bytes(), 6);
+        assert_eq!(wire.accounted_bytes(), a.total() as u64);
+        assert_eq!(wire.budget_bytes, 1 << 20);
+        if cfg!(all(target_os = "linux", target_env = "gnu")) {
+            assert!(wire.rss_bytes.is_some_and(|b| b > 1 << 20), "{wire:?}");
+        }
+        budget.set_bound(false, &a);
+        assert!(!budget.wire(&a).memory_bound);
+    }
+}
