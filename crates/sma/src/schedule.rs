@@ -586,16 +586,12 @@ impl Schedule {
     fn waiting_for(&self) -> (bool, Option<Instant>) {
         let now = Instant::now();
         let (views, gate) = (self.viewers.turn_views(), self.refine_gate());
-        let allowed = self
-            .paces
-            .allowed(self.owed, self.passes_owed(), false, now);
+        let passes = self.passes_owed();
+        let allowed = self.paces.allowed(self.owed, passes, false, now);
         let candidate = turns::refinement_candidate(&gate, &views, self.refinement.rounds, now);
-        let rested = turns::next_rest(&views, self.config.rest, now);
-        let wake = [
-            turns::next_ready(&gate, &views, now),
-            allowed.wake_at(),
-            rested,
-        ];
+        let ready = turns::next_ready(&gate, &views, now);
+        let rested = turns::next_rest(&views, gate.rest, now);
+        let wake = [ready, allowed.wake_at(), rested];
         (
             turns::has_work_now(self.owed, &allowed, candidate),
             wake.into_iter().flatten().chain(self.save_due_at()).min(),
