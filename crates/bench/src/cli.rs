@@ -244,6 +244,15 @@ pub struct WalkArgs {
     pub moments: Option<u16>,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Walk only the route's first N stops, twice (a shorter reproduction of them).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
+    pub stops: Option<u16>,
+    /// Paths per pixel of the stops' ground truths (default 1024, quick 16).
+    #[arg(long)]
+    pub stop_spp: Option<u32>,
+    /// Paths per pixel of the moments' ground truths (default 256, quick 8).
+    #[arg(long)]
+    pub moment_spp: Option<u32>,
     /// Flags passed on to `walkthrough sma`, e.g. `--sma-flags=--work-while-walking,off`.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub sma_flags: Vec<String>,
@@ -262,6 +271,9 @@ impl WalkArgs {
             moments: self.moments.map_or(defaults.moments, usize::from),
             scene: self.scene,
             seed: self.seed,
+            stops: self.stops.map(usize::from),
+            stop_spp: self.stop_spp.unwrap_or(defaults.stop_spp),
+            moment_spp: self.moment_spp.unwrap_or(defaults.moment_spp),
             sma_flags: self.sma_flags,
             no_report: self.no_report,
             write_paths: self.write_paths,

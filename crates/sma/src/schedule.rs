@@ -290,7 +290,8 @@ impl Schedule {
     /// The passes owed, and whether they may wait (`turns::passes_owed`).
     fn passes_owed(&self) -> PassesOwed {
         let views = self.viewers.turn_views();
-        turns::passes_owed(&views, self.config.work_while_walking)
+        let (walking, rest) = (self.config.work_while_walking, self.config.rest);
+        turns::passes_owed(&views, walking, rest, Instant::now())
     }
 
     /// Runs `work`, counts its time, and spaces the next run of paced work by it.
@@ -573,10 +574,12 @@ impl Schedule {
     fn waiting_for(&self) -> (bool, Option<Instant>) {
         let now = Instant::now();
         let (views, gate) = (self.viewers.turn_views(), self.refine_gate());
-        let passes = turns::passes_owed(&views, self.config.work_while_walking);
+        let passes = self.passes_owed();
         let allowed = self.paces.allowed(self.owed, passes, false, now);
         let candidate = turns::refinement_candidate(&gate, &views, self.refinement.rounds, now);
-        let wake = [turns::next_ready(&gate, &views, now), allowed.wake_at()];
+        let ready = turns::next_ready(&gate, &views, now);
+        let rested = turns::next_rest(&views, gate.rest, now);
+        let wake = [ready, allowed.wake_at(), rested];
         (
             turns::has_work_now(self.owed, &allowed, candidate),
             wake.into_iter().flatten().chain(self.save_due_at()).min(),

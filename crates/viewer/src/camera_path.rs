@@ -76,10 +76,15 @@ impl CameraPath {
         } else {
             0.0
         };
+        // `a + (b - a) * s`, not glam's `lerp` (`a * (1 - s) + b * s`): between two equal
+        // keyframes (a stop) it is exactly the keyframe, where `lerp` is off by a rounding step
+        // at one instant in a few dozen. Each such instant is a camera that differs from the last
+        // one sent, so the viewer sent the SMA several cameras a second while the walk stood
+        // still, and the SMA never saw the camera rest (DESIGN.md §3: refinement waits for rest).
         Viewpoint {
             name: "path".into(),
-            eye: a.eye.lerp(b.eye, s).to_array(),
-            target: a.target.lerp(b.target, s).to_array(),
+            eye: a.eye.lerp_monotonic(b.eye, s).to_array(),
+            target: a.target.lerp_monotonic(b.target, s).to_array(),
             up: [0.0, 1.0, 0.0],
             fov_y_deg: a.fov_y_deg + (b.fov_y_deg - a.fov_y_deg) * s,
         }
@@ -110,6 +115,22 @@ mod tests {
             ([2.0, 0.0, 0.0], [2.0, 0.0, -1.0], 45.0)
         );
         assert_eq!(path.at(9.0).eye, [4.0, 0.0, 0.0]);
+    }
+
+    /// A stop (two equal keyframes) is the same camera at every instant of it, to the bit: the
+    /// viewer sends a camera whenever it differs from the last one sent.
+    #[test]
+    fn a_stop_holds_the_camera_exactly() {
+        let path = CameraPath::parse(
+            "40.8 -1.5 1.7 60  0.5 3 -20\n43.767 -1.5 1.7 60  0.5 3 -20\n45 0 1.7 58 0 1.7 0\n",
+            60.0,
+        )
+        .unwrap();
+        let held = path.at(40.8);
+        for k in 0..1000 {
+            let at = path.at(40.8 + 2.967 * k as f32 / 1000.0);
+            assert_eq!((at.eye, at.target), (held.eye, held.target), "step {k}");
+        }
     }
 
     #[test]

@@ -53,6 +53,8 @@ pub struct WalkConfig {
     /// Ground truth EXRs (an ignored folder).
     pub gt_cache: PathBuf,
     pub seed: u64,
+    /// Only the route's first stops (a shorter reproduction of them); None: the whole route.
+    pub stops: Option<usize>,
     /// Flags passed on to `walkthrough sma`, e.g. `--work-while-walking,off`.
     pub sma_flags: Vec<String>,
     /// Do not write docs/bench/walk.md nor BENCHMARKS.md.
@@ -82,6 +84,7 @@ impl WalkConfig {
             runs,
             gt_cache,
             seed: 1,
+            stops: None,
             sma_flags: Vec::new(),
             no_report: false,
             write_paths: false,
@@ -89,10 +92,14 @@ impl WalkConfig {
     }
 
     fn plan(&self, route: &Route) -> WalkPlan {
+        let route = match self.stops {
+            Some(n) => route.first_stops(n),
+            None => route.clone(),
+        };
         let route = if self.quick {
             route.quick(QUICK_METRES, QUICK_STOP_S)
         } else {
-            route.clone()
+            route
         };
         route::generate(&route, self.moments)
     }

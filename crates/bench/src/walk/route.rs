@@ -88,6 +88,24 @@ impl Route {
             fov_y_deg: self.fov_y_deg,
         }
     }
+
+    /// The route up to its `n`th stop, that stop included: a shorter walk whose stops have the
+    /// whole route's cameras (a reproduction of what the whole walk shows at its first stops).
+    pub(crate) fn first_stops(&self, n: usize) -> Route {
+        let mut seen = 0;
+        let end = self
+            .legs
+            .iter()
+            .position(|l| {
+                seen += usize::from(matches!(l, Leg::Stop { .. }));
+                seen == n
+            })
+            .map_or(self.legs.len(), |i| i + 1);
+        Route {
+            legs: self.legs[..end].to_vec(),
+            ..self.clone()
+        }
+    }
 }
 
 fn flat((x, z): (f32, f32)) -> Vec3 {
@@ -545,6 +563,16 @@ mod tests {
         assert_eq!(plan.stops.len(), 4);
         assert!(plan.seconds() < 12.0, "{}", plan.seconds());
         assert_eq!(plan.moments.len(), 6);
+    }
+
+    #[test]
+    fn the_first_stops_of_a_route_are_its_stops_and_end_the_walk() {
+        let whole = generate(&sites::bracara(), 0);
+        let cut = generate(&sites::bracara().first_stops(2), 0);
+        assert_eq!(cut.stops.len(), 2 * PASSES as usize);
+        assert_eq!(cut.stops[..2], whole.stops[..2]);
+        let last = &cut.stops[1];
+        assert_eq!(last.camera.step + last.steps, cut.steps_per_pass);
     }
 
     #[test]

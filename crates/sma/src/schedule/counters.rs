@@ -10,6 +10,7 @@ use protocol::viewer_link::{MeshShape, SmaMemory, SmaToViewer, Stats};
 use crate::mesh::SplitShapes;
 
 use super::answers::Answered;
+use super::requests::HandedOut;
 
 /// A criterion that found nothing is asked again once this many new samples have come, not after
 /// every batch: a round evaluates every visible leaf.
@@ -105,6 +106,9 @@ pub struct Gauges {
     /// The SMA's memory by part against its budget (`memory`).
     pub memory: SmaMemory,
     pub queued: usize,
+    /// The queue per urgency (`Urgency` order), and what went out since the last `Stats`.
+    pub queued_by_urgency: [usize; 6],
+    pub handed_out: HandedOut,
     pub in_flight: usize,
     pub pending_steps: usize,
     /// Parents merged back by uniformity since the start (`uniformity`).
@@ -202,6 +206,8 @@ impl Counters {
             rss_mib = gauges.memory.rss_bytes.map(mib),
             memory_bound = gauges.memory.memory_bound,
             queued = gauges.queued,
+            queued_by_urgency = ?gauges.queued_by_urgency,
+            handed_out_points_paths = ?gauges.handed_out,
             in_flight = gauges.in_flight,
             pending_steps = gauges.pending_steps,
             merged_uniform = gauges.uniform_merges,
@@ -227,6 +233,8 @@ impl super::Schedule {
             cached_samples: self.cache.len(),
             memory: self.memory.wire(&self.memory_account()),
             queued: self.requests.queued(),
+            queued_by_urgency: self.requests.queued_by_urgency(),
+            handed_out: self.requests.take_handed_out(),
             in_flight: self.requests.in_flight_keys(),
             pending_steps: self.refinement.pending.len(),
             uniform_merges: self.refinement.uniform_merges(),

@@ -111,6 +111,17 @@ pub struct Requests {
     recent: TopUpShare,
     next_batch_id: u64,
     seed: u64,
+    /// What went out since the last `take_handed_out`, per kind of batch.
+    handed_out: HandedOut,
+}
+
+/// Points and paths batched since the last look, per kind of batch (awaited, top-ups, more
+/// paths): what the renderers were given to do, for the debug statistics.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct HandedOut {
+    pub awaited: (u64, u64),
+    pub top_up: (u64, u64),
+    pub paths: (u64, u64),
 }
 
 impl Requests {
@@ -158,6 +169,20 @@ impl Requests {
     pub fn outstanding_before_paths(&self) -> usize {
         self.queue.partition_point(|n| awaited(n.urgency))
             + self.awaited_batches.values().sum::<usize>()
+    }
+
+    /// The queue's needs per urgency (`Urgency` order), for the debug statistics.
+    pub fn queued_by_urgency(&self) -> [usize; 6] {
+        let mut counts = [0; 6];
+        for need in &self.queue {
+            counts[need.urgency as usize] += 1;
+        }
+        counts
+    }
+
+    /// What was batched since the last call.
+    pub fn take_handed_out(&mut self) -> HandedOut {
+        std::mem::take(&mut self.handed_out)
     }
 
     pub fn in_flight_keys(&self) -> usize {
@@ -214,6 +239,13 @@ impl Requests {
         let Taken { kind, batch } = batch;
         let paths = batch.points.len() as f64 * f64::from(batch.quality.paths);
         let batch_id = batch.batch_id;
+        let handed = match kind {
+            k if awaited(k) => &mut self.handed_out.awaited,
+            Urgency::TopUp => &mut self.handed_out.top_up,
+            _ => &mut self.handed_out.paths,
+        };
+        handed.0 += batch.points.len() as u64;
+        handed.1 += paths as u64;
         if awaited(kind) {
             self.awaited_batches.insert(batch_id, batch.points.len());
             self.recent.count(paths, false);
