@@ -545,7 +545,9 @@ fn error_and_time(world: &World, view: &str, cfg: &Config) -> anyhow::Result<Str
         (
             parts
                 .iter()
-                .map(|p| luminance(Vec3::from(p.rgb())) as f64)
+                // What the cache holds: illumination (taken at a unit albedo) plus the
+                // view-dependent radiance.
+                .map(|p| luminance(Vec3::from(p.radiance([1.0; 3]))) as f64)
                 .collect(),
             secs,
         )
