@@ -51,7 +51,6 @@ mod uniformity;
 mod viewers;
 mod waits;
 
-use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::Context;
@@ -112,7 +111,7 @@ pub struct Schedule {
 impl Schedule {
     pub fn new(
         config: ScheduleConfig,
-        scene: Arc<Scene>,
+        scene: std::sync::Arc<Scene>,
         mut mesh: SubdivisionMesh,
         gpu: Gpu,
         pool: PoolHandle,
@@ -122,7 +121,7 @@ impl Schedule {
         let rules = PlanRules::new(&config, &scene);
         let mut cache = ShadingCache::new(config.cache_budget_bytes)
             .with_l_white_outliers(config.l_white_outliers)
-            .with_albedos_of(Arc::clone(&scene));
+            .with_albedos_of(scene.clone());
         let cache_file = cache_file.and_then(|setup| {
             persistence::open(setup, &scene, &config, &rules, &mut mesh, &mut cache)
         });
