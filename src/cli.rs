@@ -154,7 +154,7 @@ pub enum SceneCommand {
     /// Triangles, vertices, materials, bounds, dropped triangles, effects, fingerprint, and the
     /// visible base triangles per viewpoint.
     Info {
-        /// A scene TOML file or a built-in name (bracara, cornell).
+        /// A scene TOML file or a built-in name (bracara, bracara-textured, cornell).
         scene: String,
         /// Image size for the per-viewpoint visibility estimate.
         #[arg(long, default_value_t = 1024)]

@@ -76,6 +76,7 @@ fn shade(mesh: &SubdivisionMesh, cache: &mut ShadingCache) -> Vec<u32> {
                             rgb: [0.1, 0.1, p.z * 0.01],
                             luminance_variance: 0.01,
                         },
+                        view_dependent: PartEstimate::default(),
                     },
                     quality: Quality {
                         paths: 64,

@@ -528,8 +528,8 @@ fn hidden_vertices(world: &World, cfg: &Config) -> anyhow::Result<String> {
 }
 
 /// RMS error (relative to the mean luminance) against a many-path unbounded estimate at fixed
-/// points, and time per sample, for paths × bounce depth. The error includes the bias of a
-/// bounded depth: it is the error against the full solution.
+/// points, and time per sample, for paths × bounce depth, of what the cache holds (illumination
+/// at a unit albedo, plus view-dependent radiance). The error includes a bounded depth's bias.
 fn error_and_time(world: &World, view: &str, cfg: &Config) -> anyhow::Result<String> {
     let points = visible_points(world, view, cfg.error_points)?;
     // Luminances of one estimate, and the median time of `runs` estimates (same seed).
@@ -545,7 +545,7 @@ fn error_and_time(world: &World, view: &str, cfg: &Config) -> anyhow::Result<Str
         (
             parts
                 .iter()
-                .map(|p| luminance(Vec3::from(p.rgb())) as f64)
+                .map(|p| luminance(Vec3::from(p.radiance([1.0; 3]))) as f64)
                 .collect(),
             secs,
         )

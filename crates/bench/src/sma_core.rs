@@ -47,6 +47,7 @@ fn sample(rgb: [f32; 3]) -> CachedSample {
                 rgb: third,
                 luminance_variance: error * error * paths,
             },
+            view_dependent: PartEstimate::default(),
         },
         quality: Quality::INTERACTIVE,
         view_dependent: false,

@@ -27,51 +27,64 @@ impl PartEstimate {
 }
 
 /// A point's answer in parts, each estimated from the same paths (DESIGN.md §5, "samples in
-/// parts"): what is displayed is their sum. The parts are named rather than indexed so that a
-/// later part (an albedo-demodulated illumination, a view-dependent part) is a new field that
-/// every reader must place.
+/// parts"). The diffuse parts are **illumination**: the paths leave out the first vertex's
+/// albedo, which multiplies them where they are displayed (the albedo at the shading point, a
+/// texel or `Kd`); what the point's glossy or mirror lobe reflects, and its own emission, stay
+/// radiance and are added on top ([`SampleParts::radiance`]). The parts are named rather than
+/// indexed so that a later part is a new field that every reader must place.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct SampleParts {
-    /// Light arriving at the first vertex straight from the sun, the sky and emitters (next-event
-    /// estimation, and the first continuation ray where it escapes to the sky or, through a
-    /// mirror, meets an emitter), plus the point's own emission: sharp, never filtered.
+    /// Illumination arriving at the first vertex straight from the sun, the sky and emitters
+    /// (next-event estimation, and the first diffuse continuation ray where it escapes to the
+    /// sky): sharp, never filtered.
     pub direct: PartEstimate,
-    /// Everything else: light that reached the first vertex over at least one more surface.
-    /// Smooth, so the SMA may filter it over neighbouring vertices (DESIGN.md §5).
+    /// Illumination that reached the first vertex over at least one more surface. Smooth, so
+    /// the SMA may filter it over neighbouring vertices (DESIGN.md §5).
     pub indirect: PartEstimate,
+    /// Radiance toward the eye that depends on where the eye is (the first vertex's glossy or
+    /// mirror lobe, whatever it reflects), plus the point's own emission: never multiplied by
+    /// an albedo, never filtered.
+    pub view_dependent: PartEstimate,
 }
 
 impl SampleParts {
-    /// Both parts in order, for what is done to each alike.
-    pub fn each(&self) -> [&PartEstimate; 2] {
-        [&self.direct, &self.indirect]
+    /// The parts in order, for what is done to each alike.
+    pub fn each(&self) -> [&PartEstimate; 3] {
+        [&self.direct, &self.indirect, &self.view_dependent]
     }
 
-    /// The displayed radiance: the sum of the parts.
-    pub fn rgb(&self) -> Rgb {
-        std::array::from_fn(|i| self.direct.rgb[i] + self.indirect.rgb[i])
-    }
-
-    /// The luminance variance of the sum, taking the parts as uncorrelated. Within a path the two
-    /// are drawn from independent numbers but for the sky, where a first continuation ray that
-    /// escapes gives direct light and one that hits gives indirect light: that covariance is
-    /// negative, so the sum of the variances errs on the safe side.
-    pub fn luminance_variance(&self) -> f32 {
-        self.direct.luminance_variance + self.indirect.luminance_variance
+    /// The radiance the parts stand for at a point of diffuse albedo `albedo` (linear RGB):
+    /// `albedo × (direct + indirect) + view_dependent`.
+    pub fn radiance(&self, albedo: Rgb) -> Rgb {
+        std::array::from_fn(|i| {
+            albedo[i] * (self.direct.rgb[i] + self.indirect.rgb[i]) + self.view_dependent.rgb[i]
+        })
     }
 
     pub fn is_valid(&self) -> bool {
         self.each().iter().all(|p| p.is_valid())
     }
 
-    /// A sample whose whole radiance is direct light (emitters, tests, synthetic fixtures).
+    /// A sample whose whole value is direct illumination (tests, synthetic fixtures).
     pub fn direct_only(rgb: Rgb, luminance_variance: f32) -> SampleParts {
         SampleParts {
             direct: PartEstimate {
                 rgb,
                 luminance_variance,
             },
-            indirect: PartEstimate::default(),
+            ..SampleParts::default()
+        }
+    }
+
+    /// A sample whose whole value is radiance, shown as it is whatever the albedo (emitters, a
+    /// fake renderer's answers).
+    pub fn radiance_only(rgb: Rgb, luminance_variance: f32) -> SampleParts {
+        SampleParts {
+            view_dependent: PartEstimate {
+                rgb,
+                luminance_variance,
+            },
+            ..SampleParts::default()
         }
     }
 }

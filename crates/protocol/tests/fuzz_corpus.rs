@@ -208,6 +208,10 @@ fn renderer_link_seeds() -> Vec<(String, Vec<u8>)> {
                             rgb: [0.05, 0.04, 0.03],
                             luminance_variance: 0.002,
                         },
+                        view_dependent: PartEstimate {
+                            rgb: [2.0, 1.5, 0.5],
+                            luminance_variance: 0.3,
+                        },
                     },
                     SampleParts {
                         direct: PartEstimate {
@@ -217,6 +221,10 @@ fn renderer_link_seeds() -> Vec<(String, Vec<u8>)> {
                         indirect: PartEstimate {
                             rgb: [-1.0, 0.0, 0.0],
                             luminance_variance: 0.0,
+                        },
+                        view_dependent: PartEstimate {
+                            rgb: [f32::NAN, 0.0, 0.0],
+                            luminance_variance: -1.0,
                         },
                     },
                 ],

@@ -108,6 +108,8 @@ fn from_renderer() -> impl Strategy<Value = FromRenderer> {
                     0.0f32..1e6,
                     any::<u32>(),
                     v3(),
+                    0.0f32..1e6,
+                    v3(),
                     0.0f32..1e6
                 ),
                 0..50
@@ -128,6 +130,10 @@ fn from_renderer() -> impl Strategy<Value = FromRenderer> {
                             indirect: PartEstimate {
                                 rgb: v.4,
                                 luminance_variance: v.5,
+                            },
+                            view_dependent: PartEstimate {
+                                rgb: v.6,
+                                luminance_variance: v.7,
                             },
                         })
                         .collect(),

@@ -34,7 +34,7 @@ pub struct Cli {
 pub enum Command {
     /// Answer shade batches from SMAs over TCP until Ctrl-C.
     Serve {
-        /// Scene file (TOML) or built-in name ("bracara", "cornell").
+        /// Scene file (TOML) or built-in name ("bracara", "bracara-textured", "cornell").
         #[arg(long, default_value = "bracara")]
         scene: String,
         /// Address to listen on; port 0 picks a free port (the line "listening on ADDR" on
@@ -74,7 +74,7 @@ pub enum Command {
     },
     /// Render a named viewpoint per pixel with the same estimator: linear EXR plus a PNG beside it.
     Reference {
-        /// Scene file (TOML) or built-in name ("bracara", "cornell").
+        /// Scene file (TOML) or built-in name ("bracara", "bracara-textured", "cornell").
         #[arg(long, default_value = "bracara")]
         scene: String,
         /// Viewpoint name from the scene.

@@ -13,7 +13,7 @@ use glam::Vec3;
 
 use crate::bvh::Hit;
 use crate::counters::{RayCounts, RayKind};
-use crate::material::{Bsdf, BsdfSample};
+use crate::material::{Bsdf, BsdfSample, Lobes};
 use crate::sampling::{Rng, uniform2, uniform3};
 use crate::wavefront::{Start, trace_paths};
 use crate::world::{Surface, World};
@@ -49,28 +49,88 @@ impl Estimator {
     }
 }
 
-/// One path's radiance in parts (DESIGN.md §5, "Parts, and textures"): what arrives at the first
-/// vertex straight from a light (its shadow rays, and its continuation ray where that escapes to
-/// the sky or, through a mirror, meets an emitter or the sun's disc), apart from everything that
-/// arrives over further vertices.
+/// One path's estimate in parts (DESIGN.md §5, "Parts, and textures"). The first vertex's
+/// diffuse lobe is taken with a unit albedo, so `direct` and `indirect` are **illumination**,
+/// which that vertex's albedo multiplies on display ([`PathParts::radiance`]); what leaves the
+/// first vertex over its glossy or mirror lobe stays radiance, `view_dependent`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PathParts {
+    /// Illumination arriving at the first vertex straight from a light: its shadow rays, and its
+    /// diffuse continuation ray where that escapes to the sky.
     pub direct: Vec3,
+    /// Illumination arriving at the first vertex over further vertices.
     pub indirect: Vec3,
+    /// Radiance the first vertex's glossy or mirror lobe reflects toward the eye, from lights
+    /// and from everything behind it (the point's own emission is added per point, `shade`).
+    pub view_dependent: Vec3,
 }
 
 impl PathParts {
-    /// The path's radiance: the sum of its parts.
-    pub fn total(&self) -> Vec3 {
-        self.direct + self.indirect
+    /// The path's radiance, with `albedo`, the first vertex's diffuse albedo, multiplying its
+    /// illumination.
+    pub fn radiance(&self, albedo: Vec3) -> Vec3 {
+        albedo * (self.direct + self.indirect) + self.view_dependent
     }
 
-    /// Adds `l` to the direct part when it arrives at the first vertex, else to the indirect.
-    pub(crate) fn add(&mut self, at_first_vertex: bool, l: Vec3) {
-        if at_first_vertex {
-            self.direct += l;
+    /// Adds what the lights bring at a vertex on `route` (already weighted by the path's
+    /// throughput), lobe by lobe at the first vertex.
+    pub(crate) fn add_light(&mut self, route: Route, l: Lobes) {
+        match route {
+            Route::FirstVertex => {
+                self.direct += l.diffuse;
+                self.view_dependent += l.specular;
+            }
+            Route::Indirect => self.indirect += l.total(),
+            Route::ViewDependent => self.view_dependent += l.total(),
+        }
+    }
+
+    /// Adds `l`, what a continuation ray of `kind` leaving a vertex on `route` sees (weighted by
+    /// the path's throughput): a diffuse ray's under the diffuse lobe, others' the specular.
+    pub(crate) fn add_seen(&mut self, route: Route, kind: RayKind, l: Vec3) {
+        let lobes = if kind == RayKind::Bounce {
+            Lobes {
+                diffuse: l,
+                specular: Vec3::ZERO,
+            }
         } else {
-            self.indirect += l;
+            Lobes {
+                diffuse: Vec3::ZERO,
+                specular: l,
+            }
+        };
+        self.add_light(route, lobes);
+    }
+}
+
+/// Which part what arrives at a path's current vertex belongs to ([`PathParts`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Route {
+    /// The first vertex: its diffuse lobe's share is direct illumination, its specular lobes'
+    /// view-dependent radiance.
+    FirstVertex,
+    /// Past a first vertex left over its diffuse lobe.
+    Indirect,
+    /// Past a first vertex left over a glossy or mirror lobe.
+    ViewDependent,
+}
+
+impl Route {
+    /// The route once a continuation ray of `kind` left the current vertex.
+    pub(crate) fn after(self, kind: RayKind) -> Route {
+        match self {
+            Route::FirstVertex if kind == RayKind::Bounce => Route::Indirect,
+            Route::FirstVertex => Route::ViewDependent,
+            later => later,
+        }
+    }
+
+    /// How the surface at `s` scatters on this route: with a unit diffuse albedo at the first
+    /// vertex (`World::illumination_bsdf_at`), as it is further on.
+    pub(crate) fn bsdf_at(self, world: &World, s: &Surface) -> Bsdf {
+        match self {
+            Route::FirstVertex => world.illumination_bsdf_at(s),
+            Route::Indirect | Route::ViewDependent => world.bsdf_at(s),
         }
     }
 }
@@ -119,8 +179,9 @@ pub fn for_each_path(
     }
 }
 
-/// One path's estimate of the radiance leaving `surface` toward unit `wo`, in parts
-/// ([`PathParts`]), excluding the surface's own emission. `max_bounces`: `Some(0)` = direct light only, `None` = unbounded with roulette.
+/// One path's estimate of the light leaving `surface` toward unit `wo`, in parts
+/// ([`PathParts`]: illumination and view-dependent radiance), excluding the surface's own
+/// emission. `max_bounces`: `Some(0)` = direct light only, `None` = unbounded with roulette.
 ///
 /// The sky is reached by the path's own continuation ray where there is one (for a Lambertian
 /// vertex that ray is cosine-distributed, exactly the sky's next-event density, so it spares a
@@ -144,26 +205,27 @@ pub(crate) fn path_radiance(
     let mut wo = wo;
     let mut depth = Depth::START;
     let mut direction_u = first_bounce;
-    for vertex in 0..MAX_DEPTH {
-        let at_first_vertex = vertex == 0;
-        let bsdf = &world.bsdf_at(&s);
+    let mut route = Route::FirstVertex;
+    for _ in 0..MAX_DEPTH {
+        let bsdf = &route.bsdf_at(world, &s);
         let origin = world.offset.origin(s.position, s.normal);
         let u = direction_u.take().unwrap_or_else(|| uniform2(rng));
         let next = continuation(world, bsdf, &s, wo, max_bounces, depth, throughput, u, rng);
-        let mut direct = Vec3::ZERO;
+        let mut light = Lobes::default();
         shadow_rays(world, &s, origin, wo, bsdf, next.is_none(), rng, |ray| {
             if !world.occluded(origin, ray.dir, ray.tmax, ray.kind, counts) {
-                direct += ray.contribution;
+                light += ray.contribution;
             }
         });
-        radiance.add(at_first_vertex, throughput * direct);
+        radiance.add_light(route, light.scaled(throughput));
         let Some((sample, next_throughput)) = next else {
             break;
         };
         throughput = next_throughput;
         let hit = world.trace(origin, sample.dir, sample.kind, counts);
         let arrived = arrive(world, origin, sample.dir, sample.kind, hit, depth);
-        radiance.add(at_first_vertex, throughput * arrived.seen);
+        radiance.add_seen(route, sample.kind, throughput * arrived.seen);
+        route = route.after(sample.kind);
         let Some((next_surface, next_depth)) = arrived.next else {
             break;
         };
@@ -226,14 +288,14 @@ pub(crate) fn continuation(
     (next.max_element() > 0.0).then_some((sample, next))
 }
 
-/// A shadow ray of next-event estimation and what it brings (before the path's throughput)
-/// when nothing blocks it.
+/// A shadow ray of next-event estimation and what it brings, lobe by lobe (before the path's
+/// throughput), when nothing blocks it.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct ShadowRay {
     pub(crate) dir: Vec3,
     pub(crate) tmax: f32,
     pub(crate) kind: RayKind,
-    pub(crate) contribution: Vec3,
+    pub(crate) contribution: Lobes,
 }
 
 /// Next-event estimation: one sample of each light, each handed to `emit` as a shadow ray from
@@ -256,8 +318,8 @@ pub(crate) fn shadow_rays(
         let Some(ls) = light.sample(origin, s.normal, uniform3(rng)) else {
             continue;
         };
-        let f = bsdf.eval(s.normal, wo, ls.dir);
-        if f.max_element() <= 0.0 {
+        let f = bsdf.eval_lobes(s.normal, wo, ls.dir);
+        if f.total().max_element() <= 0.0 {
             continue;
         }
         // Stop short of the light's own surface by its rounding margin.
@@ -271,7 +333,7 @@ pub(crate) fn shadow_rays(
                 dir: ls.dir,
                 tmax,
                 kind: light.shadow_kind(),
-                contribution: f * s.normal.dot(ls.dir) * ls.radiance_over_pdf,
+                contribution: f.scaled(s.normal.dot(ls.dir) * ls.radiance_over_pdf),
             });
         }
     }

@@ -33,6 +33,36 @@ pub struct Bsdf {
     pub specular: Specular,
 }
 
+/// What a material reflects from one direction, lobe by lobe: the diffuse lobe's share, which at
+/// a point's first vertex is illumination (DESIGN.md §5, "Parts, and textures"), and the glossy
+/// lobe's, which stays view-dependent radiance.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Lobes {
+    pub diffuse: Vec3,
+    pub specular: Vec3,
+}
+
+impl Lobes {
+    pub fn total(&self) -> Vec3 {
+        self.diffuse + self.specular
+    }
+
+    /// Both lobes scaled by `w` (a path's throughput, a light's radiance over its density).
+    pub fn scaled(&self, w: Vec3) -> Lobes {
+        Lobes {
+            diffuse: self.diffuse * w,
+            specular: self.specular * w,
+        }
+    }
+}
+
+impl std::ops::AddAssign for Lobes {
+    fn add_assign(&mut self, other: Lobes) {
+        self.diffuse += other.diffuse;
+        self.specular += other.specular;
+    }
+}
+
 /// A sampled scattering direction with its throughput weight f cos / pdf.
 #[derive(Clone, Copy, Debug)]
 pub struct BsdfSample {
@@ -69,15 +99,19 @@ impl Bsdf {
         if d + s > 0.0 { d / (d + s) } else { 0.0 }
     }
 
-    /// f(wo, wi) of the non-delta lobes (a mirror's delta lobe is reached by sampling only).
-    pub fn eval(&self, n: Vec3, wo: Vec3, wi: Vec3) -> Vec3 {
+    /// f(wo, wi) of the non-delta lobes, lobe by lobe (a mirror's delta lobe is reached by
+    /// sampling only).
+    pub fn eval_lobes(&self, n: Vec3, wo: Vec3, wi: Vec3) -> Lobes {
         if n.dot(wi) <= 0.0 || n.dot(wo) <= 0.0 {
-            return Vec3::ZERO;
+            return Lobes::default();
         }
-        let diffuse = self.kd * FRAC_1_PI;
-        match self.specular {
-            Specular::Glossy { ks, ns } => diffuse + ks * blinn_phong(n, wo, wi, ns),
-            Specular::None | Specular::Mirror { .. } => diffuse,
+        let specular = match self.specular {
+            Specular::Glossy { ks, ns } => ks * blinn_phong(n, wo, wi, ns),
+            Specular::None | Specular::Mirror { .. } => Vec3::ZERO,
+        };
+        Lobes {
+            diffuse: self.kd * FRAC_1_PI,
+            specular,
         }
     }
 
@@ -167,7 +201,7 @@ mod tests {
             let r = (1.0 - z * z).max(0.0).sqrt();
             let phi = 2.0 * PI * u1;
             let wi = to_world(n, Vec3::new(r * phi.cos(), r * phi.sin(), z));
-            sum += (b.eval(n, wo, wi).x * z * 2.0 * PI) as f64;
+            sum += (b.eval_lobes(n, wo, wi).total().x * z * 2.0 * PI) as f64;
         }
         (sum / k as f64) as f32
     }
@@ -240,7 +274,7 @@ mod tests {
         );
         assert_eq!(s.weight, Vec3::splat(0.9));
         assert_eq!(s.kind, RayKind::Mirror);
-        assert_eq!(b.eval(Vec3::Y, wo, s.dir), Vec3::ZERO);
+        assert_eq!(b.eval_lobes(Vec3::Y, wo, s.dir), Lobes::default());
     }
 
     #[test]
@@ -249,9 +283,12 @@ mod tests {
             kd: Vec3::splat(0.6),
             specular: Specular::None,
         };
-        let f = b.eval(Vec3::Y, Vec3::Y, Vec3::new(0.0, 1.0, 1.0).normalize());
-        assert!((f.x - 0.6 / PI).abs() < 1e-7);
-        assert_eq!(b.eval(Vec3::Y, Vec3::Y, Vec3::NEG_Y), Vec3::ZERO);
+        let f = b.eval_lobes(Vec3::Y, Vec3::Y, Vec3::new(0.0, 1.0, 1.0).normalize());
+        assert!((f.diffuse.x - 0.6 / PI).abs() < 1e-7);
+        assert_eq!(
+            b.eval_lobes(Vec3::Y, Vec3::Y, Vec3::NEG_Y),
+            Lobes::default()
+        );
         let s = b.sample(Vec3::Y, Vec3::Y, [0.2, 0.7, 0.0]).unwrap();
         assert_eq!(s.kind, RayKind::Bounce);
         assert!(s.dir.y > 0.0);

@@ -147,7 +147,7 @@ fn pixel(
                         rng,
                         counts,
                     )
-                    .total()
+                    .radiance(world.albedo_at(&surface))
             }
         };
         add_finite(&mut sum, l);
@@ -179,8 +179,12 @@ fn row_as_waves(
     for first in (0..s.width as usize).step_by(group) {
         let pixels = first..(first + group).min(row.len());
         let (starts, emitted) = camera_paths(world, camera, y, pixels, spp, rngs, &mut row, counts);
+        let albedos: Vec<Vec3> = starts.iter().map(|s| world.albedo_at(&s.surface)).collect();
         trace_paths(world, &starts, s.bounces, rngs, counts, |i, l| {
-            add_finite(&mut row[starts[i].stream].0, emitted[i] + l.total());
+            add_finite(
+                &mut row[starts[i].stream].0,
+                emitted[i] + l.radiance(albedos[i]),
+            );
         });
     }
     for (sum, _) in &mut row {

@@ -20,11 +20,12 @@ use crate::world::{Surface, World};
 /// The answer for one point: an estimate with its uncertainty, in parts (DESIGN.md §5).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Shaded {
-    /// The mean of the paths, plus the point's own emission: the sum of `parts`.
+    /// The radiance: the mean of the paths with the point's albedo multiplying their
+    /// illumination, plus the point's own emission (`parts.radiance(albedo)`).
     pub rgb: Vec3,
     /// Per part the mean of the paths and the sample variance of their luminance (0 with fewer
-    /// than two paths). The point's own emission is exact, arrives at no vertex and is never
-    /// filtered, so it goes with the direct part.
+    /// than two paths). The point's own emission is exact, arrives at no vertex, is never
+    /// filtered and is not multiplied by an albedo, so it goes with the view-dependent part.
     pub parts: SampleParts,
     /// Paths averaged; 0 when the point could not be shaded.
     pub paths: u32,
@@ -32,8 +33,9 @@ pub struct Shaded {
     pub flags: u8,
 }
 
-/// Outgoing radiance of `p` toward its eye (or its normal, for a diffuse material), averaged over
-/// `quality.paths` paths, plus the point's own emission on its emitting side.
+/// Outgoing light of `p` toward its eye (or its normal, for a diffuse material), averaged over
+/// `quality.paths` paths, in parts (illumination and view-dependent radiance), plus the point's
+/// own emission on its emitting side.
 pub fn shade_point(
     world: &World,
     p: &ShadePoint,
@@ -68,6 +70,8 @@ fn paths_of(quality: Quality) -> u32 {
 struct Prepared {
     surface: Surface,
     wo: Vec3,
+    /// The diffuse albedo there, which multiplies the illumination in [`Shaded::rgb`].
+    albedo: Vec3,
     flags: u8,
 }
 
@@ -91,6 +95,7 @@ fn prepare(world: &World, p: &ShadePoint, counts: &mut RayCounts) -> Result<Prep
         flags |= point_flags::VIEW_DEPENDENT;
     }
     Ok(Prepared {
+        albedo: world.albedo_at(&s),
         surface: s,
         wo: outgoing_direction(&s, p.eye.map(|e| world.to_local(Vec3::from(e)))),
         flags,
@@ -98,15 +103,18 @@ fn prepare(world: &World, p: &ShadePoint, counts: &mut RayCounts) -> Result<Prep
 }
 
 impl Prepared {
-    /// The mean of the paths plus the point's own emission (in the direct part).
+    /// The mean of the paths plus the point's own emission (in the view-dependent part).
     fn finish(&self, world: &World, sum: PathSum) -> Shaded {
         let emitted = world.emission(self.surface.triangle, -self.surface.normal);
         let paths = sum.direct.luminance.n;
-        let direct = sum.direct.estimate(paths, emitted);
-        let indirect = sum.indirect.estimate(paths, Vec3::ZERO);
+        let parts = SampleParts {
+            direct: sum.direct.estimate(paths, Vec3::ZERO),
+            indirect: sum.indirect.estimate(paths, Vec3::ZERO),
+            view_dependent: sum.view_dependent.estimate(paths, emitted),
+        };
         Shaded {
-            rgb: Vec3::from(direct.rgb) + Vec3::from(indirect.rgb),
-            parts: SampleParts { direct, indirect },
+            rgb: Vec3::from(parts.radiance(self.albedo.to_array())),
+            parts,
             paths,
             flags: sum.flags,
         }
@@ -117,6 +125,7 @@ impl Prepared {
 struct PathSum {
     direct: PartSum,
     indirect: PartSum,
+    view_dependent: PartSum,
     flags: u8,
 }
 
@@ -125,15 +134,16 @@ impl PathSum {
         PathSum {
             direct: PartSum::default(),
             indirect: PartSum::default(),
+            view_dependent: PartSum::default(),
             flags,
         }
     }
 
-    /// A path with a non-finite or negative value in either part counts as a black path in
-    /// both, so that both means stay over the same `paths`.
+    /// A path with a non-finite or negative value in any part counts as a black path in all,
+    /// so that every mean stays over the same `paths`.
     fn add(&mut self, l: PathParts) {
         let good = |v: Vec3| v.is_finite() && v.min_element() >= 0.0;
-        let l = if good(l.direct) && good(l.indirect) {
+        let l = if good(l.direct) && good(l.indirect) && good(l.view_dependent) {
             l
         } else {
             self.flags |= point_flags::NON_FINITE_DISCARDED;
@@ -141,6 +151,7 @@ impl PathSum {
         };
         self.direct.add(l.direct);
         self.indirect.add(l.indirect);
+        self.view_dependent.add(l.view_dependent);
     }
 }
 

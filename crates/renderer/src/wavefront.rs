@@ -19,7 +19,10 @@ use glam::Vec3;
 
 use crate::bvh::PACKET_RAYS;
 use crate::counters::{RayCounts, RayKind};
-use crate::estimator::{Depth, MAX_DEPTH, PathParts, ShadowRay, arrive, continuation, shadow_rays};
+use crate::estimator::{
+    Depth, MAX_DEPTH, PathParts, Route, ShadowRay, arrive, continuation, shadow_rays,
+};
+use crate::material::Lobes;
 use crate::ray_order::RayOrder;
 use crate::sampling::{Rng, uniform2};
 use crate::strata::Strata;
@@ -76,8 +79,8 @@ struct Wave {
     start: Vec<u32>,
     stream: Vec<u32>,
     radiance: Vec<PathParts>,
-    /// Whether the path is still at its first vertex: what arrives there is its direct part.
-    at_first_vertex: Vec<bool>,
+    /// Which part what arrives at the path's current vertex belongs to.
+    route: Vec<Route>,
     throughput: Vec<Vec3>,
     surface: Vec<Surface>,
     wo: Vec<Vec3>,
@@ -127,7 +130,7 @@ impl Wave {
         self.start.push(start_index as u32);
         self.stream.push(start.stream as u32);
         self.radiance.push(PathParts::default());
-        self.at_first_vertex.push(true);
+        self.route.push(Route::FirstVertex);
         self.throughput.push(Vec3::ONE);
         self.surface.push(start.surface);
         self.wo.push(start.wo);
@@ -185,7 +188,7 @@ impl Wave {
         let i = p as usize;
         let (s, wo, throughput) = (self.surface[i], self.wo[i], self.throughput[i]);
         let rng = &mut rngs[self.stream[i] as usize];
-        let bsdf = &world.bsdf_at(&s);
+        let bsdf = &self.route[i].bsdf_at(world, &s);
         let origin = world.offset.origin(s.position, s.normal);
         let u = self.first_bounce[i].take().unwrap_or_else(|| uniform2(rng));
         let next = continuation(
@@ -203,7 +206,7 @@ impl Wave {
             shadow.path.push(p);
             shadow.origin.push(origin);
             shadow.ray.push(ShadowRay {
-                contribution: throughput * ray.contribution,
+                contribution: ray.contribution.scaled(throughput),
                 ..ray
             });
         });
@@ -315,8 +318,9 @@ impl Wave {
             let i = p as usize;
             let hit = world.trace(origin, dir, kind, counts);
             let arrived = arrive(world, origin, dir, kind, hit, self.depth[i]);
-            self.add(i, self.throughput[i] * arrived.seen);
-            self.at_first_vertex[i] = false;
+            let route = self.route[i];
+            self.radiance[i].add_seen(route, kind, self.throughput[i] * arrived.seen);
+            self.route[i] = route.after(kind);
             if let Some((surface, depth)) = arrived.next {
                 self.surface[i] = surface;
                 self.depth[i] = depth;
@@ -326,9 +330,9 @@ impl Wave {
         }
     }
 
-    /// Adds `l`, arriving at path `i`'s current vertex, to the part it belongs to.
-    fn add(&mut self, i: usize, l: Vec3) {
-        self.radiance[i].add(self.at_first_vertex[i], l);
+    /// Adds `l`, what the lights bring at path `i`'s current vertex, to the parts it belongs to.
+    fn add(&mut self, i: usize, l: Lobes) {
+        self.radiance[i].add_light(self.route[i], l);
     }
 
     /// Hands every path's radiance to `done` in path order and empties the wave.
@@ -339,7 +343,7 @@ impl Wave {
         self.start.clear();
         self.stream.clear();
         self.radiance.clear();
-        self.at_first_vertex.clear();
+        self.route.clear();
         self.throughput.clear();
         self.surface.clear();
         self.wo.clear();

@@ -148,6 +148,32 @@ impl World {
         }
     }
 
+    /// The surface at `s` as the first vertex of a point's or pixel's paths sees it: its diffuse
+    /// lobe with a unit albedo (where the material reflects diffusely at all), so that the paths
+    /// estimate the illumination there and the albedo, read per pixel or per vertex, multiplies
+    /// it on display (DESIGN.md §5, "Parts, and textures"): nothing is divided by an albedo, and
+    /// a dark texel does not darken the estimate its neighbours share. The glossy and mirror
+    /// lobes stay as they are.
+    #[inline]
+    pub(crate) fn illumination_bsdf_at(&self, s: &Surface) -> Bsdf {
+        let material = self.scene.mesh.triangles[s.triangle as usize].material as usize;
+        let unit = if self.scene.materials[material].reflects_diffusely() {
+            Vec3::ONE
+        } else {
+            Vec3::ZERO
+        };
+        Bsdf {
+            kd: unit,
+            ..self.bsdfs[material]
+        }
+    }
+
+    /// The diffuse albedo at `s`: the texel of its material's texture there, or its `Kd`. What
+    /// the illumination of a path's first vertex is multiplied by (`PathParts::radiance`).
+    pub fn albedo_at(&self, s: &Surface) -> Vec3 {
+        self.bsdf_at(s).kd
+    }
+
     pub fn face_normal(&self, triangle: u32) -> Vec3 {
         self.face_normals[triangle as usize]
     }

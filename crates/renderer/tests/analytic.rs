@@ -27,6 +27,7 @@ fn path_samples(
     let mut counts = RayCounts::default();
     let located = locate(world, p, &mut counts).expect("valid point");
     let s = located.surface;
+    let albedo = world.albedo_at(&s);
     let mut rng = stream(seed, 0);
     let mut samples = Vec::with_capacity(paths);
     for_each_path(
@@ -38,7 +39,7 @@ fn path_samples(
         &mut rng,
         &mut counts,
         |l| {
-            let l = l.total();
+            let l = l.radiance(albedo);
             assert!(l.is_finite() && l.min_element() >= 0.0, "bad sample {l}");
             samples.push(l.x as f64);
         },
@@ -267,11 +268,13 @@ fn a_sun_below_the_horizon_lights_nothing_and_one_on_it_half_its_disc() {
     });
 }
 
-/// The white furnace in parts (DESIGN.md §5, "Parts, and textures"): the point's own emission Le
-/// and what the walls send it straight, a Le, are its direct part; everything over further
-/// walls, Le (a^2 + a^3 + ...) = Le a^2 / (1 - a), its indirect part. Both estimators.
+/// The white furnace in parts (DESIGN.md §5, "Parts, and textures"): the parts are illumination,
+/// the point's albedo a left out. What the walls send the point straight, Le, is its direct
+/// part; everything over further walls, Le (a + a^2 + ...) = Le a / (1 - a), its indirect part;
+/// its own emission Le, never multiplied by an albedo, the view-dependent part. a times the
+/// illumination plus Le is the radiance, Le / (1 - a). Both estimators.
 #[test]
-fn furnace_parts_are_direct_and_indirect_light_and_sum_to_the_radiance() {
+fn furnace_parts_are_direct_and_indirect_illumination_and_make_the_radiance() {
     let (le, a) = (1.0f32, 0.5f32);
     with_each_estimator(furnace(Vec3::new(2.0, 1.0, 1.5), le, a), |w| {
         let p = point_hit_by(w, Vec3::new(0.7, 0.5, 0.6), Vec3::NEG_Y);
@@ -283,8 +286,8 @@ fn furnace_parts_are_direct_and_indirect_light_and_sum_to_the_radiance() {
         let se = |variance: f32| (f64::from(variance) / f64::from(s.paths)).sqrt();
         let (le, a) = (f64::from(le), f64::from(a));
         for (part, want, name) in [
-            (s.parts.direct, le * (1.0 + a), "direct"),
-            (s.parts.indirect, le * a * a / (1.0 - a), "indirect"),
+            (s.parts.direct, le, "direct"),
+            (s.parts.indirect, le * a / (1.0 - a), "indirect"),
         ] {
             let (got, se) = (f64::from(part.rgb[0]), se(part.luminance_variance));
             assert!(
@@ -292,14 +295,59 @@ fn furnace_parts_are_direct_and_indirect_light_and_sum_to_the_radiance() {
                 "{name}: {got} vs {want} (se {se})"
             );
         }
-        let sum = Vec3::from(s.parts.rgb());
-        assert!(sum.abs_diff_eq(s.rgb, 1e-5 * s.rgb.x), "{sum} vs {}", s.rgb);
+        assert_eq!(
+            s.parts.view_dependent.rgb, [le as f32; 3],
+            "the point's own emission"
+        );
+        let radiance = Vec3::from(s.parts.radiance([a as f32; 3]));
+        assert!(
+            radiance.abs_diff_eq(s.rgb, 1e-5 * s.rgb.x),
+            "{radiance} vs {}",
+            s.rgb
+        );
         let total = le / (1.0 - a);
-        let se_total = se(s.parts.luminance_variance());
+        let se_total =
+            a * se(s.parts.direct.luminance_variance + s.parts.indirect.luminance_variance);
         assert!(
             (f64::from(s.rgb.x) - total).abs() <= 4.0 * se_total,
             "{} vs {total}",
             s.rgb
         );
     });
+}
+
+/// The diffuse parts are illumination (DESIGN.md §5, "Parts, and textures"): a sunlit plane's
+/// direct part is E cos(theta) / pi whatever its albedo, a near-black one's too (nothing is
+/// divided by an albedo, and its estimate is no noisier), and the albedo times it is the
+/// plane's radiance.
+#[test]
+fn the_direct_part_is_the_illumination_whatever_the_albedo() {
+    let theta = 35f32.to_radians();
+    let illumination = expected_sunlit(theta) / f64::from(ALBEDO);
+    for albedo in [ALBEDO, 1e-6] {
+        let dir = Vec3::new(theta.sin(), theta.cos(), 0.0);
+        let mut b = SceneBuilder::new(settings(Some(sun(dir, SUN_RADIANCE)), Sky::None));
+        let m = b.material(grey(albedo));
+        floor(&mut b, Vec3::ZERO, 10.0, m);
+        with_each_estimator(world(b), |w| {
+            let p = point_hit_by(w, Vec3::new(0.3, 5.0, -0.2), Vec3::NEG_Y);
+            let q = Quality {
+                paths: 512,
+                bounces: Some(0),
+            };
+            let s = shade_point(w, &p, q, &mut stream(9, 0), &mut RayCounts::default());
+            let direct = f64::from(s.parts.direct.rgb[0]);
+            assert!(
+                (direct - illumination).abs() <= 0.005 * illumination,
+                "albedo {albedo}: {direct} vs {illumination}"
+            );
+            let radiance = f64::from(s.rgb.x);
+            let want = f64::from(albedo) * illumination;
+            assert!(
+                (radiance - want).abs() <= 0.005 * want,
+                "{radiance} vs {want}"
+            );
+            assert_eq!(s.parts.view_dependent.rgb, [0.0; 3]);
+        });
+    }
 }

@@ -296,12 +296,15 @@ fn both_estimators_render_the_same_mean_luminance() {
 
 /// A Cornell floor point in parts (DESIGN.md §5, "Parts, and textures"): the direct part is what a
 /// direct-light-only sample estimates, the indirect part is the room's light and is not
-/// nothing, and the parts' sum is the radiance an independent estimate finds, within noise; the
-/// two estimators agree part by part.
+/// nothing, both are illumination (the floor's albedo left out), and the floor's albedo times
+/// their sum plus the view-dependent part is the radiance an independent estimate finds, within
+/// noise; the two estimators agree part by part.
 #[test]
 fn parts_sum_to_the_radiance_and_the_direct_part_is_direct_light() {
     let mut w = cornell();
     let p = point_hit_by(&w, Vec3::new(0.4, 0.3, 0.15), Vec3::NEG_Y);
+    let located = renderer::point::locate(&w, &p, &mut RayCounts::default()).expect("a point");
+    let albedo = w.albedo_at(&located.surface);
     let shade = |w: &World, bounces: Option<u32>, seed: u64| {
         let q = Quality {
             paths: 16_384,
@@ -339,18 +342,28 @@ fn parts_sum_to_the_radiance_and_the_direct_part_is_direct_light() {
             "direct part vs direct light only",
         );
         assert_eq!(direct_only.parts.indirect.rgb, [0.0; 3]);
+        assert_eq!(full.parts.view_dependent.rgb, [0.0; 3], "a diffuse floor");
         assert!(indirect.0 > 10.0 * indirect.1, "indirect {indirect:?}");
-        let total = |s: &renderer::Shaded| {
-            let l = luminance(s.rgb) as f64;
-            (
-                l,
-                (f64::from(s.parts.luminance_variance()) / f64::from(s.paths)).sqrt(),
-            )
+        // The parts' radiance, with its error: the albedo scales the illumination's luminance
+        // by about the albedo's luminance.
+        let radiance = |s: &renderer::Shaded| {
+            let l = luminance(Vec3::from(s.parts.radiance(albedo.to_array()))) as f64;
+            let variance = s.parts.direct.luminance_variance + s.parts.indirect.luminance_variance;
+            let scale = f64::from(luminance(albedo));
+            (l, scale * (f64::from(variance) / f64::from(s.paths)).sqrt())
         };
+        assert_eq!(radiance(&full).0, luminance(full.rgb) as f64);
         within(
-            (direct.0 + indirect.0, total(&full).1),
-            total(&other),
-            "parts' sum vs an independent estimate",
+            radiance(&full),
+            lum(
+                &protocol::PartEstimate {
+                    rgb: other.rgb.to_array(),
+                    luminance_variance: (radiance(&other).1.powi(2) * f64::from(other.paths))
+                        as f32,
+                },
+                other.paths,
+            ),
+            "the parts' radiance vs an independent estimate",
         );
         by_estimator.push((direct, indirect));
     }

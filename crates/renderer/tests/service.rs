@@ -108,7 +108,7 @@ async fn batches_match_the_in_process_estimator_and_bad_frames_are_answered() {
         assert_eq!(reply.parts, local.parts, "batch {}", b.batch_id);
         assert_eq!(reply.flags, local.flags);
         assert_eq!(reply.quality, b.quality);
-        assert!(reply.parts.iter().any(|p| p.rgb()[0] > 0.0));
+        assert!(reply.parts.iter().any(|p| p.radiance([1.0; 3])[0] > 0.0));
         seen.push(reply.batch_id);
     }
     seen.sort();

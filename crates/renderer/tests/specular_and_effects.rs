@@ -177,6 +177,11 @@ fn mirror_facing_an_emitter_returns_its_radiance() {
                 &mut counts,
             );
             assert!(s.rgb.abs_diff_eq(ke, 1e-5), "{bounces:?}: {}", s.rgb);
+            // What a mirror reflects is view-dependent radiance, never illumination.
+            let reflected = Vec3::from(s.parts.view_dependent.rgb);
+            assert!(reflected.abs_diff_eq(ke, 1e-5), "{reflected}");
+            assert_eq!(s.parts.direct.rgb, [0.0; 3]);
+            assert_eq!(s.parts.indirect.rgb, [0.0; 3]);
             assert_eq!(
                 s.flags & protocol::renderer_link::point_flags::VIEW_DEPENDENT,
                 protocol::renderer_link::point_flags::VIEW_DEPENDENT

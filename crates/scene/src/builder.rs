@@ -62,6 +62,18 @@ impl SceneBuilder {
         self.any_texcoords = true;
     }
 
+    /// Gives each triangle so far the texture coordinates `uv(material, corners)` returns for
+    /// it, if any: a projection for scenes generated in code (`builtin`).
+    pub fn project_texcoords(&mut self, uv: impl Fn(u32, [Vec3; 3]) -> Option<[Vec2; 3]>) {
+        for (t, corners) in self.triangles.iter().zip(&mut self.texcoords) {
+            let positions = t.vertices.map(|v| self.positions[v as usize]);
+            if let Some(projected) = uv(t.material, positions) {
+                *corners = projected;
+                self.any_texcoords = true;
+            }
+        }
+    }
+
     /// Something the scene's user should know (a missing MTL, say), kept in the report.
     /// Logged as well, for services that load a scene without printing its report.
     pub fn warn(&mut self, warning: String) {

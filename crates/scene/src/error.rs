@@ -12,7 +12,9 @@ pub enum SceneError {
         source: std::io::Error,
     },
 
-    #[error("'{0}' is neither a built-in scene (bracara, cornell) nor a scene file")]
+    #[error(
+        "'{0}' is neither a built-in scene (bracara, bracara-textured, cornell) nor a scene file"
+    )]
     UnknownScene(String),
 
     #[error("{}: {message}", file.display())]

@@ -175,6 +175,23 @@ impl Texture {
         top.lerp(bottom, fy)
     }
 
+    /// The texture as a PNG file (8-bit RGB, the texels' own codes): what `scene export` writes,
+    /// and, for a texture generated in code, the bytes its fingerprint hashes, so that the
+    /// exported file reloads to the same scene. The encoding is deterministic.
+    pub fn png(&self) -> Vec<u8> {
+        use image::ImageEncoder as _;
+        let mut bytes = Vec::new();
+        image::codecs::png::PngEncoder::new(&mut bytes)
+            .write_image(
+                &self.srgb,
+                self.width,
+                self.height,
+                image::ExtendedColorType::Rgb8,
+            )
+            .expect("a PNG of RGB texels encodes into memory");
+        bytes
+    }
+
     /// The mean linear colour over every texel (for comparing with a material's `Kd`).
     pub fn mean(&self) -> Vec3 {
         let mut sum = [0f64; 3];
@@ -228,6 +245,21 @@ pub struct DiffuseMap {
 }
 
 impl DiffuseMap {
+    /// A map of a texture generated in code (the built-in scenes), repeated, without options,
+    /// under `rule`: its file is `file`, a PNG of the texels (`Texture::png`), as `scene
+    /// export` writes it.
+    pub fn generated(texture: Texture, file: String, rule: AlbedoRule) -> DiffuseMap {
+        DiffuseMap {
+            source: *blake3::hash(&texture.png()).as_bytes(),
+            texture: Arc::new(texture),
+            scale: Vec2::ONE,
+            offset: Vec2::ZERO,
+            wrap: Wrap::Repeat,
+            rule,
+            file,
+        }
+    }
+
     /// The albedo at texture coordinates `uv` of a material of diffuse colour `kd`.
     #[inline]
     pub fn albedo(&self, kd: Vec3, uv: Vec2) -> Vec3 {

@@ -3,12 +3,14 @@
 //! leaves have all their samples; a memory budget with eviction of what has long been out of view.
 //!
 //! What is read back is the *shown* estimate: the sample with its indirect part as the
-//! object-space filter last left it (`indirect_filter`; the raw part until the filter has run).
-//! Viewer inserts, the criteria, L_white and the stopping rule all read that one, so they judge
-//! what the person sees; the raw estimate is what further paths merge with.
+//! object-space filter last left it (`indirect_filter`; the raw part until the filter has run),
+//! and its illumination multiplied by the albedo at its vertex (`albedo`,
+//! `sample::display_radiance`). Viewer inserts, the criteria, L_white and the stopping rule all
+//! read that one, so they judge what the person sees; the raw estimate, illumination, is what
+//! further paths merge with, what the filter smooths and what the cache file keeps.
 //!
 //! Storage is dense: a slot per (vertex, side) indexing a packed sample array, so the per-leaf
-//! lookups of NLD_OS are two array reads, not hashing. A sample is packed into 24 bytes: per part
+//! lookups of NLD_OS are two array reads, not hashing. A sample is packed into 32 bytes: per part
 //! mean RGB and luminance variance, the shown indirect part (quantised: `cache::quantised`), paths, the time it was last seen,
 //! its bounce depth and whether it is view-dependent; the eye, which only view-dependent samples
 //! need, lives in a side table. A
@@ -24,7 +26,7 @@ use protocol::{PartEstimate, Side};
 
 use crate::mesh::fast_hash::FastHash;
 use crate::mesh::{NodeId, SubdivisionMesh, push_lean, set_bytes, table_bytes};
-use crate::sample::{Estimate, Merge};
+use crate::sample::{Estimate, Merge, display_radiance};
 use crate::visible_set::VisibleSet;
 use conventions::luminance;
 
@@ -81,6 +83,8 @@ pub struct ShadingCache {
     failed: std::collections::HashSet<u32, FastHash>,
     /// The fraction of the brightest visible samples [`ShadingCache::l_white`] leaves above it.
     l_white_outliers: f64,
+    /// The albedo at each vertex, which multiplies its samples' illumination when read.
+    albedos: VertexAlbedos,
 }
 
 fn slot_index(key: SampleKey) -> usize {
@@ -109,7 +113,33 @@ impl ShadingCache {
             eye_variants: 0,
             failed: Default::default(),
             l_white_outliers: L_WHITE_OUTLIERS,
+            albedos: VertexAlbedos::default(),
         }
+    }
+
+    /// The same cache reading the albedo of its vertices from `scene` (without, every vertex's
+    /// albedo is one: the samples are shown as stored).
+    pub fn with_albedos_of(mut self, scene: std::sync::Arc<scene::Scene>) -> Self {
+        self.albedos = VertexAlbedos::of(scene);
+        self
+    }
+
+    /// Looks up the albedo of every vertex of `mesh` not yet known: called before samples of
+    /// new vertices arrive (answers, a restored cache file).
+    pub fn cover_albedos(&mut self, mesh: &SubdivisionMesh) {
+        self.albedos.cover(mesh);
+    }
+
+    /// A stored estimate of `slot` as displayed: the albedo at its vertex multiplies its
+    /// illumination (`sample::display_radiance`).
+    fn displayed(&self, slot: usize, e: &Estimate) -> Estimate {
+        display_radiance(e, self.albedos.at((slot / 2) as u32))
+    }
+
+    /// The shown estimate of `slot`, displayed.
+    fn shown(&self, slot: usize) -> Option<Estimate> {
+        self.packed(slot)
+            .map(|p| self.displayed(slot, &p.estimate()))
     }
 
     /// The same cache with `fraction` (0..1) of the brightest visible samples left above
@@ -142,7 +172,12 @@ impl ShadingCache {
             .view_dependent()
             .then(|| self.eyes.get(&(slot as u32))?.last().map(|v| v.eye))
             .flatten();
-        sample_of(&p.estimate(), p.view_dependent(), eye, p.last_seen)
+        sample_of(
+            &self.displayed(slot, &p.estimate()),
+            p.view_dependent(),
+            eye,
+            p.last_seen,
+        )
     }
 
     /// The sample as seen from `eye`: for a view-dependent one, the kept eye nearest to it;
@@ -154,7 +189,12 @@ impl ShadingCache {
             .filter(|_| p.view_dependent())
             .and_then(|eye| self.nearest_eye(slot, eye));
         Some(match nearest {
-            Some(v) => sample_of(&v.estimate, true, Some(v.eye), p.last_seen),
+            Some(v) => sample_of(
+                &self.displayed(slot, &v.estimate),
+                true,
+                Some(v.eye),
+                p.last_seen,
+            ),
             None => self.unpack(slot, p),
         })
     }
@@ -267,7 +307,8 @@ impl ShadingCache {
         let nearest = eye
             .filter(|_| p.view_dependent())
             .and_then(|eye| self.nearest_eye(slot, eye));
-        Some(nearest.map_or_else(|| p.estimate(), |v| v.estimate))
+        let stored = nearest.map_or_else(|| p.estimate(), |v| v.estimate);
+        Some(self.displayed(slot, &stored))
     }
 
     /// A sample as the renderers answered it (no filter), and whether it is view-dependent: what
@@ -287,7 +328,7 @@ impl ShadingCache {
         }
     }
 
-    /// The estimates of a leaf's three vertices on `side`, if all are cached.
+    /// The estimates of a leaf's three vertices on `side`, if all are cached, displayed.
     pub fn leaf_estimates(
         &self,
         mesh: &SubdivisionMesh,
@@ -297,8 +338,8 @@ impl ShadingCache {
         let [a, b, c] = mesh
             .node(leaf)
             .vertices
-            .map(|vertex| self.packed(slot_index(SampleKey { vertex, side })));
-        Some([a?.estimate(), b?.estimate(), c?.estimate()])
+            .map(|vertex| self.shown(slot_index(SampleKey { vertex, side })));
+        Some([a?, b?, c?])
     }
 
     /// Gives up on a key whose answers were rejected too often: it counts as known from now on
@@ -321,7 +362,7 @@ impl ShadingCache {
         side: Side,
     ) -> Option<[[f32; 3]; 3]> {
         self.leaf_radiance_with(mesh, leaf, side, |key| {
-            self.packed(slot_index(key)).map(|p| p.estimate().rgb())
+            self.shown(slot_index(key)).map(|e| e.rgb())
         })
     }
 
@@ -461,9 +502,10 @@ impl ShadingCache {
     }
 
     /// Bytes charged against the budget: the slot table, the packed samples and their owners,
-    /// and the eye side table.
+    /// the eye side table and the vertices' albedos.
     pub fn bytes(&self) -> usize {
         self.slots.len() * size_of::<u32>()
+            + self.albedos.bytes()
             + self.samples.len() * (size_of::<PackedSample>() + size_of::<u32>())
             + self.eyes.len() * EYE_ENTRY_BYTES
             + self.eye_variants * size_of::<EyeVariant>()
@@ -480,7 +522,7 @@ impl ShadingCache {
     }
 
     /// Heap bytes by capacity, as the SMA's memory budget counts them: the arrays as allocated,
-    /// the eye and failure tables by their buckets.
+    /// the eye and failure tables by their buckets, the vertices' albedos.
     pub fn capacity_bytes(&self) -> usize {
         self.slots.capacity() * size_of::<u32>()
             + self.samples.capacity() * size_of::<PackedSample>()
@@ -488,13 +530,15 @@ impl ShadingCache {
             + table_bytes(&self.eyes)
             + self.eye_variants * size_of::<EyeVariant>()
             + set_bytes(&self.failed)
+            + self.albedos.bytes()
     }
 
-    /// Largest luminance of any cached sample.
+    /// Largest displayed luminance of any cached sample.
     pub fn max_luminance(&self) -> f32 {
-        self.samples
+        self.owners
             .iter()
-            .map(|s| luminance(s.estimate().rgb()))
+            .filter_map(|&slot| self.shown(slot as usize))
+            .map(|e| luminance(e.rgb()))
             .fold(0.0, f32::max)
     }
 
@@ -519,8 +563,8 @@ impl ShadingCache {
                     side: v.side,
                 })
             })
-            .filter_map(|key| self.packed(slot_index(key)))
-            .map(|s| luminance(s.estimate().rgb()))
+            .filter_map(|key| self.shown(slot_index(key)))
+            .map(|e| luminance(e.rgb()))
             .collect();
         let skipped = (lum.len() as f64 * self.l_white_outliers) as usize;
         let Some(rank) = lum.len().checked_sub(1 + skipped) else {
@@ -534,8 +578,10 @@ impl ShadingCache {
 /// default (`ScheduleConfig::l_white_outliers`).
 pub const L_WHITE_OUTLIERS: f64 = 0.001;
 
+mod albedo;
 mod packed;
 mod quantised;
+use albedo::VertexAlbedos;
 pub use packed::CachedSample;
 use packed::{PackedSample, Stamp, sample_of, stamp};
 

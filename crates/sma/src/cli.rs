@@ -95,7 +95,7 @@ fn share(text: &str) -> Result<f64, String> {
                   of a LAN\" in the README."
 )]
 pub struct Cli {
-    /// Scene: a TOML scene file or a built-in name (bracara, cornell).
+    /// Scene: a TOML scene file or a built-in name (bracara, bracara-textured, cornell).
     #[arg(long, default_value = "bracara")]
     pub scene: String,
     /// Address to accept viewers on.

@@ -1,12 +1,14 @@
 //! What one cached sample is (DESIGN.md §5, "a sample is an estimate with its uncertainty"): in
-//! parts (direct, indirect: `protocol::SampleParts`), per part the running mean RGB of its paths
-//! and the variance of their luminance; how many paths (one count: the parts of a sample always
-//! come from the same paths), and the bounce depth they were traced at. Everything that reads or
-//! merges samples goes through here, so a later extension of the sample (texture coordinates, a
-//! cache file on disk, albedo-demodulated parts) changes one module.
+//! parts (direct and indirect illumination, view-dependent radiance: `protocol::SampleParts`),
+//! per part the running mean RGB of its paths and the variance of their luminance; how many
+//! paths (one count: the parts of a sample always come from the same paths), and the bounce
+//! depth they were traced at. Everything that reads or merges samples goes through here.
 //!
-//! - [`Estimate::rgb`]: the displayed radiance, the sum of the parts; every reader of a sample's
-//!   radiance (viewer inserts, criteria, L_white, the stopping rule) goes through it.
+//! - [`display_radiance`]: the one place where the illumination parts meet the albedo, turning
+//!   a stored estimate into the radiance a viewer is sent (the cache's readers get it so).
+//! - [`Estimate::rgb`]: the displayed radiance, the sum of the parts of such an estimate; every
+//!   reader of a sample's radiance (viewer inserts, criteria, L_white, the stopping rule) goes
+//!   through it.
 //! - [`Estimate::accumulate`]: further paths at the same depth are added to the estimate, part by
 //!   part (the pairwise update of Chan et al. for the variance); paths at another depth never mix
 //!   with it.
@@ -63,14 +65,18 @@ impl Estimate {
         self.parts.is_valid() && self.paths > 0
     }
 
-    /// The displayed radiance: the sum of the parts.
+    /// The sum of the parts: of an estimate the cache reads back ([`display_radiance`]), the
+    /// radiance the person sees.
     pub fn rgb(&self) -> [f32; 3] {
-        self.parts.rgb()
+        self.parts.radiance([1.0; 3])
     }
 
-    /// The luminance variance of the displayed radiance (`SampleParts::luminance_variance`).
+    /// The luminance variance of [`Self::rgb`], taking the parts as uncorrelated. Within a path
+    /// they are drawn from independent numbers but for the sky, where a first continuation ray
+    /// that escapes gives direct light and one that hits gives indirect light: that covariance
+    /// is negative, so the sum of the variances errs on the safe side.
     pub fn luminance_variance(&self) -> f32 {
-        self.parts.luminance_variance()
+        self.parts.each().iter().map(|p| p.luminance_variance).sum()
     }
 
     pub fn quality(&self) -> Quality {
@@ -183,6 +189,36 @@ pub fn display(l: f32, l_white: f32) -> f32 {
     DisplayMap::new(l_white).display(l)
 }
 
+/// The estimate as a viewer is sent it (DESIGN.md §5, "Parts, and textures"): `albedo`, the
+/// diffuse albedo at the sample's point (a texel or `Kd`), multiplies the illumination parts,
+/// and their luminance variances scale by the square of the luminance ratio it makes (exact for
+/// a grey albedo); the view-dependent part stays as it is. The criteria, L_white and the
+/// stopping rule read this, so they judge what the person sees: a dark texture does not draw
+/// paths that no one could see.
+pub fn display_radiance(e: &Estimate, albedo: [f32; 3]) -> Estimate {
+    let shade = |p: &PartEstimate| {
+        let rgb: [f32; 3] = std::array::from_fn(|i| albedo[i] * p.rgb[i]);
+        let before = luminance(p.rgb);
+        let scale = if before > 0.0 {
+            luminance(rgb) / before
+        } else {
+            luminance(albedo)
+        };
+        PartEstimate {
+            rgb,
+            luminance_variance: p.luminance_variance * scale * scale,
+        }
+    };
+    Estimate {
+        parts: SampleParts {
+            direct: shade(&e.parts.direct),
+            indirect: shade(&e.parts.indirect),
+            view_dependent: e.parts.view_dependent,
+        },
+        ..*e
+    }
+}
+
 /// `b`'s paths added to `a`'s, part by part.
 fn combine(a: &Estimate, b: &Estimate) -> Estimate {
     let (na, nb) = (f64::from(a.paths), f64::from(b.paths));
@@ -191,6 +227,7 @@ fn combine(a: &Estimate, b: &Estimate) -> Estimate {
         parts: SampleParts {
             direct: part(&a.parts.direct, &b.parts.direct),
             indirect: part(&a.parts.indirect, &b.parts.indirect),
+            view_dependent: part(&a.parts.view_dependent, &b.parts.view_dependent),
         },
         paths: a.paths.saturating_add(b.paths),
         depth: a.depth,
@@ -230,8 +267,8 @@ mod tests {
             .map(|&v| (f64::from(v) - mean).powi(2))
             .sum::<f64>()
             / (n - 1.0);
-        // A quarter of every path is direct light, the rest indirect: the parts' variances are
-        // then a sixteenth and nine sixteenths of the paths'.
+        // A quarter of every path is direct light, half indirect, a quarter view-dependent: the
+        // parts' variances are then a sixteenth, a quarter and a sixteenth of the paths'.
         let part = |share: f64| PartEstimate {
             rgb: [(share * mean) as f32; 3],
             luminance_variance: (share * share * var) as f32,
@@ -239,7 +276,8 @@ mod tests {
         Estimate {
             parts: SampleParts {
                 direct: part(0.25),
-                indirect: part(0.75),
+                indirect: part(0.5),
+                view_dependent: part(0.25),
             },
             paths: values.len() as u32,
             depth: Depth::of(depth),
@@ -320,7 +358,7 @@ mod tests {
             },
         ];
         for part in bad_parts {
-            // Either part bad makes the answer bad, though the other is good.
+            // Any part bad makes the answer bad, though the others are good.
             for parts in [
                 SampleParts {
                     direct: part,
@@ -328,6 +366,10 @@ mod tests {
                 },
                 SampleParts {
                     indirect: part,
+                    ..good.parts
+                },
+                SampleParts {
+                    view_dependent: part,
                     ..good.parts
                 },
             ] {
@@ -379,6 +421,38 @@ mod tests {
             (1.0, 0.0),
             "clamped at white"
         );
+    }
+
+    /// The albedo multiplies the illumination parts and their standard errors, never the
+    /// view-dependent part; a black albedo leaves only the view-dependent part, with its own
+    /// uncertainty, and nothing is divided.
+    #[test]
+    fn display_radiance_multiplies_the_illumination_by_the_albedo() {
+        let e = estimate(&[1.0, 2.0, 3.0, 2.0], Some(2));
+        let grey = display_radiance(&e, [0.5; 3]);
+        let want: [f32; 3] = std::array::from_fn(|i| {
+            0.5 * (e.parts.direct.rgb[i] + e.parts.indirect.rgb[i]) + e.parts.view_dependent.rgb[i]
+        });
+        for (got, want) in grey.rgb().iter().zip(want) {
+            assert!((got - want).abs() < 1e-6, "{got} vs {want}");
+        }
+        let quarter = |p: &PartEstimate| p.luminance_variance * 0.25;
+        assert!((grey.parts.direct.luminance_variance - quarter(&e.parts.direct)).abs() < 1e-6);
+        assert!((grey.parts.indirect.luminance_variance - quarter(&e.parts.indirect)).abs() < 1e-6);
+        assert_eq!(grey.parts.view_dependent, e.parts.view_dependent);
+        assert_eq!((grey.paths, grey.depth), (e.paths, e.depth));
+        let black = display_radiance(&e, [0.0; 3]);
+        assert_eq!(black.rgb(), e.parts.view_dependent.rgb);
+        assert_eq!(
+            black.luminance_variance(),
+            e.parts.view_dependent.luminance_variance
+        );
+        let white = display_radiance(&e, [1.0; 3]);
+        assert_eq!(white, e, "an albedo of one changes nothing");
+        // A coloured albedo: the mean per channel, the error by the luminance it keeps.
+        let red = display_radiance(&e, [1.0, 0.0, 0.0]);
+        assert_eq!(red.parts.direct.rgb[1], 0.0);
+        assert!(red.parts.direct.luminance_variance < e.parts.direct.luminance_variance);
     }
 
     #[test]

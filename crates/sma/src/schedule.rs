@@ -111,19 +111,21 @@ pub struct Schedule {
 impl Schedule {
     pub fn new(
         config: ScheduleConfig,
-        scene: &Scene,
+        scene: std::sync::Arc<Scene>,
         mut mesh: SubdivisionMesh,
         gpu: Gpu,
         pool: PoolHandle,
         cache_file: Option<&CacheFileSetup>,
     ) -> Schedule {
         let now = Instant::now();
-        let rules = PlanRules::new(&config, scene);
+        let rules = PlanRules::new(&config, &scene);
         let mut cache = ShadingCache::new(config.memory_budget_bytes)
-            .with_l_white_outliers(config.l_white_outliers);
+            .with_l_white_outliers(config.l_white_outliers)
+            .with_albedos_of(scene.clone());
         let cache_file = cache_file.and_then(|setup| {
-            persistence::open(setup, scene, &config, &rules, &mut mesh, &mut cache)
+            persistence::open(setup, &scene, &config, &rules, &mut mesh, &mut cache)
         });
+        cache.cover_albedos(&mesh);
         let luminance = LuminancePass::new(&gpu);
         let visibility = Visibility::new(gpu, &mesh, scene.mesh.bounds());
         let indirect_filter = IndirectFilter::new(config.indirect_filter, &mesh);
@@ -216,6 +218,7 @@ impl Schedule {
             PoolEvent::Shaded { batch, radiance } => {
                 self.requests.finished(&batch);
                 self.samples_changed(&batch);
+                self.cache.cover_albedos(&self.mesh);
                 let answered = self.answers.shaded(
                     &batch,
                     &radiance,

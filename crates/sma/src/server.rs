@@ -67,6 +67,7 @@ pub async fn start(
     scene: scene::Scene,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> anyhow::Result<Running> {
+    let scene = std::sync::Arc::new(scene);
     let mesh = SubdivisionMesh::new(&scene.mesh, config.mesh);
     let gpu = Gpu::new().context("visibility needs a graphics adapter")?;
     let (shutdown_tx, shutdown_rx) = watch::channel(false);
@@ -120,7 +121,7 @@ pub async fn start(
     });
     let schedule = Schedule::new(
         config.schedule,
-        &scene,
+        std::sync::Arc::clone(&scene),
         mesh,
         gpu,
         pool,

@@ -111,8 +111,9 @@ async fn serve(listener: TcpListener, scene: Scene, shading: Shading, fault: Fau
                     ),
                 })
                 .collect();
-            // The fake's shading is all direct light: the object-space filter of the indirect
-            // part (DESIGN.md §5) leaves it as it is.
+            // The fake's shading is radiance, shown as it is whatever the point's albedo, and
+            // not indirect light: the object-space filter of the indirect part (DESIGN.md §5)
+            // leaves it as it is.
             let parts = rgb
                 .iter()
                 .map(|c| {
@@ -122,7 +123,7 @@ async fn serve(listener: TcpListener, scene: Scene, shading: Shading, fault: Fau
                         }
                         _ => 0.0,
                     };
-                    SampleParts::direct_only(*c, luminance_variance)
+                    SampleParts::radiance_only(*c, luminance_variance)
                 })
                 .collect();
             let reply = Radiance {

@@ -9,15 +9,25 @@
 //! Views: MC looks at the wall and through its gate from outside (§5.2.1: many triangles in
 //! view), VR down the street toward the temple (§5.2.2: column and roof shadows on the street),
 //! VT at the temple front past the pool (§5.2.3: the shadow of its columns and roof).
+//!
+//! `bracara-textured` is the same town with its textures on (DESIGN.md §5): paving, stone
+//! blocks, roof tiles, plaster and water, generated in code (`textures`) and box-projected onto
+//! the faces. It is not the default while the viewer shows textures only at the mesh's
+//! vertices, through the SMA: a texture sampled there, on triangles metres wide, shows as
+//! blotches until the viewer multiplies it in per pixel.
 
 use std::f32::consts::TAU;
 
 use glam::{Vec3, vec3};
 
 use super::shapes::{cuboid, cylinder, gable_roof, polygon, prism, quad};
+use super::textures::{Pattern, box_projection};
 use crate::builder::SceneBuilder;
 use crate::model::Material;
-use crate::settings::{QualitySetting, SceneSettings, Sky, Sun, TextureSettings, ViewpointSetting};
+use crate::settings::{
+    AlbedoRule, QualitySetting, SceneSettings, Sky, Sun, TextureSettings, ViewpointSetting,
+};
+use crate::texture::DiffuseMap;
 
 struct Palette {
     ground: u32,
@@ -29,20 +39,55 @@ struct Palette {
 }
 
 impl Palette {
-    fn new(b: &mut SceneBuilder) -> Palette {
+    /// The town's materials; with `textured`, each but the marble with its pattern's texture.
+    fn new(b: &mut SceneBuilder, textured: bool) -> Palette {
+        let mut add = |material: Material, pattern: Option<Pattern>| {
+            let diffuse_map = pattern.filter(|_| textured).map(|pattern| {
+                let file = format!("{}.png", material.name);
+                DiffuseMap::generated(pattern.texture(material.kd), file, AlbedoRule::Texture)
+            });
+            b.material(Material {
+                diffuse_map,
+                ..material
+            })
+        };
         Palette {
-            ground: b.material(Material::diffuse("ground", vec3(0.45, 0.42, 0.38))),
-            marble: b.material(Material::diffuse("marble", vec3(0.78, 0.76, 0.72))),
-            plaster: b.material(Material::diffuse("plaster", vec3(0.72, 0.62, 0.48))),
-            tiles: b.material(Material::diffuse("roof_tiles", vec3(0.55, 0.25, 0.15))),
-            stone: b.material(Material::diffuse("wall_stone", vec3(0.52, 0.48, 0.42))),
+            ground: add(
+                Material::diffuse("ground", vec3(0.45, 0.42, 0.38)),
+                Some(Pattern::Paving),
+            ),
+            marble: add(Material::diffuse("marble", vec3(0.78, 0.76, 0.72)), None),
+            plaster: add(
+                Material::diffuse("plaster", vec3(0.72, 0.62, 0.48)),
+                Some(Pattern::Plaster),
+            ),
+            tiles: add(
+                Material::diffuse("roof_tiles", vec3(0.55, 0.25, 0.15)),
+                Some(Pattern::RoofTiles),
+            ),
+            stone: add(
+                Material::diffuse("wall_stone", vec3(0.52, 0.48, 0.42)),
+                Some(Pattern::StoneBlocks),
+            ),
             // Still water: a dark bottom seen through a mirror-like surface.
-            water: b.material(Material::mirror(
-                "pool_water",
-                vec3(0.03, 0.04, 0.05),
-                vec3(0.6, 0.65, 0.7),
-            )),
+            water: add(
+                Material::mirror("pool_water", vec3(0.03, 0.04, 0.05), vec3(0.6, 0.65, 0.7)),
+                Some(Pattern::Water),
+            ),
         }
+    }
+
+    /// The pattern of a material, for its texture coordinates.
+    fn pattern(&self, material: u32) -> Option<Pattern> {
+        [
+            (self.ground, Pattern::Paving),
+            (self.plaster, Pattern::Plaster),
+            (self.tiles, Pattern::RoofTiles),
+            (self.stone, Pattern::StoneBlocks),
+            (self.water, Pattern::Water),
+        ]
+        .into_iter()
+        .find_map(|(m, pattern)| (m == material).then_some(pattern))
     }
 }
 
@@ -95,14 +140,21 @@ const STREET_COLUMN: ColumnStyle = ColumnStyle {
     rings: 3,
 };
 
-pub fn bracara() -> SceneBuilder {
-    let mut b = SceneBuilder::new(settings());
-    let p = Palette::new(&mut b);
+/// The town; `textured`: with its textures on (`bracara-textured`).
+pub fn bracara(textured: bool) -> SceneBuilder {
+    let mut b = SceneBuilder::new(settings(textured));
+    let p = Palette::new(&mut b, textured);
     ground(&mut b, &p);
     temple(&mut b, &p);
     pool(&mut b, &p);
     street(&mut b, &p);
     city_wall(&mut b, &p);
+    if textured {
+        b.project_texcoords(|material, corners| {
+            p.pattern(material)
+                .map(|pattern| box_projection(corners, pattern.repeat_m()))
+        });
+    }
     b
 }
 
@@ -357,7 +409,7 @@ fn merlon(b: &mut SceneBuilder, foot: Vec3, material: u32) {
     cuboid(b, foot - half, foot + half + Vec3::Y * 1.2, false, material);
 }
 
-fn settings() -> SceneSettings {
+fn settings(textured: bool) -> SceneSettings {
     let viewpoint = |name: &str, eye: [f32; 3], target: [f32; 3]| ViewpointSetting {
         name: name.into(),
         eye,
@@ -366,7 +418,12 @@ fn settings() -> SceneSettings {
         fov_y_deg: 60.0,
     };
     SceneSettings {
-        name: "bracara".into(),
+        name: if textured {
+            "bracara-textured"
+        } else {
+            "bracara"
+        }
+        .into(),
         obj: String::new(),
         units: "m".into(),
         crease_angle_deg: 45.0,
@@ -386,6 +443,14 @@ fn settings() -> SceneSettings {
             viewpoint("VR", [-1.5, 1.7, 60.0], [0.5, 3.0, -20.0]),
             viewpoint("VT", [-9.0, 1.7, -11.0], [0.0, 6.0, -40.0]),
         ],
-        textures: TextureSettings::default(),
+        // The texels are the materials' colours times a pattern (`textures`): taken alone.
+        textures: TextureSettings {
+            enabled: textured,
+            albedo: if textured {
+                AlbedoRule::Texture
+            } else {
+                AlbedoRule::default()
+            },
+        },
     }
 }

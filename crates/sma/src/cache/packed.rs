@@ -5,14 +5,15 @@ use glam::Vec3;
 use protocol::renderer_link::Quality;
 use protocol::{PartEstimate, SampleParts};
 
-use super::quantised::{SharedExponentRgb, ShortVariances};
+use super::quantised::{SharedExponentRgb, ShortVariances, VARIANCES};
 use crate::sample::{Depth, Estimate};
 
 /// A sample as callers build and read it; stored packed (`PackedSample`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CachedSample {
-    /// Per part, the mean radiance of its paths and the sample variance of their luminance. Read
-    /// back, the indirect part is the shown (filtered) one.
+    /// Per part, the mean of its paths and the sample variance of their luminance. Read back
+    /// (`ShadingCache::get`), the parts are as displayed (`sample::display_radiance`), the
+    /// indirect part the shown (filtered) one.
     pub parts: SampleParts,
     /// Paths averaged so far, and the bounce depth they were traced at.
     pub quality: Quality,
@@ -35,9 +36,9 @@ impl CachedSample {
         }
     }
 
-    /// The displayed radiance, the sum of the parts (`Estimate::rgb`).
+    /// The sum of the parts (`Estimate::rgb`): read back, the displayed radiance.
     pub fn rgb(&self) -> [f32; 3] {
-        self.parts.rgb()
+        self.estimate().rgb()
     }
 }
 
@@ -53,30 +54,35 @@ pub(super) fn stamp(time: u64) -> Stamp {
 /// What the sample array holds per sample: for a view-dependent one, its latest eye's estimate
 /// (the eyes are in `ShadingCache::eyes`). The parts are quantised (`quantised`: means within
 /// about 2^-9 of their largest channel, variances within 2^-5) and the paths share a word with
-/// the depth, so that a sample in parts takes 24 bytes, less than a single-part one took in
-/// `f32`s.
+/// the depth, so that a sample in four parts takes 32 bytes.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct PackedSample {
-    /// The direct part, the indirect part as answered, and the indirect part as shown: the
-    /// object-space filter's estimate (`indirect_filter`), in the units of the answered one (its
-    /// variance is per path, the filtered mean's variance times `paths`); the answered one until
-    /// the filter runs after a change.
-    means: [SharedExponentRgb; 3],
-    /// The luminance variances of the same three.
+    /// The direct part, the indirect part as answered, the indirect part as shown (the
+    /// object-space filter's estimate, `indirect_filter`, in the units of the answered one: its
+    /// variance is per path, the filtered mean's variance times `paths`; the answered one until
+    /// the filter runs after a change), and the view-dependent part.
+    means: [SharedExponentRgb; VARIANCES],
+    /// The luminance variances of the same four.
     variances: ShortVariances,
     paths_and_depth: PathsAndDepth,
     pub(super) last_seen: Stamp,
 }
 
-const _: () = assert!(size_of::<PackedSample>() == 24);
+const _: () = assert!(size_of::<PackedSample>() == 32);
 
 const DIRECT: usize = 0;
 const INDIRECT: usize = 1;
 const SHOWN_INDIRECT: usize = 2;
+const VIEW_DEPENDENT: usize = 3;
 
 impl PackedSample {
     pub(super) fn new(e: &Estimate, view_dependent: bool, last_seen: Stamp) -> Self {
-        let parts = [&e.parts.direct, &e.parts.indirect, &e.parts.indirect];
+        let parts = [
+            &e.parts.direct,
+            &e.parts.indirect,
+            &e.parts.indirect,
+            &e.parts.view_dependent,
+        ];
         PackedSample {
             means: parts.map(|p| SharedExponentRgb::encode(p.rgb)),
             variances: ShortVariances::encode(parts.map(|p| p.luminance_variance)),
@@ -85,7 +91,7 @@ impl PackedSample {
         }
     }
 
-    fn part(&self, part: usize, variances: &[f32; 3]) -> PartEstimate {
+    fn part(&self, part: usize, variances: &[f32; VARIANCES]) -> PartEstimate {
         PartEstimate {
             rgb: self.means[part].decode(),
             luminance_variance: variances[part],
@@ -108,6 +114,7 @@ impl PackedSample {
             parts: SampleParts {
                 direct: self.part(DIRECT, &variances),
                 indirect: self.part(indirect, &variances),
+                view_dependent: self.part(VIEW_DEPENDENT, &variances),
             },
             paths: self.paths_and_depth.paths(),
             depth: self.paths_and_depth.depth(),

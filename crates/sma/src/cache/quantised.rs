@@ -67,12 +67,15 @@ fn step(exponent: i32) -> f32 {
     2f32.powi(exponent - EXPONENT_BIAS - MANTISSA_BITS)
 }
 
-/// Three non-negative `f32`s (a sample's luminance variances) in 10 bits each: a 6-bit exponent
+/// Four non-negative `f32`s (a sample's luminance variances) in 10 bits each: a 6-bit exponent
 /// covering 2^-26 to 2^38 and the top 4 bits of the mantissa, rounded to nearest. Below the range
 /// a variance reads back as 0 (a standard error under 10^-4, far below a display step); above it,
 /// it clamps to about 2.6·10^11 (a vertex that mirrors the sun has a few 10^9).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub(super) struct ShortVariances(u32);
+pub(super) struct ShortVariances(u64);
+
+/// Variances per [`ShortVariances`].
+pub(super) const VARIANCES: usize = 4;
 
 /// Mantissa bits an `f32` loses in a [`ShortVariances`] code.
 const DROPPED_BITS: u32 = 23 - 4;
@@ -82,7 +85,7 @@ const CODE_BITS: u32 = 10;
 const LARGEST_CODE: u32 = (1 << CODE_BITS) - 1;
 
 impl ShortVariances {
-    pub(super) fn encode(variances: [f32; 3]) -> Self {
+    pub(super) fn encode(variances: [f32; VARIANCES]) -> Self {
         let code = |v: f32| {
             if v.is_nan() || v <= 0.0 {
                 return 0;
@@ -94,17 +97,14 @@ impl ShortVariances {
                 .saturating_sub(SMALLEST_EXPONENT << 4)
                 .min(LARGEST_CODE)
         };
-        ShortVariances(
-            variances
-                .iter()
-                .enumerate()
-                .fold(0, |word, (i, &v)| word | code(v) << (i as u32 * CODE_BITS)),
-        )
+        ShortVariances(variances.iter().enumerate().fold(0, |word, (i, &v)| {
+            word | u64::from(code(v)) << (i as u32 * CODE_BITS)
+        }))
     }
 
-    pub(super) fn decode(self) -> [f32; 3] {
-        [0, 1, 2].map(|i| {
-            let code = (self.0 >> (i * CODE_BITS)) & LARGEST_CODE;
+    pub(super) fn decode(self) -> [f32; VARIANCES] {
+        std::array::from_fn(|i| {
+            let code = (self.0 >> (i as u32 * CODE_BITS)) as u32 & LARGEST_CODE;
             if code == 0 {
                 0.0
             } else {
@@ -158,19 +158,19 @@ mod tests {
     fn a_variance_comes_back_within_2_pow_minus_5_of_itself() {
         let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(8);
         for _ in 0..100_000 {
-            let v = [0; 3].map(|_| 10f32.powf(rng.random_range(-7.5..11.0)));
+            let v = [0; VARIANCES].map(|_| 10f32.powf(rng.random_range(-7.5..11.0)));
             let back = ShortVariances::encode(v).decode();
             for (a, b) in v.iter().zip(back) {
                 assert!((a - b).abs() <= a / 32.0, "{v:?} came back as {back:?}");
             }
         }
-        let edges = ShortVariances::encode([0.0, 1e-9, -1.0]).decode();
-        assert_eq!(edges, [0.0; 3]);
-        let huge = ShortVariances::encode([f32::MAX, f32::INFINITY, 1e12]).decode();
+        let edges = ShortVariances::encode([0.0, 1e-9, -1.0, f32::NAN]).decode();
+        assert_eq!(edges, [0.0; VARIANCES]);
+        let huge = ShortVariances::encode([f32::MAX, f32::INFINITY, 1e12, 1e15]).decode();
         assert!(huge.iter().all(|v| v.is_finite() && *v > 2e11), "{huge:?}");
         assert_eq!(
-            ShortVariances::encode([0.25, 1.0, 4.0]).decode(),
-            [0.25, 1.0, 4.0]
+            ShortVariances::encode([0.25, 1.0, 4.0, 16.0]).decode(),
+            [0.25, 1.0, 4.0, 16.0]
         );
     }
 }

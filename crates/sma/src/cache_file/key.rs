@@ -7,9 +7,9 @@ use serde::{Deserialize, Serialize};
 use crate::mesh::{MeshParams, NeighbourRule};
 
 /// The layout of the records (`record`) and of a stored sample. Raised whenever either changes,
-/// or what a sample holds does (its parts: direct and indirect, as answered), so an old
-/// file is refused rather than misread.
-pub const FORMAT_VERSION: u32 = 2;
+/// or what a sample holds does (its parts, as answered: direct and indirect illumination,
+/// view-dependent radiance), so an old file is refused rather than misread.
+pub const FORMAT_VERSION: u32 = 3;
 
 /// Everything a store is keyed by. The format version is stored apart from it (`store`), so a
 /// file of another version is told as such even where its key no longer decodes.

@@ -52,7 +52,7 @@ fn shade(mesh: &SubdivisionMesh, cache: &mut ShadingCache) {
 
 fn sample(value: f32, paths: u32) -> CachedSample {
     CachedSample {
-        // Both parts, so a round trip shows that neither is lost nor merged into the other.
+        // Every part, so a round trip shows that none is lost nor merged into another.
         parts: SampleParts {
             direct: PartEstimate {
                 rgb: [value, 0.5 * value, 1.0],
@@ -61,6 +61,10 @@ fn sample(value: f32, paths: u32) -> CachedSample {
             indirect: PartEstimate {
                 rgb: [0.1 * value, 0.2, 0.3],
                 luminance_variance: 0.05,
+            },
+            view_dependent: PartEstimate {
+                rgb: [0.4, 0.01 * value, 0.6],
+                luminance_variance: 0.125,
             },
         },
         quality: Quality {

@@ -43,6 +43,7 @@ fn sample(direct: f32, indirect: f32, mean_error: f32, paths: u32) -> CachedSamp
         parts: SampleParts {
             direct: part(direct, 0.0),
             indirect: part(indirect, mean_error),
+            view_dependent: PartEstimate::default(),
         },
         quality: Quality {
             paths,
