@@ -386,6 +386,12 @@ impl Dispatcher {
                 return;
             }
             FromRenderer::Pong { .. } => return,
+            // This SMA asks for no direct tile yet (`protocol::direct_tile`): an answer to one is
+            // a peer's mistake, dropped with its reason.
+            FromRenderer::DirectTile(_) | FromRenderer::TileRejected { .. } => {
+                tracing::warn!(renderer = index, "renderer answered a tile never asked for");
+                return;
+            }
         };
         // Only the connection that holds the batch now may answer it (at most once).
         let owned = self

@@ -254,7 +254,8 @@ impl Probe {
                 self.stats = Some(stats);
                 self.stats_seen.push(stats);
             }
-            SmaToViewer::SceneInfo(_) | SmaToViewer::Ping { .. } => {}
+            // A direct tile changes no triangle: the table and its epochs are all a probe checks.
+            SmaToViewer::SceneInfo(_) | SmaToViewer::Ping { .. } | SmaToViewer::DirectTile(_) => {}
             SmaToViewer::Error { message } => bail!("the SMA reported an error: {message}"),
         }
         Ok(None)

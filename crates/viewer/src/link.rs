@@ -327,6 +327,7 @@ fn kind(msg: &SmaToViewer) -> &'static str {
         SmaToViewer::Refinement { .. } => "Refinement",
         SmaToViewer::Error { .. } => "Error",
         SmaToViewer::Ping { .. } => "Ping",
+        SmaToViewer::DirectTile(_) => "DirectTile",
     }
 }
 
