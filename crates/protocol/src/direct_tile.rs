@@ -76,7 +76,10 @@ impl TileRect {
     }
 }
 
-/// Which lights a tile traces per pixel. The others stay in the vertices' direct part.
+/// Which lights a tile traces per pixel. Only [`DirectLights::All`] stands in for the vertices'
+/// whole direct part; a tile of fewer lights stands in for those lights' share of it, which the
+/// vertices' parts do not hold apart (DESIGN.md §5): it measures what each light costs and how
+/// noisy it is per pixel.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum DirectLights {
     /// The sun only: the sharpest shadows, and one shadow ray per sample.
