@@ -233,24 +233,27 @@ impl ViewerTile {
 
 /// A float in 16 bits: an `f32`'s sign, exponent and top 7 mantissa bits (bfloat16), rounded to
 /// nearest. Its range is the `f32`'s, so radiance of any scene fits, within 2⁻⁸ of its value:
-/// below what an 8-bit display shows after tone mapping.
+/// below what an 8-bit display shows after tone mapping. Two little-endian bytes on the wire
+/// (postcard writes a `u16` as a varint, three bytes for most radiance values).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct Half(pub u16);
+pub struct Half(pub [u8; 2]);
 
 impl Half {
     pub fn encode(v: f32) -> Half {
         let bits = v.to_bits();
-        if v.is_nan() {
-            return Half((bits >> 16) as u16 | 0x40);
-        }
-        // Round to nearest even; a value that rounds past the largest finite one becomes infinite,
-        // as a refusal should see.
-        let round = 0x7fff + ((bits >> 16) & 1);
-        Half((bits.saturating_add(round) >> 16) as u16)
+        let high = if v.is_nan() {
+            (bits >> 16) as u16 | 0x40
+        } else {
+            // Round to nearest even; a value that rounds past the largest finite one becomes
+            // infinite, as a refusal should see.
+            let round = 0x7fff + ((bits >> 16) & 1);
+            (bits.saturating_add(round) >> 16) as u16
+        };
+        Half(high.to_le_bytes())
     }
 
     pub fn decode(self) -> f32 {
-        f32::from_bits(u32::from(self.0) << 16)
+        f32::from_bits(u32::from(u16::from_le_bytes(self.0)) << 16)
     }
 
     pub fn is_finite_non_negative(self) -> bool {
