@@ -36,6 +36,7 @@ mod ahead;
 mod answers;
 mod coarsening;
 mod counters;
+mod direct;
 mod ladder;
 mod need;
 mod pace;
@@ -237,6 +238,7 @@ impl Schedule {
                 self.owed.queue_changed();
             }
             PoolEvent::Renderers { connected } => self.renderers = connected,
+            PoolEvent::Tile(news) => self.on_tile_news(news),
         }
     }
 
@@ -265,6 +267,7 @@ impl Schedule {
             self.replan();
             self.submit_batches();
         }
+        self.request_tiles();
         if allowed.sync.now() {
             self.timed(Work::Sync, Self::sync_viewers);
         }
@@ -502,7 +505,7 @@ impl Schedule {
             } else {
                 Lane::Background
             };
-            // A full backlog gives the batch back: its samples are asked for again later.
+            // A full backlog gives the batch back, its samples asked for again later.
             if let Err(batch) = self.pool.submit(batch, lane) {
                 self.requests.finished(&batch);
                 self.owed.queue_changed();

@@ -87,6 +87,7 @@ async fn next_answer(events: &mut mpsc::Receiver<PoolEvent>) -> u64 {
                 panic!("batch {} failed: {reason}", batch.batch_id)
             }
             Some(PoolEvent::Renderers { .. }) => {}
+            Some(PoolEvent::Tile(news)) => panic!("no tile was asked for: {news:?}"),
             None => panic!("the pool closed"),
         }
     }
