@@ -14,7 +14,7 @@ use protocol::direct_tile::{
 use protocol::types::PartEstimate;
 use protocol::viewer_link::Camera;
 
-use crate::sample::combine_part;
+use crate::sample::{DisplayMap, combine_part};
 
 /// Samples per pixel in one pass: an answer comes back within a fraction of a second.
 pub const SAMPLES_PER_PASS: u32 = 4;
@@ -25,6 +25,15 @@ pub const MAX_SAMPLES: u32 = 1024;
 /// Tile ids are unique across the SMA's viewers, so an answer finds its tile alone.
 static NEXT_TILE_ID: AtomicU64 = AtomicU64::new(1);
 
+/// When a tile has samples enough: the display it is seen through and the error it may show.
+#[derive(Clone, Copy, Debug)]
+pub struct TileTarget {
+    /// The viewer's last tone map (None until it has one: no tile is done before).
+    pub l_white: Option<f32>,
+    /// `ScheduleConfig::display_error`, in displayed units.
+    pub display_error: f32,
+}
+
 /// One tile's accumulation.
 struct Tile {
     rect: TileRect,
@@ -34,6 +43,27 @@ struct Tile {
     /// The id of its pass a renderer holds or the pool queues.
     asked: Option<u64>,
     pixels: Vec<PartEstimate>,
+}
+
+impl Tile {
+    /// At the cap of samples, or every pixel's displayed standard error below the display
+    /// error: the standard error of the mean's luminance, `sqrt(s² / n)`, carried through the
+    /// display mapping at the pixel's mean (Drago with the viewer's L_white, then sRGB: its
+    /// slope there), as a vertex's sample is judged (`Estimate::displayed`).
+    fn done(&self, target: TileTarget) -> bool {
+        if self.samples >= MAX_SAMPLES {
+            return true;
+        }
+        let Some(l_white) = target.l_white.filter(|_| self.samples > 0) else {
+            return false;
+        };
+        let map = DisplayMap::new(l_white);
+        let n = self.samples as f32;
+        self.pixels.iter().all(|p| {
+            let (_, slope) = map.display_and_slope(conventions::luminance(p.rgb));
+            slope * (p.luminance_variance / n).sqrt() < target.display_error
+        })
+    }
 }
 
 /// One viewer's tiles, of its current camera only.
@@ -60,9 +90,14 @@ impl DirectTiles {
         std::mem::take(&mut self.withdrawn)
     }
 
-    /// The next pass of every tile of `camera` (which rests) that has none asked for and fewer
-    /// than [`MAX_SAMPLES`]; the first call for a camera cuts its image into tiles.
-    pub fn requests(&mut self, camera: &Camera, lights: DirectLights) -> Vec<TileRequest> {
+    /// The next pass of every tile of `camera` (which rests) that has none asked for and is
+    /// not done (`Tile::done`); the first call for a camera cuts its image into tiles.
+    pub fn requests(
+        &mut self,
+        camera: &Camera,
+        lights: DirectLights,
+        target: TileTarget,
+    ) -> Vec<TileRequest> {
         if self.camera.as_ref().map(|c| c.seq) != Some(camera.seq) {
             self.camera_moved();
             self.camera = Some(camera.clone());
@@ -79,7 +114,7 @@ impl DirectTiles {
         }
         let mut out = Vec::new();
         for tile in &mut self.tiles {
-            if tile.asked.is_some() || tile.samples >= MAX_SAMPLES {
+            if tile.asked.is_some() || tile.done(target) {
                 continue;
             }
             let tile_id = NEXT_TILE_ID.fetch_add(1, Ordering::Relaxed);
@@ -94,6 +129,11 @@ impl DirectTiles {
             });
         }
         out
+    }
+
+    /// Part of the stated end (DESIGN.md §5): every tile of the camera is done, none asked for.
+    pub fn converged(&self, target: TileTarget) -> bool {
+        self.camera.is_some() && (self.tiles.iter()).all(|t| t.asked.is_none() && t.done(target))
     }
 
     /// Whether the pass `tile_id` is one of this viewer's.
@@ -162,6 +202,11 @@ mod tests {
         }
     }
 
+    const TARGET: TileTarget = TileTarget {
+        l_white: Some(100.0),
+        display_error: 1.0 / 255.0,
+    };
+
     fn answer(request: &TileRequest, value: f32) -> TileAnswer {
         TileAnswer {
             tile_id: request.tile_id,
@@ -183,24 +228,65 @@ mod tests {
     #[test]
     fn passes_merge_by_sample_count_and_the_error_falls() {
         let mut tiles = DirectTiles::default();
-        let first = tiles.requests(&camera(1), DirectLights::All);
+        let first = tiles.requests(&camera(1), DirectLights::All, TARGET);
         assert_eq!(first.len(), 2, "a 40×20 image is two tiles of 32");
-        assert!(tiles.requests(&camera(1), DirectLights::All).is_empty());
+        assert!(
+            tiles
+                .requests(&camera(1), DirectLights::All, TARGET)
+                .is_empty()
+        );
         let one = tiles.answered(&answer(&first[0], 1.0)).unwrap();
-        let next = tiles.requests(&camera(1), DirectLights::All);
+        let next = tiles.requests(&camera(1), DirectLights::All, TARGET);
         assert_eq!(next.len(), 1, "only the answered tile gets its next pass");
         assert_eq!(next[0].pass, 1);
         let two = tiles.answered(&answer(&next[0], 1.5)).unwrap();
         assert_eq!(two.samples, 2 * SAMPLES_PER_PASS);
-        assert_eq!(two.pixels[0].rgb[0].decode(), 1.25, "equal counts: the mean");
+        assert_eq!(
+            two.pixels[0].rgb[0].decode(),
+            1.25,
+            "equal counts: the mean"
+        );
         assert!(two.pixels[0].standard_error.decode() < one.pixels[0].standard_error.decode());
+        assert!(
+            !tiles.converged(TARGET),
+            "one tile still asked for, both noisy"
+        );
+    }
+
+    #[test]
+    fn tiles_converge_once_every_pixel_shows_less_than_the_display_error() {
+        let mut tiles = DirectTiles::default();
+        assert!(!tiles.converged(TARGET), "no camera yet");
+        let asked = tiles.requests(&camera(1), DirectLights::All, TARGET);
+        for request in &asked {
+            let mut quiet = answer(request, 1.0);
+            quiet
+                .pixels
+                .iter_mut()
+                .for_each(|p| p.luminance_variance = 0.0);
+            tiles.answered(&quiet).unwrap();
+        }
+        assert!(tiles.converged(TARGET));
+        assert!(
+            tiles
+                .requests(&camera(1), DirectLights::All, TARGET)
+                .is_empty()
+        );
+        let unknown = TileTarget {
+            l_white: None,
+            ..TARGET
+        };
+        assert!(
+            !tiles.converged(unknown),
+            "no tone map: no displayed error to judge"
+        );
     }
 
     #[test]
     fn a_new_camera_drops_the_old_ones_tiles_and_refuses_their_answers() {
         let mut tiles = DirectTiles::default();
-        let old = tiles.requests(&camera(1), DirectLights::All);
-        let new = tiles.requests(&camera(2), DirectLights::All);
+        let old = tiles.requests(&camera(1), DirectLights::All, TARGET);
+        let new = tiles.requests(&camera(2), DirectLights::All, TARGET);
         assert_eq!(new.len(), 2);
         let ids = |r: &[TileRequest]| r.iter().map(|t| t.tile_id).collect::<Vec<_>>();
         assert_eq!(tiles.take_withdrawn(), ids(&old));

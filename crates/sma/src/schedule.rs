@@ -313,7 +313,7 @@ impl Schedule {
             && self.viewers.iter().all(|v| {
                 // Without refinement no criterion runs: there is nothing to subdivide.
                 let dry = v.criterion_dry || !self.config.refine;
-                v.view.is_some() && dry && !v.wait.needs_pass()
+                v.view.is_some() && dry && !v.wait.needs_pass() && self.tiles_converged(v)
             })
             && self.requests.outstanding() == 0
             && self.refinement.pending.is_empty()

@@ -5,6 +5,8 @@
 use protocol::viewer_link::SmaToViewer;
 
 use super::Schedule;
+use super::viewers::Viewer;
+use crate::direct_tiles::TileTarget;
 use crate::pool::TileNews;
 
 impl Schedule {
@@ -25,10 +27,19 @@ impl Schedule {
             if !settings.enabled || self.renderers == 0 || viewer.paused || !rests {
                 continue;
             }
-            for request in viewer.direct.requests(camera, settings.lights) {
+            let target = target(viewer, self.config.display_error);
+            for request in viewer.direct.requests(camera, settings.lights, target) {
                 self.pool.submit_tile(request);
             }
         }
+    }
+
+    /// The stated end (DESIGN.md §5) with per-pixel direct light on also waits for every tile
+    /// of the viewer's camera to show a displayed standard error below the display error
+    /// (`direct_tiles::Tile::done` states the statistic).
+    pub(super) fn tiles_converged(&self, viewer: &Viewer) -> bool {
+        let target = target(viewer, self.config.display_error);
+        !self.config.direct_tiles.enabled || viewer.direct.converged(target)
     }
 
     pub(super) fn on_tile_news(&mut self, news: TileNews) {
@@ -52,5 +63,13 @@ impl Schedule {
                 }
             }
         }
+    }
+}
+
+/// A viewer's tiles are judged through its last tone map.
+fn target(viewer: &Viewer, display_error: f32) -> TileTarget {
+    TileTarget {
+        l_white: viewer.last_l_white,
+        display_error,
     }
 }
