@@ -168,3 +168,55 @@ async fn urgent_batches_go_out_before_more_paths_handed_over_earlier() {
         "the urgent batch came {urgent_at}th: {order:?}"
     );
 }
+
+fn tile_request(tile_id: u64) -> protocol::direct_tile::TileRequest {
+    use protocol::direct_tile::{DirectLights, TileRect, TileRequest};
+    use protocol::viewer_link::Camera;
+    TileRequest {
+        tile_id,
+        camera: Camera {
+            seq: 1,
+            eye: [0.0, 1.0, 5.0],
+            orientation: [0.0, 0.0, 0.0, 1.0],
+            fov_y_deg: 60.0,
+            width: 64,
+            height: 64,
+        },
+        rect: TileRect::cover(64, 64)[0],
+        samples_per_pixel: 2,
+        pass: 0,
+        lights: DirectLights::All,
+    }
+}
+
+#[tokio::test]
+async fn a_tile_goes_out_only_once_no_batch_waits_and_a_withdrawn_one_never() {
+    let (pool, mut events, _shutdown) = pool_of_one().await;
+    until_connected(&mut events).await;
+    for id in 1..=10 {
+        pool.submit(batch(id), Lane::Background).unwrap();
+    }
+    pool.submit_tile(tile_request(7));
+    pool.submit_tile(tile_request(8));
+    pool.withdraw_tiles(&[8]);
+    let mut order = Vec::new();
+    let wait = tokio::time::timeout(Duration::from_secs(20), async {
+        while order.len() < 11 {
+            match events.recv().await {
+                Some(PoolEvent::Shaded { batch, .. }) => order.push(Some(batch.batch_id)),
+                Some(PoolEvent::Tile(TileNews::Answered(answer))) => {
+                    assert_eq!(answer.tile_id, 7, "only the tile not withdrawn");
+                    order.push(None);
+                }
+                Some(PoolEvent::Renderers { .. }) => {}
+                other => panic!("{other:?}"),
+            }
+        }
+    });
+    wait.await.expect("every batch and the tile answered");
+    assert_eq!(
+        order.last(),
+        Some(&None),
+        "the tile went after every batch: {order:?}"
+    );
+}
