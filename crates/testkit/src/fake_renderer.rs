@@ -33,6 +33,8 @@ pub enum Fault {
     NoisyTaking(std::time::Duration),
     /// The points of this mesh vertex are answered NaN, every other point as usual.
     NanAt(u32),
+    /// A direct-light tile is taken and never answered: the link is dropped, the listener kept.
+    DropAtTile,
 }
 
 /// Where `point` lies in the world.
@@ -95,6 +97,7 @@ async fn serve(listener: TcpListener, scene: Scene, shading: Shading, fault: Fau
                     }
                     continue;
                 }
+                Ok(ToRenderer::DirectTile(_)) if fault == Fault::DropAtTile => break,
                 Ok(ToRenderer::DirectTile(tile)) => {
                     if writer.send(&direct_tile(&tile)).await.is_err() {
                         break;

@@ -37,16 +37,16 @@ fn flat([x, y, z]: [f32; 3]) -> [f32; 3] {
 /// A pool of one stand-in renderer that holds one batch at a time.
 async fn pool_of_one() -> (PoolHandle, mpsc::Receiver<PoolEvent>, watch::Sender<bool>) {
     let scene = scene::load("cornell").expect("the built-in Cornell box");
-    pool_dialing(scene.clone(), &scene).await
+    pool_dialing(scene.clone(), &scene, Fault::None).await
 }
 
 /// A pool of the SMA's `scene` dialing one stand-in renderer that has loaded `renderers`.
 async fn pool_dialing(
     renderers: scene::Scene,
     scene: &scene::Scene,
+    fault: Fault,
 ) -> (PoolHandle, mpsc::Receiver<PoolEvent>, watch::Sender<bool>) {
-    let (addr, _log) =
-        fake_renderer::start(renderers, |p, _, _, _| flat(p.into()), Fault::None).await;
+    let (addr, _log) = fake_renderer::start(renderers, |p, _, _, _| flat(p.into()), fault).await;
     let config = PoolConfig {
         renderers: vec![addr],
         scene: crate::viewer_link::scene_identity(scene),
@@ -100,7 +100,7 @@ async fn a_renderer_with_other_textures_never_joins() {
     let scene = scene::load("cornell").expect("the built-in Cornell box");
     let mut textured = scene.clone();
     textured.settings.textures.enabled = true;
-    let (_pool, mut events, _shutdown) = pool_dialing(textured, &scene).await;
+    let (_pool, mut events, _shutdown) = pool_dialing(textured, &scene, Fault::None).await;
     let joined = tokio::time::timeout(Duration::from_millis(1500), until_connected(&mut events));
     assert!(
         joined.await.is_err(),
@@ -219,4 +219,23 @@ async fn a_tile_goes_out_only_once_no_batch_waits_and_a_withdrawn_one_never() {
         Some(&None),
         "the tile went after every batch: {order:?}"
     );
+}
+
+#[tokio::test]
+async fn a_tile_its_renderer_took_down_with_it_is_dropped_not_reissued() {
+    let scene = scene::load("cornell").expect("the built-in Cornell box");
+    let (pool, mut events, _shutdown) =
+        pool_dialing(scene.clone(), &scene, Fault::DropAtTile).await;
+    until_connected(&mut events).await;
+    pool.submit_tile(tile_request(3));
+    let dropped = tokio::time::timeout(Duration::from_secs(20), async {
+        loop {
+            match events.recv().await {
+                Some(PoolEvent::Tile(TileNews::Dropped { tile_id, .. })) => return tile_id,
+                Some(PoolEvent::Renderers { .. }) => {}
+                other => panic!("{other:?}"),
+            }
+        }
+    });
+    assert_eq!(dropped.await.expect("the lost tile is reported"), 3);
 }
