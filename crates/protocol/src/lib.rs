@@ -11,7 +11,8 @@
 //! - [`liveness`]: heartbeats, silence and frame timeouts: when a peer counts as lost;
 //! - [`connection`]: a typed message reader and writer over any byte stream;
 //! - [`error`]: every way a peer can go wrong, as a value, never a panic;
-//! - [`camera`]: the wire's camera in the system's camera convention.
+//! - [`camera`]: the wire's camera in the system's camera convention;
+//! - [`direct_tile`]: a resting view's direct light per pixel, in tiles, on both links.
 //!
 //! ```
 //! use protocol::frame::{decode, encode};
@@ -26,6 +27,7 @@
 pub mod admission;
 mod camera;
 pub mod connection;
+pub mod direct_tile;
 mod error;
 pub mod frame;
 pub mod handshake;

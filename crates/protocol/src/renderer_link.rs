@@ -3,6 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::direct_tile::{TileAnswer, TileRequest};
 use crate::frame::WireMessage;
 
 use crate::types::{SampleParts, Side, Vec3f};
@@ -64,6 +65,9 @@ pub enum ToRenderer {
     Ping {
         nonce: u64,
     },
+    /// One pass over one tile of a resting viewer's camera: its direct part per pixel
+    /// (`direct_tile`, DESIGN.md §3 step 8).
+    DirectTile(TileRequest),
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -104,6 +108,13 @@ pub enum FromRenderer {
     /// The answer to `Ping`.
     Pong {
         nonce: u64,
+    },
+    /// The answer to `ToRenderer::DirectTile`.
+    DirectTile(TileAnswer),
+    /// A tile request the renderer would not take (outside its image, too many samples).
+    TileRejected {
+        tile_id: u64,
+        reason: String,
     },
 }
 

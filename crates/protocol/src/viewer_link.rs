@@ -3,6 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::direct_tile::ViewerTile;
 use crate::frame::WireMessage;
 use crate::renderer_link::Quality;
 
@@ -220,6 +221,10 @@ pub enum SmaToViewer {
     Ping {
         nonce: u64,
     },
+    /// The latest accumulation of one tile of the viewer's resting camera: its direct part per
+    /// pixel, which the viewer shows instead of the vertices' where it is the better estimate
+    /// (`direct_tile`, DESIGN.md §3 step 8). Tiles of an older camera are stale.
+    DirectTile(ViewerTile),
 }
 
 impl WireMessage for ViewerToSma {}

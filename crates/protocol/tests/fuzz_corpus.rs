@@ -9,6 +9,9 @@ mod corpus;
 #[path = "../../../fuzz/src/frames.rs"]
 mod frames;
 
+use protocol::direct_tile::{
+    DirectLights, TileAnswer, TilePixel, TileRect, TileRequest, ViewerTile,
+};
 use protocol::frame::encode;
 use protocol::renderer_link::{
     FromRenderer, Quality, Radiance, SampleKey, ShadeBatch, ShadePoint, ToRenderer,
@@ -191,6 +194,17 @@ fn renderer_link_seeds() -> Vec<(String, Vec<u8>)> {
         ),
         ("bye", ToRenderer::Bye),
         ("ping", ToRenderer::Ping { nonce: 7 }),
+        (
+            "direct-tile",
+            ToRenderer::DirectTile(TileRequest {
+                tile_id: 5,
+                camera: camera(),
+                rect: tile_rect(),
+                samples_per_pixel: 4,
+                pass: 2,
+                lights: DirectLights::All,
+            }),
+        ),
     ];
     let from_renderer = [
         (
@@ -247,10 +261,48 @@ fn renderer_link_seeds() -> Vec<(String, Vec<u8>)> {
             },
         ),
         ("pong", FromRenderer::Pong { nonce: u64::MAX }),
+        (
+            "direct-tile",
+            FromRenderer::DirectTile(TileAnswer {
+                tile_id: 5,
+                camera_seq: 3,
+                rect: tile_rect(),
+                pass: 2,
+                samples_per_pixel: 4,
+                // One pixel short, and one non-finite: decoded, then refused by its check.
+                pixels: [[0.3, 0.2, 0.1], [f32::NAN, 0.0, 1.0]]
+                    .into_iter()
+                    .cycle()
+                    .take(tile_rect().pixels() - 1)
+                    .map(|rgb| PartEstimate {
+                        rgb,
+                        luminance_variance: 0.02,
+                    })
+                    .collect(),
+                micros: 800,
+            }),
+        ),
+        (
+            "tile-rejected",
+            FromRenderer::TileRejected {
+                tile_id: 5,
+                reason: "tile outside the image".into(),
+            },
+        ),
     ];
     let mut out = seeds("to-renderer", &to_renderer);
     out.extend(seeds("from-renderer", &from_renderer));
     out
+}
+
+/// A small tile at the edge of `camera()`'s image.
+fn tile_rect() -> TileRect {
+    TileRect {
+        x: 632,
+        y: 472,
+        width: 8,
+        height: 8,
+    }
 }
 
 fn camera() -> Camera {
@@ -394,6 +446,20 @@ fn viewer_link_seeds() -> Vec<(String, Vec<u8>)> {
             },
         ),
         ("ping", SmaToViewer::Ping { nonce: u64::MAX }),
+        (
+            "direct-tile",
+            SmaToViewer::DirectTile(ViewerTile {
+                camera_seq: 3,
+                rect: tile_rect(),
+                samples: 16,
+                pixels: [0.0, 0.5, 1e5, f32::INFINITY]
+                    .into_iter()
+                    .cycle()
+                    .take(tile_rect().pixels())
+                    .map(|v| TilePixel::new([v, 0.25, 0.125], 0.01))
+                    .collect(),
+            }),
+        ),
     ];
     let mut out = seeds("to-sma", &to_sma);
     out.extend(seeds("to-viewer", &to_viewer));

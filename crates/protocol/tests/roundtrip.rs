@@ -1,6 +1,7 @@
 //! Every message survives encode + decode unchanged (property tests over random contents).
 
 use proptest::prelude::*;
+use protocol::direct_tile::*;
 use protocol::frame::{decode, encode};
 use protocol::handshake::{Hello, HelloReply, Role};
 use protocol::renderer_link::*;
@@ -76,6 +77,35 @@ fn viewpoint() -> impl Strategy<Value = Viewpoint> {
     )
 }
 
+fn rect() -> impl Strategy<Value = TileRect> {
+    any::<[u32; 4]>().prop_map(|[x, y, width, height]| TileRect {
+        x,
+        y,
+        width,
+        height,
+    })
+}
+fn lights() -> impl Strategy<Value = DirectLights> {
+    prop::sample::select(DirectLights::ALL.to_vec())
+}
+fn camera() -> impl Strategy<Value = Camera> {
+    (
+        any::<u64>(),
+        v3(),
+        [finite(), finite(), finite(), finite()],
+        1f32..170.0,
+        any::<u32>(),
+        any::<u32>(),
+    )
+        .prop_map(|(seq, eye, orientation, fov_y_deg, width, height)| Camera {
+            seq,
+            eye,
+            orientation,
+            fov_y_deg,
+            width,
+            height,
+        })
+}
 fn to_renderer() -> impl Strategy<Value = ToRenderer> {
     prop_oneof![
         (
@@ -94,6 +124,18 @@ fn to_renderer() -> impl Strategy<Value = ToRenderer> {
             )),
         Just(ToRenderer::Bye),
         any::<u64>().prop_map(|nonce| ToRenderer::Ping { nonce }),
+        (any::<u64>(), camera(), rect(), any::<[u32; 2]>(), lights()).prop_map(
+            |(tile_id, camera, rect, [samples_per_pixel, pass], lights)| {
+                ToRenderer::DirectTile(TileRequest {
+                    tile_id,
+                    camera,
+                    rect,
+                    samples_per_pixel,
+                    pass,
+                    lights,
+                })
+            }
+        ),
     ]
 }
 fn from_renderer() -> impl Strategy<Value = FromRenderer> {
@@ -146,28 +188,38 @@ fn from_renderer() -> impl Strategy<Value = FromRenderer> {
             .prop_map(|(batch_id, reason)| FromRenderer::Rejected { batch_id, reason }),
         ".*".prop_map(|message| FromRenderer::Error { message }),
         any::<u64>().prop_map(|nonce| FromRenderer::Pong { nonce }),
+        (
+            any::<[u64; 3]>(),
+            rect(),
+            any::<[u32; 2]>(),
+            prop::collection::vec((v3(), finite()), 0..64)
+        )
+            .prop_map(
+                |([tile_id, camera_seq, micros], rect, [pass, samples_per_pixel], px)| {
+                    FromRenderer::DirectTile(TileAnswer {
+                        tile_id,
+                        camera_seq,
+                        rect,
+                        pass,
+                        samples_per_pixel,
+                        pixels: px
+                            .into_iter()
+                            .map(|(rgb, luminance_variance)| PartEstimate {
+                                rgb,
+                                luminance_variance,
+                            })
+                            .collect(),
+                        micros,
+                    })
+                }
+            ),
+        (any::<u64>(), ".*")
+            .prop_map(|(tile_id, reason)| FromRenderer::TileRejected { tile_id, reason }),
     ]
 }
 fn to_sma() -> impl Strategy<Value = ViewerToSma> {
     prop_oneof![
-        (
-            any::<u64>(),
-            v3(),
-            [finite(), finite(), finite(), finite()],
-            1f32..170.0,
-            any::<u32>(),
-            any::<u32>()
-        )
-            .prop_map(|(seq, eye, orientation, fov_y_deg, width, height)| {
-                ViewerToSma::Camera(Camera {
-                    seq,
-                    eye,
-                    orientation,
-                    fov_y_deg,
-                    width,
-                    height,
-                })
-            }),
+        camera().prop_map(ViewerToSma::Camera),
         ".*".prop_map(|name| ViewerToSma::SetCriterion { name }),
         Just(ViewerToSma::Pause),
         Just(ViewerToSma::Resume),
@@ -266,6 +318,26 @@ fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
             .prop_map(|(criterion, paused)| SmaToViewer::Refinement { criterion, paused }),
         ".*".prop_map(|message| SmaToViewer::Error { message }),
         any::<u64>().prop_map(|nonce| SmaToViewer::Ping { nonce }),
+        (
+            any::<u64>(),
+            rect(),
+            any::<u32>(),
+            prop::collection::vec(any::<[u16; 4]>(), 0..64)
+        )
+            .prop_map(|(camera_seq, rect, samples, px)| {
+                SmaToViewer::DirectTile(ViewerTile {
+                    camera_seq,
+                    rect,
+                    samples,
+                    pixels: px
+                        .into_iter()
+                        .map(|[r, g, b, e]| TilePixel {
+                            rgb: [r, g, b].map(|h| Half(h.to_le_bytes())),
+                            standard_error: Half(e.to_le_bytes()),
+                        })
+                        .collect(),
+                })
+            }),
     ]
 }
 
@@ -311,4 +383,31 @@ fn triangles_encode_compactly() {
         per_triangle <= 18.0 * 4.0 + 3.0,
         "{per_triangle} bytes per triangle"
     );
+}
+
+/// A viewer tile is 8 bytes a pixel (three halves of RGB, one of standard error, two bytes
+/// each) plus a few for its header.
+#[test]
+fn viewer_tiles_encode_compactly() {
+    let rect = TileRect {
+        x: 0,
+        y: 0,
+        width: TILE_SIDE,
+        height: TILE_SIDE,
+    };
+    let tile = ViewerTile {
+        camera_seq: 9,
+        rect,
+        samples: 64,
+        pixels: vec![TilePixel::new([0.5, 0.25, 3.0], 0.01); rect.pixels()],
+    };
+    let bytes = encode(&SmaToViewer::DirectTile(tile.clone())).unwrap();
+    let per_pixel = bytes.len() as f64 / rect.pixels() as f64;
+    assert!(per_pixel <= 8.0 + 0.02, "{per_pixel} bytes per pixel");
+    let back: SmaToViewer = decode(&bytes).unwrap();
+    let SmaToViewer::DirectTile(back) = back else {
+        panic!("a tile decodes as a tile")
+    };
+    back.check(TILE_SIDE, TILE_SIDE).expect("a valid tile");
+    assert_eq!(back, tile);
 }

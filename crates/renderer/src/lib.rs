@@ -9,6 +9,7 @@
 //! - [`point`]: shading points from (triangle, barycentrics, side), hidden-point relocation;
 //! - `ray_order`: ray streams regrouped by direction octant and origin before tracing;
 //! - [`shade`]: points and batches at a quality, deterministic per (seed, index);
+//! - [`direct_tile`]: a camera's direct light per pixel, one tile and pass at a time;
 //! - [`service`]: the TCP server of the renderer link;
 //! - [`reference`] and [`image_files`]: reference images (EXR + tone-mapped PNG), and the one EXR
 //!   reader; [`features`]: the albedo and normal images a denoiser takes beside a reference;
@@ -19,6 +20,7 @@
 pub(crate) mod bvh;
 pub mod cli;
 pub(crate) mod counters;
+pub mod direct_tile;
 pub mod estimator;
 pub mod features;
 pub mod image_files;

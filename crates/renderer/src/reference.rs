@@ -130,8 +130,7 @@ fn pixel(
     let spp = s.spp.max(1);
     let strata = world.first_bounce.strata(rng);
     for k in 0..spp {
-        let [jx, jy] = uniform2(rng);
-        let dir = camera.ray_direction(x as f32 + jx, y as f32 + jy);
+        let dir = jittered_ray(camera, x, y, rng);
         let l = match world.trace(origin, dir, RayKind::Camera, counts) {
             None => world.lights.escaped_radiance(dir, true),
             Some(hit) => {
@@ -153,6 +152,13 @@ fn pixel(
         add_finite(&mut sum, l);
     }
     (sum / spp as f32, covered)
+}
+
+/// The direction of a camera ray through a point of pixel (x, y) drawn uniformly over it: the
+/// box filter of a reference image's pixels, and of a direct tile's (`direct_tile`).
+pub(crate) fn jittered_ray(camera: &Camera, x: u32, y: u32, rng: &mut Rng) -> Vec3 {
+    let [jx, jy] = uniform2(rng);
+    camera.ray_direction(x as f32 + jx, y as f32 + jy)
 }
 
 /// A non-finite sample is dropped (counted as black), a negative channel clamped.
@@ -218,8 +224,7 @@ fn camera_paths(
         // The pixel's paths stratify their first bounces together, as in [`pixel`].
         let strata = world.first_bounce.strata(&mut rngs[x]);
         for dir in &mut dirs {
-            let [jx, jy] = uniform2(&mut rngs[x]);
-            *dir = camera.ray_direction(x as f32 + jx, y as f32 + jy);
+            *dir = jittered_ray(camera, x as u32, y, &mut rngs[x]);
         }
         // A pixel's rays, from one eye through one pixel, are as coherent as rays get: traced
         // together as packets (`World::trace_packet`). The jitters come first, then the traces,

@@ -155,21 +155,21 @@ impl PathSum {
     }
 }
 
-/// One part's running sum over a point's paths.
+/// One part's running sum over a point's paths (or a pixel's samples, `direct_tile`).
 #[derive(Default)]
-struct PartSum {
+pub(crate) struct PartSum {
     rgb: Vec3,
     luminance: PathLuminance,
 }
 
 impl PartSum {
-    fn add(&mut self, l: Vec3) {
+    pub(crate) fn add(&mut self, l: Vec3) {
         self.rgb += l;
         self.luminance.add(conventions::luminance(l.to_array()));
     }
 
     /// The part's mean over `paths`, plus `exact` (a value without variance).
-    fn estimate(&self, paths: u32, exact: Vec3) -> PartEstimate {
+    pub(crate) fn estimate(&self, paths: u32, exact: Vec3) -> PartEstimate {
         PartEstimate {
             rgb: (exact + self.rgb / paths.max(1) as f32).to_array(),
             luminance_variance: self.luminance.variance(),

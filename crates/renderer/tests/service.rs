@@ -1,6 +1,7 @@
 //! The service over real loopback TCP (DESIGN.md §7, §8): batches answered exactly as the
 //! in-process estimator answers them for the same seed; malformed frames answered with an error
-//! and the connection closed, while the server keeps serving others; a wrong scene refused.
+//! and the connection closed, while the server keeps serving others; a wrong scene refused;
+//! direct tiles answered as the in-process tracer answers them.
 
 mod common;
 
@@ -10,11 +11,14 @@ use std::time::Duration;
 use common::*;
 use glam::Vec3;
 use protocol::connection::TcpReader;
+use protocol::direct_tile::{DirectLights, TileRect, TileRequest};
 use protocol::frame::DEFAULT_MAX_FRAME;
 use protocol::renderer_link::{
     FromRenderer, Quality, ShadeBatch, ShadePoint, ToRenderer, point_flags,
 };
+use protocol::viewer_link::Camera;
 use protocol::{MessageReader, MessageWriter, ProtocolError};
+use renderer::direct_tile::trace_tile;
 use renderer::service::Service;
 use renderer::{World, shade_batch};
 use scene::{SceneBuilder, Sky};
@@ -132,6 +136,44 @@ async fn batches_match_the_in_process_estimator_and_bad_frames_are_answered() {
         recv(&mut r).await.unwrap(),
         FromRenderer::Rejected { batch_id: 201, .. }
     ));
+
+    // A direct tile is answered as the in-process tracer answers it; one outside its image is
+    // refused with its reason, and the link goes on.
+    let tile = TileRequest {
+        tile_id: 9,
+        camera: Camera {
+            seq: 2,
+            eye: [3.0, 2.0, 3.0],
+            orientation: [-0.5f32.sqrt(), 0.0, 0.0, 0.5f32.sqrt()],
+            fov_y_deg: 30.0,
+            width: 40,
+            height: 30,
+        },
+        rect: TileRect {
+            x: 32,
+            y: 16,
+            width: 8,
+            height: 14,
+        },
+        samples_per_pixel: 2,
+        pass: 3,
+        lights: DirectLights::All,
+    };
+    w.send(&ToRenderer::DirectTile(tile.clone())).await.unwrap();
+    let FromRenderer::DirectTile(answer) = recv(&mut r).await.unwrap() else {
+        panic!("expected a tile")
+    };
+    assert_eq!(answer.pixels, trace_tile(&world, &tile).0.pixels);
+    assert!(answer.pixels.iter().any(|p| p.rgb[0] > 0.0));
+    let outside = TileRequest {
+        rect: TileRect { x: 33, ..tile.rect },
+        ..tile
+    };
+    w.send(&ToRenderer::DirectTile(outside)).await.unwrap();
+    let FromRenderer::TileRejected { tile_id: 9, reason } = recv(&mut r).await.unwrap() else {
+        panic!("expected a refusal")
+    };
+    assert!(reason.contains("outside"), "{reason}");
 
     // A second SMA on its own link is served at the same time.
     let (mut r2, mut w2) = connect_as_sma(server.addr, fp).await.unwrap();

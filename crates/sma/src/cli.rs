@@ -14,10 +14,11 @@ use protocol::admission::PortLimits;
 use protocol::liveness::Liveness;
 
 use crate::cache_file::{CacheFileConfig, Location};
-use crate::config::{Profile, ScheduleConfig, SmaConfig};
+use crate::config::{DirectTileSettings, Profile, ScheduleConfig, SmaConfig};
 use crate::criteria::{CriterionKind, CriterionSettings};
 use crate::indirect_filter::IndirectFilterSettings;
 use crate::mesh::{MeshParams, NeighbourRule};
+use protocol::direct_tile::DirectLights;
 
 fn defaults() -> SmaConfig {
     SmaConfig::default()
@@ -59,6 +60,12 @@ fn on_off(text: &str) -> Result<bool, String> {
         "off" => Ok(false),
         _ => Err(format!("{text:?}: on or off")),
     }
+}
+
+/// A `DirectLights` by its name.
+fn direct_lights(text: &str) -> Result<DirectLights, String> {
+    let found = DirectLights::ALL.into_iter().find(|l| l.name() == text);
+    found.ok_or_else(|| format!("{text:?}: sun, sun-sky or all"))
 }
 
 /// A fraction: at least 0, below 1.
@@ -284,6 +291,14 @@ pub struct Cli {
     /// stop subdividing a leaf once its vertices differ by no more, beyond their noise.
     #[arg(long, default_value_t = defaults().schedule.display_error)]
     pub display_error: f32,
+    /// While a viewer's camera rests, ask the renderers for its direct light per pixel and
+    /// forward it in tiles (on|off) [default: off, until the viewer shows them].
+    #[arg(long, value_parser = on_off)]
+    pub per_pixel_direct: Option<bool>,
+    /// The lights the per-pixel tiles trace (sun|sun-sky|all): only `all` replaces the
+    /// vertices' whole direct part; the others measure a light's cost and noise per pixel.
+    #[arg(long, value_parser = direct_lights, default_value = "all")]
+    pub per_pixel_lights: DirectLights,
     /// Keep the mesh and the samples in this file between runs, and start from what it holds
     /// (DESIGN.md §5); a file of another scene, version or settings is renamed to
     /// `PATH.rejected` [default: none; none under --profile thesis].
@@ -478,6 +493,11 @@ impl Cli {
             top_up_share: self.top_up_share,
             bounces: self.bounces,
             display_error: self.display_error,
+            direct_tiles: DirectTileSettings {
+                enabled: (self.per_pixel_direct)
+                    .unwrap_or(defaults().schedule.direct_tiles.enabled),
+                lights: self.per_pixel_lights,
+            },
         }
     }
 }

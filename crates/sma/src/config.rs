@@ -5,6 +5,7 @@
 use std::time::Duration;
 
 use protocol::admission::PortLimits;
+use protocol::direct_tile::DirectLights;
 use protocol::frame::DEFAULT_MAX_FRAME;
 use protocol::liveness::Liveness;
 
@@ -364,6 +365,8 @@ pub struct ScheduleConfig {
     /// this gets no more paths: the view has converged when every one is (or is at the cap)
     /// and the criterion finds nothing to subdivide.
     pub display_error: f32,
+    /// Direct light per pixel while a viewer's camera rests (`direct_tiles`).
+    pub direct_tiles: DirectTileSettings,
 }
 
 impl Default for ScheduleConfig {
@@ -409,6 +412,24 @@ impl Default for ScheduleConfig {
             bounces: None,
             // One step of an 8-bit display.
             display_error: 1.0 / 255.0,
+            direct_tiles: DirectTileSettings::default(),
+        }
+    }
+}
+
+/// What per-pixel direct light a viewer gets (DESIGN.md §3 step 8, `direct_tiles`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DirectTileSettings {
+    /// Off: the viewer shows the vertices' direct part alone, to measure against.
+    pub enabled: bool,
+    pub lights: DirectLights,
+}
+
+impl Default for DirectTileSettings {
+    fn default() -> Self {
+        DirectTileSettings {
+            enabled: false,
+            lights: DirectLights::All,
         }
     }
 }

@@ -36,6 +36,7 @@ pub mod visible_set;
 pub mod cli;
 pub(crate) mod clock;
 pub mod config;
+pub(crate) mod direct_tiles;
 pub(crate) mod pool;
 pub(crate) mod schedule;
 pub mod server;

@@ -18,6 +18,7 @@ mod backlog;
 mod busy;
 mod link;
 mod rate;
+mod tiles;
 
 use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::sync::{Arc, Mutex};
@@ -26,7 +27,7 @@ use std::time::Duration;
 use protocol::SceneIdentity;
 use protocol::admission::{ConnectionLimit, PortLimits};
 use protocol::liveness::Liveness;
-use protocol::renderer_link::{FromRenderer, Radiance, ShadeBatch};
+use protocol::renderer_link::{FromRenderer, Radiance, ShadeBatch, ToRenderer};
 use tokio::net::TcpListener;
 use tokio::sync::{Notify, mpsc, watch};
 use tokio::time::Instant;
@@ -82,9 +83,12 @@ pub enum PoolEvent {
     Failed { batch: ShadeBatch, reason: String },
     /// The number of renderers answering changed.
     Renderers { connected: usize },
+    /// What became of a direct-light tile (`tiles`).
+    Tile(TileNews),
 }
 
 pub use backlog::Lane;
+pub use tiles::TileNews;
 
 /// The most batches handed over to the pool and not yet answered, with `renderers` answering
 /// (counted as one when none is): the `depth` each holds, and [`BACKLOG_BATCHES_PER_RENDERER`]
@@ -100,6 +104,7 @@ pub struct PoolHandle {
     /// Wakes the dispatcher when a batch is handed over.
     submitted: Arc<Notify>,
     busy: Arc<Mutex<BusyMeter>>,
+    tiles: Arc<Mutex<tiles::TileQueue>>,
     /// Batches in flight per renderer (`PoolConfig::depth`).
     depth: usize,
     /// The backlog's bound: [`most_batches`] with every renderer the pool may serve answering
@@ -169,6 +174,7 @@ pub fn spawn(
     let max_backlog = most_batches(config.depth, config.renderers.len() + joined);
     let backlog = Arc::new(Mutex::new(Backlog::default()));
     let submitted = Arc::new(Notify::new());
+    let tiles = Arc::new(Mutex::new(tiles::TileQueue::default()));
     let (link_tx, link_rx) = mpsc::channel(LINK_QUEUE);
     for (index, addr) in config.renderers.iter().enumerate() {
         let link = Dialed {
@@ -198,6 +204,7 @@ pub fn spawn(
         rates: HashMap::new(),
         backlog: Arc::clone(&backlog),
         in_flight: HashMap::new(),
+        tiles: tiles::TileLane::new(Arc::clone(&tiles)),
         news: VecDeque::new(),
         answering: 0,
         none_answering: false,
@@ -207,6 +214,7 @@ pub fn spawn(
         backlog,
         submitted,
         busy,
+        tiles,
         depth,
         max_backlog,
     }
@@ -217,7 +225,8 @@ struct Slot {
     generation: u64,
     name: String,
     joined: bool,
-    batches: mpsc::Sender<ShadeBatch>,
+    /// Batches and direct-light tiles, each counted in `outstanding`.
+    batches: mpsc::Sender<ToRenderer>,
     outstanding: usize,
     /// The units of the batches it holds.
     units: f64,
@@ -242,6 +251,7 @@ struct Dispatcher {
     /// Shared with the schedule's handle, which fills it and may withdraw what is not sent.
     backlog: Arc<Mutex<Backlog>>,
     in_flight: HashMap<u64, InFlight>,
+    tiles: tiles::TileLane,
     /// Events for the schedule, sent in order once a turn of the dispatcher is done.
     news: VecDeque<PoolEvent>,
     /// The renderers answering, as last told to the schedule.
@@ -267,6 +277,7 @@ impl Dispatcher {
                 _ = sleep_until(due), if due.is_some() => self.expire(Instant::now()),
             }
             self.dispatch();
+            self.dispatch_tiles();
             self.observe_busy();
             self.publish_capacity();
             self.report_answering();
@@ -340,6 +351,7 @@ impl Dispatcher {
         tracing::warn!(renderer = %slot.name, %reason, held, "renderer lost; re-issuing its batches");
         let joined = slot.joined;
         self.links.remove(&index);
+        self.drop_tiles_of(index, generation);
         if joined {
             self.rates.remove(&index);
         }
@@ -386,6 +398,13 @@ impl Dispatcher {
                 return;
             }
             FromRenderer::Pong { .. } => return,
+            FromRenderer::DirectTile(answer) => {
+                let tile_id = answer.tile_id;
+                return self.on_tile_reply(index, generation, tile_id, Ok(answer));
+            }
+            FromRenderer::TileRejected { tile_id, reason } => {
+                return self.on_tile_reply(index, generation, tile_id, Err(reason));
+            }
         };
         // Only the connection that holds the batch now may answer it (at most once).
         let owned = self
@@ -460,7 +479,10 @@ impl Dispatcher {
                 self.config.liveness.silence,
                 self.config.first_deadline,
             );
-            if slot.batches.try_send(queued.batch.clone()).is_err() {
+            if (slot.batches)
+                .try_send(ToRenderer::ShadeBatch(queued.batch.clone()))
+                .is_err()
+            {
                 // The link task ended; its Down is on its way.
                 let generation = slot.generation;
                 lock(&self.backlog).push_front(queued);

@@ -236,7 +236,7 @@ fn combine(a: &Estimate, b: &Estimate) -> Estimate {
 
 /// Chan, Golub and LeVeque's pairwise update of mean and variance: `b`'s `nb` paths added to
 /// `a`'s `na`.
-fn combine_part(a: &PartEstimate, na: f64, b: &PartEstimate, nb: f64) -> PartEstimate {
+pub(crate) fn combine_part(a: &PartEstimate, na: f64, b: &PartEstimate, nb: f64) -> PartEstimate {
     let n = na + nb;
     let rgb =
         std::array::from_fn(|i| ((na * f64::from(a.rgb[i]) + nb * f64::from(b.rgb[i])) / n) as f32);

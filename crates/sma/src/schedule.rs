@@ -36,6 +36,7 @@ mod ahead;
 mod answers;
 mod coarsening;
 mod counters;
+mod direct;
 mod ladder;
 mod memory;
 mod need;
@@ -241,6 +242,7 @@ impl Schedule {
                 self.owed.queue_changed();
             }
             PoolEvent::Renderers { connected } => self.renderers = connected,
+            PoolEvent::Tile(news) => self.on_tile_news(news),
         }
     }
 
@@ -269,6 +271,7 @@ impl Schedule {
             self.replan();
             self.submit_batches();
         }
+        self.request_tiles();
         if allowed.sync.now() {
             self.timed(Work::Sync, Self::sync_viewers);
         }
@@ -315,7 +318,7 @@ impl Schedule {
             && self.viewers.iter().all(|v| {
                 // Without refinement no criterion runs: there is nothing to subdivide.
                 let dry = v.criterion_dry || !self.config.refine;
-                v.view.is_some() && dry && !v.wait.needs_pass()
+                v.view.is_some() && dry && !v.wait.needs_pass() && self.tiles_converged(v)
             })
             && self.requests.outstanding() == 0
             && self.refinement.pending.is_empty()
@@ -508,7 +511,7 @@ impl Schedule {
             } else {
                 Lane::Background
             };
-            // A full backlog gives the batch back: its samples are asked for again later.
+            // A full backlog gives the batch back, its samples asked for again later.
             if let Err(batch) = self.pool.submit(batch, lane) {
                 self.requests.finished(&batch);
                 self.owed.queue_changed();

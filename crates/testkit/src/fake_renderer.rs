@@ -5,7 +5,9 @@ use std::sync::{Arc, Mutex};
 
 use glam::Vec3;
 use protocol::connection::{SceneCheck, accept_handshake};
+use protocol::direct_tile::{TileAnswer, TileRequest};
 use protocol::renderer_link::{FromRenderer, Quality, Radiance, SampleKey, ShadePoint, ToRenderer};
+use protocol::types::PartEstimate;
 use protocol::{Role, SampleParts, SceneIdentity, Side, split_tcp};
 use scene::Scene;
 use tokio::net::TcpListener;
@@ -31,6 +33,8 @@ pub enum Fault {
     NoisyTaking(std::time::Duration),
     /// The points of this mesh vertex are answered NaN, every other point as usual.
     NanAt(u32),
+    /// A direct-light tile is taken and never answered: the link is dropped, the listener kept.
+    DropAtTile,
 }
 
 /// Where `point` lies in the world.
@@ -38,6 +42,24 @@ fn position(scene: &Scene, point: &ShadePoint) -> Vec3 {
     let [a, b, c] = scene.mesh.triangle_positions(point.base_triangle as usize);
     let [u, v] = point.bary;
     a * (1.0 - u - v) + b * u + c * v
+}
+
+/// A tile's answer: every pixel a direct part of 0.5 whose samples scatter by as much, so its
+/// accumulation's standard error falls pass after pass.
+fn direct_tile(tile: &TileRequest) -> FromRenderer {
+    let pixel = PartEstimate {
+        rgb: [0.5; 3],
+        luminance_variance: 0.25,
+    };
+    FromRenderer::DirectTile(TileAnswer {
+        tile_id: tile.tile_id,
+        camera_seq: tile.camera.seq,
+        rect: tile.rect,
+        pass: tile.pass,
+        samples_per_pixel: tile.samples_per_pixel,
+        pixels: vec![pixel; tile.rect.pixels()],
+        micros: 1,
+    })
 }
 
 /// Starts the stand-in for `scene`; returns its address and its request log.
@@ -71,6 +93,13 @@ async fn serve(listener: TcpListener, scene: Scene, shading: Shading, fault: Fau
                 // Heartbeats are answered like a real renderer's, however the batches go.
                 Ok(ToRenderer::Ping { nonce }) => {
                     if writer.send(&FromRenderer::Pong { nonce }).await.is_err() {
+                        break;
+                    }
+                    continue;
+                }
+                Ok(ToRenderer::DirectTile(_)) if fault == Fault::DropAtTile => break,
+                Ok(ToRenderer::DirectTile(tile)) => {
+                    if writer.send(&direct_tile(&tile)).await.is_err() {
                         break;
                     }
                     continue;

@@ -15,6 +15,7 @@ use std::time::Duration;
 use anyhow::{Context, bail};
 use glam::Vec3;
 use protocol::connection::{TcpReader, TcpWriter, connect_handshake};
+use protocol::direct_tile::ViewerTile;
 use protocol::frame::DEFAULT_MAX_FRAME;
 use protocol::viewer_link::{
     Camera, Epoch, SceneInfo, ShownTriangle, SmaToViewer, Stats, TriangleId, ViewerToSma,
@@ -40,6 +41,10 @@ pub struct Probe {
     pub stats: Option<Stats>,
     /// Every `Stats`, in order.
     pub stats_seen: Vec<Stats>,
+    /// Every direct-light tile, in order, with the number of epochs seen before it.
+    pub tiles: Vec<(usize, ViewerTile)>,
+    /// Every camera sent, for the tiles' sizes.
+    sent: Vec<Camera>,
     next_seq: u64,
 }
 
@@ -114,6 +119,8 @@ impl Probe {
             refinement: Vec::new(),
             stats: None,
             stats_seen: Vec::new(),
+            tiles: Vec::new(),
+            sent: Vec::new(),
             next_seq: 0,
         })
     }
@@ -152,6 +159,7 @@ impl Probe {
     pub async fn camera(&mut self, mut camera: Camera) -> anyhow::Result<Camera> {
         self.next_seq += 1;
         camera.seq = self.next_seq;
+        self.sent.push(camera.clone());
         self.send(ViewerToSma::Camera(camera.clone())).await?;
         Ok(camera)
     }
@@ -254,6 +262,15 @@ impl Probe {
                 self.stats = Some(stats);
                 self.stats_seen.push(stats);
             }
+            // A direct tile changes no triangle: it is kept, checked as a viewer checks it.
+            SmaToViewer::DirectTile(tile) => {
+                let camera = self.sent.iter().find(|c| c.seq == tile.camera_seq);
+                let camera = camera.context("a tile of a camera never sent")?;
+                if let Err(reason) = tile.check(camera.width, camera.height) {
+                    bail!("a tile its own check refuses: {reason}");
+                }
+                self.tiles.push((self.epochs.len(), tile));
+            }
             SmaToViewer::SceneInfo(_) | SmaToViewer::Ping { .. } => {}
             SmaToViewer::Error { message } => bail!("the SMA reported an error: {message}"),
         }
@@ -281,6 +298,23 @@ impl Probe {
                 self.epochs.last()
             )
         })?
+    }
+
+    /// Messages until the tiles so far satisfy `done`, within `timeout`.
+    pub async fn until_tiles(
+        &mut self,
+        timeout: Duration,
+        mut done: impl FnMut(&[(usize, ViewerTile)]) -> bool,
+    ) -> anyhow::Result<()> {
+        tokio::time::timeout(timeout, async {
+            while !done(&self.tiles) {
+                let message = self.read().await?;
+                self.apply(message)?;
+            }
+            Ok(())
+        })
+        .await
+        .with_context(|| format!("tiles not as awaited within {timeout:?}"))?
     }
 
     /// The first epoch answering camera `seq` with nothing outstanding.

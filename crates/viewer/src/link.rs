@@ -263,6 +263,11 @@ async fn session(
                             return SessionEnd::Lost(e.to_string());
                         }
                     }
+                    // The SMA sends these only under `--per-pixel-direct on`: this viewer does
+                    // not draw them yet (DESIGN.md §3 step 8), and says so once per tile.
+                    Ok(SmaToViewer::DirectTile(tile)) => {
+                        tracing::debug!(camera = tile.camera_seq, rect = ?tile.rect, "direct tile not drawn");
+                    }
                     Ok(msg) => match staging.stage(msg) {
                         Staged::Held => {}
                         Staged::Closed(update) => notify(LinkEvent::Update(update)),
@@ -327,6 +332,7 @@ fn kind(msg: &SmaToViewer) -> &'static str {
         SmaToViewer::Refinement { .. } => "Refinement",
         SmaToViewer::Error { .. } => "Error",
         SmaToViewer::Ping { .. } => "Ping",
+        SmaToViewer::DirectTile(_) => "DirectTile",
     }
 }
 

@@ -3,6 +3,9 @@
 //! the request order (replies carry the batch id). After `Bye`, the end of the peer's stream or a
 //! shutdown, batches not yet answered are dropped (the SMA re-issues a lost renderer's work).
 //!
+//! A direct tile (`direct_tile`) is work of the same kind: it runs on the pool, counts as one
+//! batch held, and is answered when done.
+//!
 //! Liveness and bounds (DESIGN.md §2, §8): heartbeats are answered from this task, never queued
 //! behind the workers; an SMA silent past the link's silence limit is gone, and a frame stalled
 //! halfway is cut off; a connection holds at most `max_batches` batches, and one more is refused
@@ -17,13 +20,15 @@ use protocol::connection::{
     SceneCheck, TcpReader, TcpWriter, accept_handshake_within, connect_handshake, refuse_handshake,
     split_tcp,
 };
+use protocol::direct_tile::TileRequest;
 use protocol::handshake::{Hello, Role};
 use protocol::renderer_link::{FromRenderer, ShadeBatch, ToRenderer};
 use tokio::net::TcpStream;
 use tokio::sync::{mpsc, watch};
 use tokio::time::Instant;
 
-use super::{MAX_BOUNCES, MAX_PATHS, Service};
+use super::{MAX_BOUNCES, MAX_PATHS, MAX_TILE_SAMPLES, Service};
+use crate::direct_tile::trace_tile;
 use crate::shade::shade_batch;
 
 /// Replies other than radiance (pongs, refusals) that may wait for the writer at once, beyond
@@ -109,7 +114,13 @@ async fn serve_link(
         heard = Instant::now();
         let reply = match msg {
             Ok(ToRenderer::ShadeBatch(batch)) => {
-                match take(&service, batch, &replies, &closed, &held) {
+                match take(&service, Work::Batch(batch), &replies, &closed, &held) {
+                    Some(reply) => reply,
+                    None => continue,
+                }
+            }
+            Ok(ToRenderer::DirectTile(tile)) => {
+                match take(&service, Work::Tile(tile), &replies, &closed, &held) {
                     Some(reply) => reply,
                     None => continue,
                 }
@@ -148,17 +159,52 @@ fn silent(silence: Duration) -> ProtocolError {
     ))
 }
 
-/// Starts `batch` on the workers, or the reply that refuses it.
+/// What the workers compute for the SMA: a batch of points, or one pass over a direct tile.
+enum Work {
+    Batch(ShadeBatch),
+    Tile(TileRequest),
+}
+
+impl Work {
+    /// The reply that refuses it, saying why.
+    fn refusal(&self, reason: String) -> FromRenderer {
+        match self {
+            Work::Batch(b) => FromRenderer::Rejected {
+                batch_id: b.batch_id,
+                reason,
+            },
+            Work::Tile(t) => FromRenderer::TileRejected {
+                tile_id: t.tile_id,
+                reason,
+            },
+        }
+    }
+
+    fn check(&self) -> Result<(), String> {
+        match self {
+            Work::Batch(b) => check(b),
+            Work::Tile(t) => t.check(MAX_TILE_SAMPLES),
+        }
+    }
+
+    fn run(&self, world: &crate::world::World) -> FromRenderer {
+        match self {
+            Work::Batch(b) => FromRenderer::Radiance(shade_batch(world, b).0),
+            Work::Tile(t) => FromRenderer::DirectTile(trace_tile(world, t).0),
+        }
+    }
+}
+
+/// Starts `work` on the workers, or the reply that refuses it.
 fn take(
     service: &Arc<Service>,
-    batch: ShadeBatch,
+    work: Work,
     replies: &mpsc::Sender<FromRenderer>,
     closed: &Arc<AtomicBool>,
     held: &Arc<AtomicUsize>,
 ) -> Option<FromRenderer> {
-    let batch_id = batch.batch_id;
-    if let Err(reason) = check(&batch) {
-        return Some(FromRenderer::Rejected { batch_id, reason });
+    if let Err(reason) = work.check() {
+        return Some(work.refusal(reason));
     }
     // One reply place per batch held, so a worker never waits for the writer.
     let permit = (held.load(Ordering::Relaxed) < service.max_batches)
@@ -169,15 +215,14 @@ fn take(
             "this renderer holds at most {} batches per connection; batch refused",
             service.max_batches
         );
-        return Some(FromRenderer::Rejected { batch_id, reason });
+        return Some(work.refusal(reason));
     };
     held.fetch_add(1, Ordering::Relaxed);
     let world = Arc::clone(&service.world);
     let (closed, held) = (Arc::clone(closed), Arc::clone(held));
     service.pool.spawn(move || {
         if !closed.load(Ordering::Relaxed) {
-            let (radiance, _) = shade_batch(&world, &batch);
-            permit.send(FromRenderer::Radiance(radiance));
+            permit.send(work.run(&world));
         }
         held.fetch_sub(1, Ordering::Relaxed);
     });

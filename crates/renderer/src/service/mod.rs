@@ -19,6 +19,8 @@ use crate::world::World;
 
 /// Largest `paths` per point a batch may ask for (a guard against a peer asking for years of work).
 pub const MAX_PATHS: u32 = 1 << 20;
+/// Most camera rays per pixel one pass over a direct tile may ask for.
+pub const MAX_TILE_SAMPLES: u32 = 1024;
 /// Largest finite bounce depth a batch may ask for.
 pub const MAX_BOUNCES: u32 = 1024;
 /// Batches one connection holds at once by default: the SMA keeps a few in flight per renderer

@@ -10,7 +10,7 @@ use protocol::admission::{Admission, ConnectionLimit};
 use protocol::connection::{
     SceneCheck, TcpReader, TcpWriter, accept_handshake_within, connect_handshake, refuse_handshake,
 };
-use protocol::renderer_link::{FromRenderer, ShadeBatch, ToRenderer};
+use protocol::renderer_link::{FromRenderer, ToRenderer};
 use protocol::{Hello, ProtocolError, Role, split_tcp};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{mpsc, watch};
@@ -27,7 +27,7 @@ pub enum LinkEvent {
         name: String,
         /// It came in on the renderer port: once down, its place is not kept.
         joined: bool,
-        batches: mpsc::Sender<ShadeBatch>,
+        batches: mpsc::Sender<ToRenderer>,
     },
     Reply {
         index: usize,
@@ -236,7 +236,7 @@ async fn serve(
     let reason = loop {
         let out = tokio::select! {
             batch = batches.recv() => match batch {
-                Some(batch) => ToRenderer::ShadeBatch(batch),
+                Some(work) => work,
                 None => break GIVEN_UP_BY_THE_POOL.to_string(),
             },
             _ = heartbeat.tick() => {

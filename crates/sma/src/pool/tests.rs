@@ -37,16 +37,16 @@ fn flat([x, y, z]: [f32; 3]) -> [f32; 3] {
 /// A pool of one stand-in renderer that holds one batch at a time.
 async fn pool_of_one() -> (PoolHandle, mpsc::Receiver<PoolEvent>, watch::Sender<bool>) {
     let scene = scene::load("cornell").expect("the built-in Cornell box");
-    pool_dialing(scene.clone(), &scene).await
+    pool_dialing(scene.clone(), &scene, Fault::None).await
 }
 
 /// A pool of the SMA's `scene` dialing one stand-in renderer that has loaded `renderers`.
 async fn pool_dialing(
     renderers: scene::Scene,
     scene: &scene::Scene,
+    fault: Fault,
 ) -> (PoolHandle, mpsc::Receiver<PoolEvent>, watch::Sender<bool>) {
-    let (addr, _log) =
-        fake_renderer::start(renderers, |p, _, _, _| flat(p.into()), Fault::None).await;
+    let (addr, _log) = fake_renderer::start(renderers, |p, _, _, _| flat(p.into()), fault).await;
     let config = PoolConfig {
         renderers: vec![addr],
         scene: crate::viewer_link::scene_identity(scene),
@@ -87,6 +87,7 @@ async fn next_answer(events: &mut mpsc::Receiver<PoolEvent>) -> u64 {
                 panic!("batch {} failed: {reason}", batch.batch_id)
             }
             Some(PoolEvent::Renderers { .. }) => {}
+            Some(PoolEvent::Tile(news)) => panic!("no tile was asked for: {news:?}"),
             None => panic!("the pool closed"),
         }
     }
@@ -99,7 +100,7 @@ async fn a_renderer_with_other_textures_never_joins() {
     let scene = scene::load("cornell").expect("the built-in Cornell box");
     let mut textured = scene.clone();
     textured.settings.textures.enabled = true;
-    let (_pool, mut events, _shutdown) = pool_dialing(textured, &scene).await;
+    let (_pool, mut events, _shutdown) = pool_dialing(textured, &scene, Fault::None).await;
     let joined = tokio::time::timeout(Duration::from_millis(1500), until_connected(&mut events));
     assert!(
         joined.await.is_err(),
@@ -166,4 +167,75 @@ async fn urgent_batches_go_out_before_more_paths_handed_over_earlier() {
         urgent_at <= 2,
         "the urgent batch came {urgent_at}th: {order:?}"
     );
+}
+
+fn tile_request(tile_id: u64) -> protocol::direct_tile::TileRequest {
+    use protocol::direct_tile::{DirectLights, TileRect, TileRequest};
+    use protocol::viewer_link::Camera;
+    TileRequest {
+        tile_id,
+        camera: Camera {
+            seq: 1,
+            eye: [0.0, 1.0, 5.0],
+            orientation: [0.0, 0.0, 0.0, 1.0],
+            fov_y_deg: 60.0,
+            width: 64,
+            height: 64,
+        },
+        rect: TileRect::cover(64, 64)[0],
+        samples_per_pixel: 2,
+        pass: 0,
+        lights: DirectLights::All,
+    }
+}
+
+#[tokio::test]
+async fn a_tile_goes_out_only_once_no_batch_waits_and_a_withdrawn_one_never() {
+    let (pool, mut events, _shutdown) = pool_of_one().await;
+    until_connected(&mut events).await;
+    for id in 1..=10 {
+        pool.submit(batch(id), Lane::Background).unwrap();
+    }
+    pool.submit_tile(tile_request(7));
+    pool.submit_tile(tile_request(8));
+    pool.withdraw_tiles(&[8]);
+    let mut order = Vec::new();
+    let wait = tokio::time::timeout(Duration::from_secs(20), async {
+        while order.len() < 11 {
+            match events.recv().await {
+                Some(PoolEvent::Shaded { batch, .. }) => order.push(Some(batch.batch_id)),
+                Some(PoolEvent::Tile(TileNews::Answered(answer))) => {
+                    assert_eq!(answer.tile_id, 7, "only the tile not withdrawn");
+                    order.push(None);
+                }
+                Some(PoolEvent::Renderers { .. }) => {}
+                other => panic!("{other:?}"),
+            }
+        }
+    });
+    wait.await.expect("every batch and the tile answered");
+    assert_eq!(
+        order.last(),
+        Some(&None),
+        "the tile went after every batch: {order:?}"
+    );
+}
+
+#[tokio::test]
+async fn a_tile_its_renderer_took_down_with_it_is_dropped_not_reissued() {
+    let scene = scene::load("cornell").expect("the built-in Cornell box");
+    let (pool, mut events, _shutdown) =
+        pool_dialing(scene.clone(), &scene, Fault::DropAtTile).await;
+    until_connected(&mut events).await;
+    pool.submit_tile(tile_request(3));
+    let dropped = tokio::time::timeout(Duration::from_secs(20), async {
+        loop {
+            match events.recv().await {
+                Some(PoolEvent::Tile(TileNews::Dropped { tile_id, .. })) => return tile_id,
+                Some(PoolEvent::Renderers { .. }) => {}
+                other => panic!("{other:?}"),
+            }
+        }
+    });
+    assert_eq!(dropped.await.expect("the lost tile is reported"), 3);
 }

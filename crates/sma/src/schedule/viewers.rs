@@ -15,6 +15,7 @@ use super::waits::ViewWait;
 use crate::cache::ShadingCache;
 use crate::config::{Profile, ScheduleConfig};
 use crate::criteria::{Criterion, CriterionKind, CriterionSettings, make_criterion};
+use crate::direct_tiles::DirectTiles;
 use crate::mesh::{NodeId, SubdivisionMesh};
 use crate::viewer_link::{Outbox, ViewerEvent, ViewerId};
 use crate::visibility::LeafView;
@@ -45,6 +46,8 @@ pub struct Viewer {
     pub criterion_dry: bool,
     pub last_l_white: Option<f32>,
     last_outstanding: Option<u64>,
+    /// Its resting camera's direct light per pixel (`direct_tiles`).
+    pub direct: DirectTiles,
 }
 
 /// What the schedule's state a sync reads.
@@ -78,6 +81,7 @@ impl Viewer {
             criterion_dry: false,
             last_l_white: None,
             last_outstanding: None,
+            direct: DirectTiles::default(),
         }
     }
 
@@ -105,6 +109,9 @@ impl Viewer {
         self.wait.camera_moved();
         self.criterion.reset();
         self.criterion_dry = false;
+        // A move returns the viewer to the vertex picture at once (DESIGN.md §3 step 8).
+        self.direct.camera_moved();
+        self.outbox.drop_tiles();
     }
 
     /// Whether its view was drawn from another camera than its current one.

@@ -16,6 +16,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Instant;
 
 use indexmap::IndexMap;
+use protocol::direct_tile::ViewerTile;
 use protocol::types::Rgb;
 use protocol::viewer_link::{Epoch, Recolour, ShownTriangle, SmaToViewer, Stats, TriangleId};
 use tokio::sync::Notify;
@@ -28,6 +29,9 @@ const ID_BYTES: usize = 10;
 const TRIANGLE_BYTES: usize = ID_BYTES + 2 * 9 * 4;
 const RECOLOUR_BYTES: usize = ID_BYTES + 9 * 4;
 const NOTE_BYTES: usize = 256;
+/// A `ViewerTile`'s bytes besides its pixels', at most, and each pixel's (four halves).
+const TILE_BYTES: usize = 48;
+const TILE_PIXEL_BYTES: usize = 8;
 
 /// What one triangle's messages since the last write add up to.
 #[derive(Clone, Debug, PartialEq)]
@@ -150,6 +154,13 @@ struct Pending {
     /// The newest statistics, oldest first: a viewer that keeps up sees every interval, one
     /// that lags the last `STATS_KEPT`.
     stats: VecDeque<Stats>,
+    /// The latest accumulation of each direct-light tile of one camera, by its top-left pixel
+    /// (`direct_tiles`): a newer one replaces the one waiting, a newer camera drops them all.
+    tiles: IndexMap<(u32, u32), ViewerTile>,
+}
+
+fn tile_bytes(tile: &ViewerTile) -> usize {
+    TILE_BYTES + tile.pixels.len() * TILE_PIXEL_BYTES
 }
 
 /// Statistics kept for a viewer that lags.
@@ -184,18 +195,30 @@ impl Pending {
                 }
                 self.stats.push_back(stats);
             }
+            SmaToViewer::DirectTile(tile) => {
+                let older = |t: &ViewerTile| t.camera_seq < tile.camera_seq;
+                if self.tiles.values().next().is_some_and(older) {
+                    self.tiles.clear();
+                }
+                self.tiles.insert((tile.rect.x, tile.rect.y), tile);
+            }
             note => self.notes.push(note),
         }
     }
 
     /// Bytes waiting, at most.
     fn bytes(&self) -> usize {
-        (self.notes.len() + self.stats.len()) * NOTE_BYTES + self.closed.bytes + self.open.bytes
+        (self.notes.len() + self.stats.len()) * NOTE_BYTES
+            + self.closed.bytes
+            + self.open.bytes
+            + self.tiles.values().map(tile_bytes).sum::<usize>()
     }
 
     /// What may go out now, in sending order; the changes no epoch has closed yet stay.
     fn take_closed(&mut self) -> Vec<SmaToViewer> {
         let mut messages = std::mem::take(&mut self.notes);
+        let tiles = std::mem::take(&mut self.tiles).into_values();
+        messages.extend(tiles.map(SmaToViewer::DirectTile));
         if let Some(epoch) = self.epoch.take() {
             std::mem::take(&mut self.closed).write_into(&mut messages);
             messages.push(SmaToViewer::Epoch(epoch));
@@ -288,6 +311,11 @@ impl Outbox {
     /// Bytes waiting for the viewer, at most (what the SMA's memory budget counts of it).
     pub fn waiting_bytes(&self) -> usize {
         self.shared.pending().bytes()
+    }
+
+    /// Drops the direct-light tiles waiting: the viewer's camera moved.
+    pub fn drop_tiles(&self) {
+        self.shared.pending().tiles.clear();
     }
 
     /// Resolves once the waiting changes have passed the bound.
