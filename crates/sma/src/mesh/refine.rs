@@ -74,6 +74,28 @@ impl SubdivisionMesh {
         steps
     }
 
+    /// Splits every node of `targets` red (a leaf, or a green-split node whose greens go), then
+    /// closes the mesh once, as one step: the cache file's replay of a whole level of stored
+    /// splits (DESIGN.md §5). Split one call at a time, each closure would green the neighbours
+    /// the same level then splits red, and the steps would cost more than the splits. Skipped
+    /// like [`Self::refine`]'s: red already, dead, degenerate, too short.
+    pub fn split_red_all(&mut self, targets: &[NodeId]) -> RefinementStep {
+        let (mut step, mut queue) = (StepRecorder::bulk(), Vec::new());
+        for &id in targets {
+            let node = self.node(id);
+            if !node.is_alive()
+                || matches!(node.split(), Split::Red { .. })
+                || self.is_degenerate(id)
+                || self.longest_edge(id) < self.min_split_edge
+            {
+                continue;
+            }
+            self.red_split(id, &mut step, &mut queue);
+        }
+        self.close(&mut step, &mut queue);
+        step.finish(self)
+    }
+
     /// Splits leaves with hanging vertices until none is left: one hanging edge gets a green
     /// bisection (or, by the thesis's rule, a red split: `neighbour_rule`), two or three a red
     /// split; a green leaf with any has its parent split red.

@@ -1,6 +1,9 @@
 //! One refinement or coarsening step and its whole closure: the unit the SMA sends to a viewer
 //! in one update (DESIGN.md §4), so the viewer never shows a T-junction or a hole.
 
+use std::collections::HashSet;
+
+use super::fast_hash::FastHash;
 use super::{NodeId, SubdivisionMesh, VertexId};
 
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -19,13 +22,27 @@ pub struct RefinementStep {
 pub(super) struct StepRecorder {
     touched: Vec<(NodeId, bool)>,
     pub(super) new_vertices: Vec<VertexId>,
+    /// The nodes touched, for a bulk step (`SubdivisionMesh::split_red_all`) that touches too
+    /// many for the scan.
+    bulk: Option<HashSet<NodeId, FastHash>>,
 }
 
 impl StepRecorder {
+    pub(super) fn bulk() -> StepRecorder {
+        StepRecorder {
+            bulk: Some(HashSet::default()),
+            ..StepRecorder::default()
+        }
+    }
+
     /// Call before changing whether `id` is a leaf.
     pub(super) fn before_change(&mut self, mesh: &SubdivisionMesh, id: NodeId) {
-        let was_leaf = (id as usize) < mesh.nodes.len() && mesh.is_leaf(id);
-        if !self.touched.iter().any(|&(t, _)| t == id) {
+        let first = match &mut self.bulk {
+            Some(seen) => seen.insert(id),
+            None => !self.touched.iter().any(|&(t, _)| t == id),
+        };
+        if first {
+            let was_leaf = (id as usize) < mesh.nodes.len() && mesh.is_leaf(id);
             self.touched.push((id, was_leaf));
         }
     }
