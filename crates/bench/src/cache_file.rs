@@ -228,7 +228,7 @@ fn trial(dir: &Path, levels: usize) -> anyhow::Result<Trial> {
 fn periodic_pauses(dir: &Path, steps: u32) -> anyhow::Result<(f64, f64, f64, usize)> {
     let path = dir.join("periodic.redb");
     let _ = std::fs::remove_file(&path);
-    let (mut mesh, cache) = fresh();
+    let (mut mesh, mut cache) = fresh();
     let mut file = CacheFile::open(&path, Duration::ZERO, &key(), &mesh)
         .ok_or_else(|| anyhow::anyhow!("the cache file could not be opened"))?;
     refine_uniformly(&mut mesh, 2);

@@ -323,6 +323,22 @@ mod tests {
     }
 
     #[test]
+    fn neighbours_split_together_leave_no_greens_between_them() {
+        let mut mesh = SubdivisionMesh::new(&square(), MeshParams::default());
+        let step = mesh.split_red_all(&[0, 1]);
+        assert!(matches!(mesh.node(0).split(), Split::Red { .. }));
+        assert!(matches!(mesh.node(1).split(), Split::Red { .. }));
+        assert_eq!(mesh.leaf_count(), 8);
+        assert_eq!(step.replaced_leaves, vec![0, 1]);
+        assert_eq!(step.new_leaves.len(), 8, "no green made and undone");
+        assert_eq!(step.new_vertices.len(), 5);
+        assert!(
+            mesh.split_red_all(&[0]).new_leaves.is_empty(),
+            "red already"
+        );
+    }
+
+    #[test]
     fn vetoed_and_too_short_leaves_are_not_split() {
         let mut mesh = SubdivisionMesh::new(&square(), MeshParams::default());
         assert!(mesh.refine(&[0], &|id| id == 0).is_empty());
