@@ -8,8 +8,6 @@
 //! sample traced in this run is as new as any stored); where two records hold a vertex (an edge
 //! or corner two base triangles share), the deeper estimate with more paths wins.
 
-use std::collections::HashMap;
-
 use protocol::Side;
 use protocol::renderer_link::SampleKey;
 
@@ -17,7 +15,6 @@ use super::record::{
     BadShape, BaseRecord, GREEN_ALONG, LEAF, RED, StoredSample, synthetic_corners, vertex_map,
 };
 use crate::cache::ShadingCache;
-use crate::mesh::fast_hash::FastHash;
 use crate::mesh::{NodeId, RefinementStep, Split, SubdivisionMesh, VertexId};
 
 /// A record checked and parsed, ready to replay.
@@ -143,10 +140,11 @@ pub fn restore(
     let start = std::time::Instant::now();
     let steps = replay_splits(records, mesh);
     let replay = start.elapsed();
-    // The best stored sample per slot `2 * vertex + side`.
+    // The best stored sample per slot `2 * vertex + side`: a table by slot, as the cache's own
+    // is (zeroed pages cost nothing until touched), and the slots filled, in order.
+    let mut best: Vec<Option<&StoredSample>> = vec![None; 2 * mesh.vertex_count()];
     let stored_samples: usize = records.iter().map(|p| p.record.samples.len()).sum();
-    let mut best: HashMap<usize, &StoredSample, FastHash> =
-        HashMap::with_capacity_and_hasher(2 * stored_samples, FastHash::default());
+    let mut filled = Vec::with_capacity(2 * stored_samples);
     let mut owners = Vec::new();
     let mut unmatched_vertices = 0;
     for parsed in records {
@@ -163,18 +161,21 @@ pub fn restore(
                 else {
                     continue;
                 };
-                best.entry(2 * vertex as usize + side)
-                    .and_modify(|kept| {
-                        if rank(sample) > rank(kept) {
-                            *kept = sample;
-                        }
-                    })
-                    .or_insert(sample);
+                let slot = 2 * vertex as usize + side;
+                match best[slot] {
+                    None => {
+                        best[slot] = Some(sample);
+                        filled.push(slot);
+                    }
+                    Some(kept) if rank(sample) > rank(kept) => best[slot] = Some(sample),
+                    Some(_) => {}
+                }
             }
         }
     }
     let mut samples = 0;
-    for (slot, sample) in best {
+    for slot in filled {
+        let Some(sample) = best[slot] else { continue };
         let side = if slot % 2 == 0 {
             Side::Front
         } else {
