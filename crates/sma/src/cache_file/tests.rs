@@ -424,3 +424,29 @@ fn a_camera_on_one_area_loads_only_its_records_and_the_others_stay_in_the_file()
     assert!(!far_leaves(&saved).is_empty());
     assert_eq!(far_leaves(&after), far_leaves(&saved));
 }
+
+#[test]
+fn a_record_that_does_not_decode_is_left_out_and_the_others_load() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = config(&dir);
+    save_one(&config);
+    {
+        const BASES: TableDefinition<u32, &[u8]> = TableDefinition::new("bases");
+        let db = Database::create(&config.path).unwrap();
+        let txn = db.begin_write().unwrap();
+        txn.open_table(BASES)
+            .unwrap()
+            .insert(0, [0xFF_u8; 3].as_slice())
+            .unwrap();
+        txn.commit().unwrap();
+    }
+    let (mut mesh, mut cache) = fresh();
+    let file = open_all(&config, &key(), &mut mesh, &mut cache).expect("opens");
+    assert!(
+        !file_refused(&config),
+        "one bad record does not refuse the file"
+    );
+    assert!(file.warned_unreadable);
+    assert!(file.restored().bases > 0);
+    assert!(!cache.is_empty());
+}
