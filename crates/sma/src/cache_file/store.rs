@@ -143,12 +143,12 @@ fn read_index(db: &Database, key: &StoreKey) -> Result<Vec<u32>, Unusable> {
         .map_err(|e| unreadable(&e))
 }
 
+/// A base triangle's record as read: decoded, or why not.
+pub type ReadRecord = (u32, Result<BaseRecord, String>);
+
 /// The records of `bases`, in one read transaction (the writer's commits go on beside it):
 /// each decoded, or why not. Those the file does not hold are left out.
-pub fn read_records(
-    db: &Database,
-    bases: &[u32],
-) -> Result<Vec<(u32, Result<BaseRecord, String>)>, String> {
+pub fn read_records(db: &Database, bases: &[u32]) -> Result<Vec<ReadRecord>, String> {
     let read = || -> Result<_, redb::Error> {
         let txn = db.begin_read()?;
         let table = txn.open_table(BASES)?;

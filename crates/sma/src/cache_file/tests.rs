@@ -129,7 +129,7 @@ fn open_all(
 /// Saves a refined and shaded mesh, closes the file, and returns what it showed.
 fn save_one(config: &Config) -> Shown {
     let (mut mesh, mut cache) = fresh();
-    let mut file = open_all(&config, &key(), &mut mesh, &mut cache).expect("opens");
+    let mut file = open_all(config, &key(), &mut mesh, &mut cache).expect("opens");
     assert_eq!(file.restored().bases, 0, "a new file holds nothing");
     refine(&mut mesh, &[5, 17, 17, 40, 3, 90, 91]);
     shade(&mesh, &mut cache);
@@ -209,14 +209,14 @@ fn file_refused(config: &Config) -> bool {
 fn assert_refused(config: &Config) {
     let (mut mesh, mut cache) = fresh();
     let leaves = mesh.leaf_count();
-    let file = open_all(&config, &key(), &mut mesh, &mut cache).expect("a fresh file");
+    let file = open_all(config, &key(), &mut mesh, &mut cache).expect("a fresh file");
     assert!(file_refused(config), "renamed to .rejected");
     assert_eq!(mesh.leaf_count(), leaves);
     assert!(cache.is_empty());
     refine(&mut mesh, &[3]);
     file.close(&mut mesh, &cache);
     let (mut mesh, mut cache) = fresh();
-    open_all(&config, &key(), &mut mesh, &mut cache).unwrap();
+    open_all(config, &key(), &mut mesh, &mut cache).unwrap();
     assert!(mesh.leaf_count() > leaves, "the new file works");
 }
 
