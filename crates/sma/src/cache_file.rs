@@ -8,11 +8,13 @@
 //!   commit are snapshot again.
 //! - A key record (`key`): scene fingerprint, format version, the mesh settings that shape
 //!   subdivision and what a sample means. A store is used only when its key matches.
-//! - Loading is at start, whole (`restore`), not lazily per base triangle: refinement's closure
-//!   crosses base triangles (a red split greens its neighbours), so one base triangle's subtree
-//!   restored alone would leave its neighbours with hanging vertices, a crack; replaying every
-//!   record's splits at once keeps the mesh conforming. The viewers then get the restored leaves
-//!   as the usual `Insert`s of their first views.
+//! - Loading is lazy: at start only the key record and the list of stored base triangles are
+//!   read; a base triangle's record is read when the base triangle first becomes visible
+//!   ([`CacheFile::load`]), so a large site does not load whole at start. Its splits are asked
+//!   of the mesh (`restore`), whose closure keeps it conforming across base triangles (a red
+//!   split greens a neighbour, loaded or not), and the steps that made come back for the
+//!   schedule to show like refinement's. A base triangle whose record is not loaded yet is never
+//!   written: the file keeps its record as it was.
 //! - Saving is periodic and at a clean stop: the schedule's thread only snapshots the changed
 //!   base triangles, at most [`SNAPSHOT_SLICE`] of them per turn's worth of time, and the writer
 //!   thread (`writer`) encodes and commits them.
@@ -31,15 +33,18 @@ mod writer;
 mod tests;
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use redb::Database;
+
 use crate::cache::ShadingCache;
-use crate::mesh::{SubdivisionMesh, VertexId};
+use crate::mesh::{RefinementStep, SubdivisionMesh, VertexId};
 pub use key::{FORMAT_VERSION, MeshKey, SampleMeaning, StoreKey};
 use record::BaseRecord;
 pub use restore::Restored;
 use restore::{BadRecord, Parsed};
-use store::Unusable;
+use store::{Opened, Unusable};
 use writer::Writer;
 pub use writer::WriterStats;
 
@@ -113,6 +118,8 @@ pub struct Pauses {
 
 /// An open cache file: what the schedule owes it and the writer thread.
 pub struct CacheFile {
+    /// Shared with the writer: records are read beside its commits.
+    db: Arc<Database>,
     writer: Writer,
     label: String,
     /// Base triangles to snapshot, in the order they changed, with a flag each.
@@ -125,43 +132,50 @@ pub struct CacheFile {
     last_save: Instant,
     pauses: Pauses,
     restored: Restored,
+    /// Per base triangle: the file holds a record of it not loaded yet.
+    unloaded: Vec<bool>,
+    unloaded_count: usize,
+    /// One warning for records that cannot be read, not one per load.
+    warned_unreadable: bool,
 }
 
 impl CacheFile {
-    /// Opens the cache file, restores what it holds into `mesh` and `cache` (which must be fresh),
-    /// and starts its writer. None, after one warning, when the file cannot be used: the SMA
-    /// carries on without it.
+    /// Opens the cache file for `mesh` (which must be fresh) and starts its writer; loads no
+    /// record yet ([`Self::load`]). None, after one warning, when the file cannot be used: the
+    /// SMA carries on without it.
     pub fn open(
         path: &Path,
         save_every: Duration,
         key: &StoreKey,
-        mesh: &mut SubdivisionMesh,
-        cache: &mut ShadingCache,
+        mesh: &SubdivisionMesh,
     ) -> Option<CacheFile> {
         let label = path.display().to_string();
         let start = Instant::now();
-        let (opened, records) = match open_parsed(path, key, mesh.base_count()) {
-            Ok(found) => found,
-            Err(Unusable::Refused(reason)) => {
-                let fresh = set_aside(path, key, &reason)?;
-                (fresh, Vec::new())
-            }
+        let opened = match open_indexed(path, key, mesh.base_count()) {
+            Ok(opened) => opened,
+            Err(Unusable::Refused(reason)) => Opened {
+                db: set_aside(path, key, &reason)?,
+                stored: Vec::new(),
+            },
             Err(Unusable::Fault(reason)) => {
                 tracing::warn!(file = %label, "cache file not used: {reason}; the SMA carries on without it");
                 return None;
             }
         };
-        let read = start.elapsed();
-        let (mut restored, owners) = restore::restore(&records, mesh, cache);
-        restored.read = read;
-        let writer = match Writer::spawn(opened, label.clone()) {
+        let db = Arc::new(opened.db);
+        let writer = match Writer::spawn(db.clone(), label.clone()) {
             Ok(writer) => writer,
             Err(e) => {
                 tracing::warn!(file = %label, error = %e, "cache file not used: no writer thread");
                 return None;
             }
         };
+        let mut unloaded = vec![false; mesh.base_count()];
+        for &base in &opened.stored {
+            unloaded[base as usize] = true;
+        }
         let mut file = CacheFile {
+            db,
             writer,
             label,
             dirty: Vec::new(),
@@ -170,35 +184,128 @@ impl CacheFile {
             save_every,
             last_save: Instant::now(),
             pauses: Pauses::default(),
-            restored,
+            restored: Restored::default(),
+            unloaded,
+            unloaded_count: opened.stored.len(),
+            warned_unreadable: false,
         };
-        for base in 0..mesh.base_count() as u32 {
+        // A base triangle's corners are owned by one whose record is loaded where there is one:
+        // those with records not loaded yet first, so the others' ownership wins.
+        let (waiting, loaded): (Vec<u32>, Vec<u32>) =
+            (0..mesh.base_count() as u32).partition(|&b| file.unloaded[b as usize]);
+        for base in waiting.into_iter().chain(loaded) {
             file.note_owner(&mesh.node(base).vertices, base);
         }
-        for (vertex, base) in owners {
-            file.note_owner(&[vertex], base);
-        }
-        // The restore's own splits are in the file already.
-        mesh.take_changed_bases();
-        // Only a file that brought something back is news to a person; an empty one is not.
-        if restored.bases == 0 {
+        // Only a file that holds something is news to a person; an empty one is not.
+        if file.unloaded_count == 0 {
             tracing::debug!(file = %file.label, "cache file empty: the SMA starts empty");
         } else {
             tracing::info!(
                 file = %file.label,
-                bases = restored.bases,
-                leaves = mesh.leaf_count(),
-                samples = restored.samples,
-                unmatched_vertices = restored.unmatched_vertices,
+                bases = file.unloaded_count,
                 ms = start.elapsed().as_millis() as u64,
-                "cache file loaded"
+                "cache file opened; its base triangles load as they become visible"
             );
         }
-        file.restored.total = start.elapsed();
+        file.restored.open = start.elapsed();
+        file.restored.total = file.restored.open;
         Some(file)
     }
 
-    /// What the file brought back at start.
+    /// Loads the records of those of `bases` (base triangles that became visible) whose
+    /// records are not loaded yet: their splits into `mesh`, their samples into `cache` where it
+    /// has none. Returns the steps that take the viewers from the leaves before to those after.
+    /// A record that cannot be read gets one warning and is left out.
+    pub fn load(
+        &mut self,
+        bases: impl IntoIterator<Item = u32>,
+        mesh: &mut SubdivisionMesh,
+        cache: &mut ShadingCache,
+    ) -> Vec<RefinementStep> {
+        if self.unloaded_count == 0 {
+            return Vec::new();
+        }
+        let mut wanted = Vec::new();
+        for base in bases {
+            if let Some(flag) = self.unloaded.get_mut(base as usize)
+                && *flag
+            {
+                *flag = false;
+                wanted.push(base);
+            }
+        }
+        if wanted.is_empty() {
+            return Vec::new();
+        }
+        self.unloaded_count -= wanted.len();
+        let start = Instant::now();
+        let records = match store::read_records(&self.db, &wanted) {
+            Ok(records) => records,
+            Err(e) => {
+                self.warn_unreadable(&e);
+                return Vec::new();
+            }
+        };
+        let base_count = mesh.base_count();
+        let mut parsed = Vec::with_capacity(records.len());
+        for (base, record) in records {
+            let checked =
+                record.and_then(|r| Parsed::new(base, r, base_count).map_err(|e| e.to_string()));
+            match checked {
+                Ok(p) => parsed.push(p),
+                Err(e) => self.warn_unreadable(&e),
+            }
+        }
+        let read = start.elapsed();
+        // What changed before the load is this run's work, to be saved; what the load changes
+        // is in the file already.
+        for base in mesh.take_changed_bases() {
+            self.mark(base);
+        }
+        let replayed = restore::restore(&parsed, mesh, cache);
+        mesh.take_changed_bases();
+        for (vertex, base) in replayed.owners {
+            self.note_owner(&[vertex], base);
+        }
+        let load = Restored {
+            read,
+            total: start.elapsed(),
+            ..replayed.restored
+        };
+        self.restored.add(load);
+        tracing::debug!(
+            file = %self.label,
+            bases = load.bases,
+            samples = load.samples,
+            unmatched_vertices = load.unmatched_vertices,
+            ms = load.total.as_secs_f64() * 1e3,
+            "cache file records loaded"
+        );
+        replayed.steps
+    }
+
+    /// Whether the file holds records not loaded yet: while it does, each pass's visible base
+    /// triangles are worth looking up.
+    pub fn has_unloaded(&self) -> bool {
+        self.unloaded_count > 0
+    }
+
+    /// Loads every record not loaded yet (a camera that sees the whole site; tests, benchmarks).
+    pub fn load_all(
+        &mut self,
+        mesh: &mut SubdivisionMesh,
+        cache: &mut ShadingCache,
+    ) -> Vec<RefinementStep> {
+        self.load(0..mesh.base_count() as u32, mesh, cache)
+    }
+
+    fn warn_unreadable(&mut self, why: &str) {
+        if !std::mem::replace(&mut self.warned_unreadable, true) {
+            tracing::warn!(file = %self.label, "cache file records not used: {why}; the SMA traces those base triangles afresh");
+        }
+    }
+
+    /// What the file brought back so far: the open, and every load since.
     pub fn restored(&self) -> Restored {
         self.restored
     }
@@ -280,7 +387,12 @@ impl CacheFile {
         );
     }
 
+    /// Marks `base`'s record out of date, unless its stored record is not loaded yet: the file
+    /// keeps that one as it is.
     fn mark(&mut self, base: u32) {
+        if self.unloaded.get(base as usize) == Some(&true) {
+            return;
+        }
         if let Some(flag) = self.is_dirty.get_mut(base as usize)
             && !*flag
         {
@@ -331,25 +443,59 @@ impl CacheFile {
     }
 }
 
-/// Opens the store and checks every record against this mesh, before anything is restored.
-fn open_parsed(
-    path: &Path,
-    key: &StoreKey,
-    base_count: usize,
-) -> Result<(redb::Database, Vec<Parsed>), Unusable> {
+/// Every base triangle's record with something in it, encoded as the store holds it: what the
+/// benchmark's monolithic snapshot writes to one file instead, to compare the two layouts.
+#[cfg(feature = "testing")]
+pub fn encoded_records(mesh: &SubdivisionMesh, cache: &ShadingCache) -> Vec<(u32, Vec<u8>)> {
+    (0..mesh.base_count() as u32)
+        .map(|base| (base, BaseRecord::snapshot(mesh, cache, base).0))
+        .filter(|(_, record)| !record.is_empty())
+        .map(|(base, record)| {
+            (
+                base,
+                postcard::to_stdvec(&record).expect("a record encodes"),
+            )
+        })
+        .collect()
+}
+
+/// Decodes records [`encoded_records`] made and restores them into the fresh `mesh` and
+/// `cache`: the monolithic snapshot's load.
+#[cfg(feature = "testing")]
+pub fn restore_encoded(
+    records: &[(u32, Vec<u8>)],
+    mesh: &mut SubdivisionMesh,
+    cache: &mut ShadingCache,
+) -> Result<Restored, String> {
+    let start = Instant::now();
+    let parsed = records
+        .iter()
+        .map(|(base, bytes)| {
+            let record = postcard::from_bytes(bytes).map_err(|e| e.to_string())?;
+            Parsed::new(*base, record, mesh.base_count()).map_err(|e| e.to_string())
+        })
+        .collect::<Result<Vec<_>, String>>()?;
+    let read = start.elapsed();
+    let restored = restore::restore(&parsed, mesh, cache).restored;
+    Ok(Restored {
+        read,
+        total: start.elapsed(),
+        ..restored
+    })
+}
+
+/// Opens the store and checks that its records are of this mesh's base triangles.
+fn open_indexed(path: &Path, key: &StoreKey, base_count: usize) -> Result<Opened, Unusable> {
     let opened = store::open(path, key)?;
-    let records = opened
-        .records
-        .into_iter()
-        .map(|(base, record)| Parsed::new(base, record, base_count))
-        .collect::<Result<Vec<_>, BadRecord>>()
-        .map_err(|e| Unusable::Refused(e.to_string()))?;
-    Ok((opened.db, records))
+    match opened.stored.iter().find(|&&b| b as usize >= base_count) {
+        Some(&base) => Err(Unusable::Refused(BadRecord::NoSuchBase(base).to_string())),
+        None => Ok(opened),
+    }
 }
 
 /// Moves a refused store to `PATH.rejected` with one warning that says why, and opens a fresh
 /// one in its place; None (with that warning) when either fails.
-fn set_aside(path: &Path, key: &StoreKey, reason: &str) -> Option<redb::Database> {
+fn set_aside(path: &Path, key: &StoreKey, reason: &str) -> Option<Database> {
     let rejected = store::rejected_path(path);
     if let Err(e) = std::fs::rename(path, &rejected) {
         tracing::warn!(

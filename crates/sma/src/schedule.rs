@@ -51,11 +51,11 @@ mod targets;
 mod turns;
 mod uniformity;
 mod viewers;
+mod views;
 mod waits;
 
 use std::time::Instant;
 
-use anyhow::Context;
 use scene::Scene;
 use tokio::sync::{mpsc, watch};
 
@@ -67,7 +67,7 @@ use crate::indirect_filter::IndirectFilter;
 use crate::mesh::SubdivisionMesh;
 use crate::pool::{Lane, PoolEvent, PoolHandle};
 use crate::viewer_link::{ViewerEvent, ViewerId};
-use crate::visibility::{Gpu, LuminancePass, Visibility, carry_over};
+use crate::visibility::{Gpu, LuminancePass, Visibility};
 use answers::Answers;
 use counters::{Counters, Work};
 use pace::{Allowed, Paces, PassesOwed};
@@ -113,7 +113,7 @@ impl Schedule {
     pub fn new(
         config: ScheduleConfig,
         scene: std::sync::Arc<Scene>,
-        mut mesh: SubdivisionMesh,
+        mesh: SubdivisionMesh,
         gpu: Gpu,
         pool: PoolHandle,
         cache_file: Option<&CacheFileSetup>,
@@ -123,9 +123,8 @@ impl Schedule {
         let mut cache = ShadingCache::new(config.memory_budget_bytes)
             .with_l_white_outliers(config.l_white_outliers)
             .with_albedos_of(scene.clone());
-        let cache_file = cache_file.and_then(|setup| {
-            persistence::open(setup, &scene, &config, &rules, &mut mesh, &mut cache)
-        });
+        let cache_file =
+            cache_file.and_then(|setup| persistence::open(setup, &scene, &config, &rules, &mesh));
         cache.cover_albedos(&mesh);
         let luminance = LuminancePass::new(&gpu);
         let visibility = Visibility::new(gpu, &mesh, scene.mesh.bounds());
@@ -336,36 +335,13 @@ impl Schedule {
         if kept.leaves_changed {
             self.viewers.leaves_changed();
         }
-        let mut drew = false;
         // Every K samples the views are drawn afresh (thesis §4.1's revisit): a carried view
         // differs from a drawn one by slivers the rasteriser's sub-pixel grid decides, and the
         // redraw keeps them from adding up over hundreds of rounds. (Single 20-s runs on
         // bracara VT, mean FLIP at 20 s: 0.0369 carried throughout, 0.0360 with this redraw,
         // 0.0355 with every view drawn; within the runs' spread, so not a measured cure.)
         let redraw = self.counters.since_pass >= self.config.revisit_samples || kept.recycled;
-        for viewer in self.viewers.iter_mut().filter(|v| v.wait.needs_pass()) {
-            viewer.wait.pass_done();
-            let Some(camera) = &viewer.camera else {
-                continue;
-            };
-            // The camera unchanged, only the leaves did (a round, coarsening): the view is
-            // carried over, exact but for slivers, without drawing (`visibility::carry_over`).
-            let carried = viewer
-                .view
-                .take()
-                .filter(|view| !redraw && view.camera.as_ref() == Some(camera))
-                .and_then(|view| carry_over(view, &self.mesh, camera));
-            let view = match carried {
-                Some(view) => view,
-                None => {
-                    drew = true;
-                    self.visibility
-                        .leaf_view(&self.mesh, camera)
-                        .context("visibility pass")?
-                }
-            };
-            viewer.view = Some(view);
-        }
+        let drew = self.pass_views(redraw)?;
         // Every viewer's view counts as seen now, not only those just re-run: while one viewer
         // walks, what another one rests on is neither evicted nor coarsened.
         for view in self.viewers.views() {

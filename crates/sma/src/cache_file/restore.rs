@@ -1,19 +1,21 @@
-//! Rebuilding the mesh and the cache from the records (DESIGN.md §5). The splits are replayed
-//! level by level across all base triangles: a record's red splits are asked of the mesh, whose
-//! closure makes the green ones (and any red ones a neighbour's record needs), so the mesh is
-//! conforming after every split whatever records were saved together. Then every record's shape
-//! is matched against the mesh that came out, node by node from its base triangle, and each
-//! matched vertex gets its stored samples; where two records hold a vertex (an edge or corner
-//! two base triangles share), the deeper estimate with more paths wins.
-
-use std::collections::HashMap;
+//! Rebuilding the mesh and the cache from records (DESIGN.md §5), those of the base triangles
+//! that just became visible. The splits are replayed level by level across the records, a
+//! level at a time (`SubdivisionMesh::split_red_all`): a record's red splits are asked of the
+//! mesh, whose closure makes the green ones (and any red ones a neighbour needs, loaded or not),
+//! so the mesh is conforming after every level whatever records were saved or loaded together.
+//! Then every record's shape is matched against the mesh that came out, node by node from its
+//! base triangle, and each matched vertex the cache has no sample of gets its stored one (a
+//! sample traced in this run is as new as any stored); where two records hold a vertex (an edge
+//! or corner two base triangles share), the deeper estimate with more paths wins.
 
 use protocol::Side;
 use protocol::renderer_link::SampleKey;
 
-use super::record::{BadShape, BaseRecord, GREEN_ALONG, LEAF, RED, synthetic_corners, vertex_map};
-use crate::cache::{CachedSample, ShadingCache};
-use crate::mesh::{NodeId, Split, SubdivisionMesh, VertexId};
+use super::record::{
+    BadShape, BaseRecord, GREEN_ALONG, LEAF, RED, StoredSample, synthetic_corners, vertex_map,
+};
+use crate::cache::ShadingCache;
+use crate::mesh::{NodeId, RefinementStep, Split, SubdivisionMesh, VertexId};
 
 /// A record checked and parsed, ready to replay.
 pub struct Parsed {
@@ -96,26 +98,53 @@ pub struct Restored {
     /// Stored vertices whose node the rebuilt mesh does not have (its splits came out otherwise):
     /// their samples are left out.
     pub unmatched_vertices: usize,
-    /// Time opening the file (integrity check included), reading and checking the records.
+    /// Time opening the file (integrity check included) and listing its records.
+    pub open: std::time::Duration,
+    /// Time reading, decoding and checking the records.
     pub read: std::time::Duration,
     /// Time replaying the splits, and putting the samples into the cache.
     pub replay: std::time::Duration,
     pub samples_time: std::time::Duration,
-    /// The whole load.
+    /// The whole load: the open and every load since.
     pub total: std::time::Duration,
 }
 
-/// Replays every record's splits into `mesh` and puts their samples into `cache`; returns what
-/// came back and, per matched mesh vertex, a base triangle whose record holds it.
+impl Restored {
+    /// Adds a later load's counts and times.
+    pub fn add(&mut self, load: Restored) {
+        self.bases += load.bases;
+        self.samples += load.samples;
+        self.unmatched_vertices += load.unmatched_vertices;
+        self.read += load.read;
+        self.replay += load.replay;
+        self.samples_time += load.samples_time;
+        self.total += load.total;
+    }
+}
+
+/// What one restore changed: the steps that take the viewers from the leaves before it to
+/// those after, and per matched mesh vertex a base triangle whose record holds it.
+pub struct Replayed {
+    pub restored: Restored,
+    pub steps: Vec<RefinementStep>,
+    pub owners: Vec<(VertexId, u32)>,
+}
+
+/// Replays the records' splits into `mesh` and puts their samples into `cache` where it has
+/// none.
 pub fn restore(
     records: &[Parsed],
     mesh: &mut SubdivisionMesh,
     cache: &mut ShadingCache,
-) -> (Restored, Vec<(VertexId, u32)>) {
+) -> Replayed {
     let start = std::time::Instant::now();
-    replay_splits(records, mesh);
+    let steps = replay_splits(records, mesh);
     let replay = start.elapsed();
-    let mut best: HashMap<SampleKey, CachedSample> = HashMap::new();
+    // The best stored sample per slot `2 * vertex + side`: a table by slot, as the cache's own
+    // is (zeroed pages cost nothing until touched), and the slots filled, in order.
+    let mut best: Vec<Option<&StoredSample>> = vec![None; 2 * mesh.vertex_count()];
+    let stored_samples: usize = records.iter().map(|p| p.record.samples.len()).sum();
+    let mut filled = Vec::with_capacity(2 * stored_samples);
     let mut owners = Vec::new();
     let mut unmatched_vertices = 0;
     for parsed in records {
@@ -127,31 +156,39 @@ pub fn restore(
                 continue;
             };
             owners.push((vertex, parsed.base));
-            for (sample, side) in stored.iter().zip([Side::Front, Side::Back]) {
-                let Some(sample) = sample else { continue };
-                let sample = sample.cached();
-                if !sample.estimate().is_valid() {
+            for (side, sample) in stored.iter().enumerate() {
+                let Some(sample) = sample.as_ref().filter(|s| s.cached().estimate().is_valid())
+                else {
                     continue;
+                };
+                let slot = 2 * vertex as usize + side;
+                match best[slot] {
+                    None => {
+                        best[slot] = Some(sample);
+                        filled.push(slot);
+                    }
+                    Some(kept) if rank(sample) > rank(kept) => best[slot] = Some(sample),
+                    Some(_) => {}
                 }
-                best.entry(SampleKey { vertex, side })
-                    .and_modify(|kept| {
-                        if (
-                            sample.quality.bounces.map_or(u32::MAX, |b| b),
-                            sample.quality.paths,
-                        ) > (
-                            kept.quality.bounces.map_or(u32::MAX, |b| b),
-                            kept.quality.paths,
-                        ) {
-                            *kept = sample;
-                        }
-                    })
-                    .or_insert(sample);
             }
         }
     }
-    let samples = best.len();
-    for (key, sample) in best {
-        cache.insert(key, sample);
+    let mut samples = 0;
+    for slot in filled {
+        let Some(sample) = best[slot] else { continue };
+        let side = if slot % 2 == 0 {
+            Side::Front
+        } else {
+            Side::Back
+        };
+        let key = SampleKey {
+            vertex: (slot / 2) as VertexId,
+            side,
+        };
+        if cache.get(key).is_none() {
+            cache.insert(key, sample.cached());
+            samples += 1;
+        }
     }
     let restored = Restored {
         bases: records.len(),
@@ -161,41 +198,52 @@ pub fn restore(
         samples_time: start.elapsed() - replay,
         ..Restored::default()
     };
-    (restored, owners)
-}
-
-/// Asks the mesh for every record's red splits, shallowest first.
-fn replay_splits(records: &[Parsed], mesh: &mut SubdivisionMesh) {
-    let mut level: Vec<(usize, usize, NodeId)> = records
-        .iter()
-        .enumerate()
-        .map(|(r, p)| (r, 0, p.base))
-        .collect();
-    while !level.is_empty() {
-        let mut next = Vec::new();
-        for (r, i, id) in level {
-            if records[r].record.shape[i] != RED || !mesh.node(id).is_alive() {
-                continue;
-            }
-            split_red(mesh, id);
-            if let Split::Red { first_child } = mesh.node(id).split() {
-                let children = records[r].children(i).zip(first_child..);
-                next.extend(children.map(|(child, node)| (r, child, node)));
-            }
-        }
-        level = next;
+    Replayed {
+        restored,
+        steps,
+        owners,
     }
 }
 
-/// Splits `id` red unless it is: a leaf is split, a green-split node has its parent rule
-/// applied by selecting one of its green children (`SubdivisionMesh::refine`).
-fn split_red(mesh: &mut SubdivisionMesh, id: NodeId) {
-    let select = match mesh.node(id).split() {
-        Split::Red { .. } => return,
-        Split::Green { first_child, .. } => first_child,
-        Split::None => id,
-    };
-    mesh.refine(&[select], &|_| false);
+/// Of two stored samples of one vertex and side (an edge or corner two base triangles share),
+/// the deeper estimate with more paths wins: unlimited bounces first, then paths.
+fn rank(sample: &StoredSample) -> (u32, u32) {
+    (sample.bounces.unwrap_or(u32::MAX), sample.paths)
+}
+
+/// Asks the mesh for every record's red splits, shallowest first, a level at a time; one step
+/// per level that split anything.
+fn replay_splits(records: &[Parsed], mesh: &mut SubdivisionMesh) -> Vec<RefinementStep> {
+    let mut steps = Vec::new();
+    let mut level: Vec<(usize, usize, NodeId)> = records
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.record.shape[0] == RED)
+        .map(|(r, p)| (r, 0, p.base))
+        .collect();
+    let mut targets = Vec::new();
+    while !level.is_empty() {
+        targets.clear();
+        targets.extend(level.iter().map(|&(_, _, id)| id));
+        let step = mesh.split_red_all(&targets);
+        if !step.new_leaves.is_empty() {
+            steps.push(step);
+        }
+        let mut next = Vec::new();
+        for (r, i, id) in level {
+            let Split::Red { first_child } = mesh.node(id).split() else {
+                continue;
+            };
+            let children = records[r].children(i).zip(first_child..);
+            next.extend(
+                children
+                    .filter(|&(child, _)| records[r].record.shape[child] == RED)
+                    .map(|(child, node)| (r, child, node)),
+            );
+        }
+        level = next;
+    }
+    steps
 }
 
 /// Per node of the record's shape, the mesh node that has the same place in the base

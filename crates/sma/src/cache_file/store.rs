@@ -1,5 +1,6 @@
 //! The redb file under a cache file (DESIGN.md §5): opening it, refusing one that is not this
-//! SMA's, reading every record, and one write transaction per commit. redb is crash-safe by
+//! SMA's, listing the base triangles it holds records of, reading records as they are wanted,
+//! and one write transaction per commit. redb is crash-safe by
 //! design (copy-on-write pages, a checksummed commit slot), so a kill during a commit leaves the
 //! previous commit; a file altered outside redb fails its integrity check on open.
 
@@ -34,14 +35,15 @@ pub enum Unusable {
     Fault(String),
 }
 
-/// An open store and what it held.
+/// An open store and the base triangles it holds records of, ascending.
 pub struct Opened {
     pub db: Database,
-    pub records: Vec<(u32, BaseRecord)>,
+    pub stored: Vec<u32>,
 }
 
 /// Opens the store at `path` for `key`: a new or empty file becomes an empty store with the key
-/// written; an existing one must hold this key, and every record must decode.
+/// written; an existing one must pass redb's integrity check and hold this key. Its records are
+/// read later, when wanted ([`read_records`]).
 pub fn open(path: &Path, key: &StoreKey) -> Result<Opened, Unusable> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| {
@@ -67,12 +69,12 @@ pub fn open(path: &Path, key: &StoreKey) -> Result<Opened, Unusable> {
         write_key(&db, key).map_err(|e| Unusable::Fault(format!("it cannot be written: {e}")))?;
         return Ok(Opened {
             db,
-            records: Vec::new(),
+            stored: Vec::new(),
         });
     }
-    let records = std::panic::catch_unwind(AssertUnwindSafe(|| read(&db, key)))
+    let stored = std::panic::catch_unwind(AssertUnwindSafe(|| read_index(&db, key)))
         .map_err(|_| Unusable::Refused("it is corrupt (reading it failed)".into()))??;
-    Ok(Opened { db, records })
+    Ok(Opened { db, stored })
 }
 
 fn open_error(e: DatabaseError) -> Unusable {
@@ -108,8 +110,8 @@ fn write_key(db: &Database, key: &StoreKey) -> Result<(), redb::Error> {
     Ok(())
 }
 
-/// Checks the key record and decodes every record.
-fn read(db: &Database, key: &StoreKey) -> Result<Vec<(u32, BaseRecord)>, Unusable> {
+/// Checks the key record and lists the base triangles with a record.
+fn read_index(db: &Database, key: &StoreKey) -> Result<Vec<u32>, Unusable> {
     let unreadable =
         |e: &dyn std::fmt::Display| Unusable::Refused(format!("reading it failed: {e}"));
     let txn = db.begin_read().map_err(|e| unreadable(&e))?;
@@ -135,18 +137,35 @@ fn read(db: &Database, key: &StoreKey) -> Result<Vec<(u32, BaseRecord)>, Unusabl
         return Err(Unusable::Refused(reason));
     }
     let bases = txn.open_table(BASES).map_err(|e| unreadable(&e))?;
-    let mut records = Vec::new();
-    for entry in bases.iter().map_err(|e| unreadable(&e))? {
-        let (base, bytes) = entry.map_err(|e| unreadable(&e))?;
-        let base = base.value();
-        let record = postcard::from_bytes(bytes.value()).map_err(|_| {
-            Unusable::Refused(format!(
-                "the record of base triangle {base} does not decode"
-            ))
-        })?;
-        records.push((base, record));
-    }
-    Ok(records)
+    let keys = bases.iter().map_err(|e| unreadable(&e))?;
+    keys.map(|entry| entry.map(|(base, _)| base.value()))
+        .collect::<Result<_, _>>()
+        .map_err(|e| unreadable(&e))
+}
+
+/// A base triangle's record as read: decoded, or why not.
+pub type ReadRecord = (u32, Result<BaseRecord, String>);
+
+/// The records of `bases`, in one read transaction (the writer's commits go on beside it):
+/// each decoded, or why not. Those the file does not hold are left out.
+pub fn read_records(db: &Database, bases: &[u32]) -> Result<Vec<ReadRecord>, String> {
+    let read = || -> Result<_, redb::Error> {
+        let txn = db.begin_read()?;
+        let table = txn.open_table(BASES)?;
+        let mut records = Vec::with_capacity(bases.len());
+        for &base in bases {
+            if let Some(bytes) = table.get(base)? {
+                let record = postcard::from_bytes(bytes.value()).map_err(|e| {
+                    format!("the record of base triangle {base} does not decode ({e})")
+                });
+                records.push((base, record));
+            }
+        }
+        Ok(records)
+    };
+    std::panic::catch_unwind(AssertUnwindSafe(read))
+        .map_err(|_| "the store could not read it".to_string())?
+        .map_err(|e| e.to_string())
 }
 
 /// Where a refused store is moved: `PATH.rejected`.

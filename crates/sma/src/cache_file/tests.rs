@@ -118,17 +118,22 @@ fn config(dir: &tempfile::TempDir) -> Config {
     }
 }
 
+/// Opens the file and loads every record, as a camera that sees the whole site would.
+fn open_all(
+    config: &Config,
+    key: &StoreKey,
+    mesh: &mut SubdivisionMesh,
+    cache: &mut ShadingCache,
+) -> Option<CacheFile> {
+    let mut file = CacheFile::open(&config.path, config.save_every, key, mesh)?;
+    file.load_all(mesh, cache);
+    Some(file)
+}
+
 /// Saves a refined and shaded mesh, closes the file, and returns what it showed.
 fn save_one(config: &Config) -> Shown {
     let (mut mesh, mut cache) = fresh();
-    let mut file = CacheFile::open(
-        &config.path,
-        config.save_every,
-        &key(),
-        &mut mesh,
-        &mut cache,
-    )
-    .expect("opens");
+    let mut file = open_all(config, &key(), &mut mesh, &mut cache).expect("opens");
     assert_eq!(file.restored().bases, 0, "a new file holds nothing");
     refine(&mut mesh, &[5, 17, 17, 40, 3, 90, 91]);
     shade(&mesh, &mut cache);
@@ -144,14 +149,7 @@ fn a_saved_mesh_and_its_samples_come_back_the_same() {
     let config = config(&dir);
     let before = save_one(&config);
     let (mut mesh, mut cache) = fresh();
-    let file = CacheFile::open(
-        &config.path,
-        config.save_every,
-        &key(),
-        &mut mesh,
-        &mut cache,
-    )
-    .expect("opens");
+    let file = open_all(&config, &key(), &mut mesh, &mut cache).expect("opens");
     assert!(file.restored().bases > 0);
     assert_eq!(file.restored().unmatched_vertices, 0);
     assert_eq!(shown(&mesh, &cache), before);
@@ -164,14 +162,7 @@ fn a_dropped_file_keeps_its_last_commit() {
     let dir = tempfile::tempdir().unwrap();
     let config = config(&dir);
     let (mut mesh, mut cache) = fresh();
-    let mut file = CacheFile::open(
-        &config.path,
-        config.save_every,
-        &key(),
-        &mut mesh,
-        &mut cache,
-    )
-    .unwrap();
+    let mut file = open_all(&config, &key(), &mut mesh, &mut cache).unwrap();
     refine(&mut mesh, &[1, 2, 30]);
     shade(&mesh, &mut cache);
     file.samples_changed(0..mesh.vertex_count() as u32);
@@ -180,14 +171,7 @@ fn a_dropped_file_keeps_its_last_commit() {
     refine(&mut mesh, &[7]);
     drop(file);
     let (mut mesh, mut cache) = fresh();
-    let _file = CacheFile::open(
-        &config.path,
-        config.save_every,
-        &key(),
-        &mut mesh,
-        &mut cache,
-    )
-    .unwrap();
+    let _file = open_all(&config, &key(), &mut mesh, &mut cache).unwrap();
     assert_eq!(shown(&mesh, &cache), saved);
 }
 
@@ -196,14 +180,7 @@ fn a_save_rewrites_only_the_base_triangles_that_changed() {
     let dir = tempfile::tempdir().unwrap();
     let config = config(&dir);
     let (mut mesh, mut cache) = fresh();
-    let mut file = CacheFile::open(
-        &config.path,
-        config.save_every,
-        &key(),
-        &mut mesh,
-        &mut cache,
-    )
-    .unwrap();
+    let mut file = open_all(&config, &key(), &mut mesh, &mut cache).unwrap();
     refine(&mut mesh, &[4, 50, 51, 52]);
     shade(&mesh, &mut cache);
     file.save_now(&mut mesh, &cache);
@@ -236,28 +213,14 @@ fn file_refused(config: &Config) -> bool {
 fn assert_refused(config: &Config) {
     let (mut mesh, mut cache) = fresh();
     let leaves = mesh.leaf_count();
-    let file = CacheFile::open(
-        &config.path,
-        config.save_every,
-        &key(),
-        &mut mesh,
-        &mut cache,
-    )
-    .expect("a fresh file");
+    let file = open_all(config, &key(), &mut mesh, &mut cache).expect("a fresh file");
     assert!(file_refused(config), "renamed to .rejected");
     assert_eq!(mesh.leaf_count(), leaves);
     assert!(cache.is_empty());
     refine(&mut mesh, &[3]);
     file.close(&mut mesh, &cache);
     let (mut mesh, mut cache) = fresh();
-    CacheFile::open(
-        &config.path,
-        config.save_every,
-        &key(),
-        &mut mesh,
-        &mut cache,
-    )
-    .unwrap();
+    open_all(config, &key(), &mut mesh, &mut cache).unwrap();
     assert!(mesh.leaf_count() > leaves, "the new file works");
 }
 
@@ -295,14 +258,7 @@ fn a_file_of_another_scene_is_refused() {
     let mut other = key();
     other.scene[0] ^= 1;
     let (mut mesh, mut cache) = fresh();
-    CacheFile::open(
-        &config.path,
-        config.save_every,
-        &other,
-        &mut mesh,
-        &mut cache,
-    )
-    .expect("a fresh file");
+    open_all(&config, &other, &mut mesh, &mut cache).expect("a fresh file");
     assert!(file_refused(&config));
     assert!(cache.is_empty());
 }
@@ -332,16 +288,7 @@ fn a_file_another_handle_holds_is_left_alone_and_the_sma_carries_on() {
     save_one(&config);
     let _other_sma = Database::create(&config.path).unwrap();
     let (mut mesh, mut cache) = fresh();
-    assert!(
-        CacheFile::open(
-            &config.path,
-            config.save_every,
-            &key(),
-            &mut mesh,
-            &mut cache
-        )
-        .is_none()
-    );
+    assert!(open_all(&config, &key(), &mut mesh, &mut cache).is_none());
     assert!(!file_refused(&config), "a locked file is not refused");
     assert!(cache.is_empty());
 }
@@ -356,16 +303,7 @@ fn an_unwritable_directory_leaves_the_sma_without_a_file() {
         save_every: CacheFileConfig::SAVE_EVERY,
     };
     let (mut mesh, mut cache) = fresh();
-    assert!(
-        CacheFile::open(
-            &config.path,
-            config.save_every,
-            &key(),
-            &mut mesh,
-            &mut cache
-        )
-        .is_none()
-    );
+    assert!(open_all(&config, &key(), &mut mesh, &mut cache).is_none());
 }
 
 #[test]
@@ -376,14 +314,7 @@ fn periodic_saves_pause_for_a_slice_at_most_and_catch_up() {
         ..config(&dir)
     };
     let (mut mesh, mut cache) = fresh();
-    let mut file = CacheFile::open(
-        &config.path,
-        config.save_every,
-        &key(),
-        &mut mesh,
-        &mut cache,
-    )
-    .unwrap();
+    let mut file = open_all(&config, &key(), &mut mesh, &mut cache).unwrap();
     refine(&mut mesh, &[1, 2, 3, 60, 61]);
     shade(&mesh, &mut cache);
     let saved = shown(&mesh, &cache);
@@ -394,14 +325,7 @@ fn periodic_saves_pause_for_a_slice_at_most_and_catch_up() {
     file.writer.commit_and_wait(Vec::new());
     drop(file);
     let (mut mesh, mut cache) = fresh();
-    CacheFile::open(
-        &config.path,
-        config.save_every,
-        &key(),
-        &mut mesh,
-        &mut cache,
-    )
-    .unwrap();
+    open_all(&config, &key(), &mut mesh, &mut cache).unwrap();
     let restored = shown(&mesh, &cache);
     assert_eq!(
         restored.keys().collect::<Vec<_>>(),
@@ -424,4 +348,109 @@ fn a_per_scene_file_is_named_by_scene_and_fingerprint() {
         CacheFileConfig::at("/a.redb").path("s", &[0; 32]),
         PathBuf::from("/a.redb")
     );
+}
+
+/// The base triangles whose centroid is in the square [lo, hi)² of the 6×6 grid.
+fn bases_in(mesh: &SubdivisionMesh, lo: f32, hi: f32) -> Vec<u32> {
+    (0..mesh.base_count() as u32)
+        .filter(|&b| {
+            let c = mesh.leaf_positions(b).iter().sum::<glam::Vec3>() / 3.0;
+            (lo..hi).contains(&c.x) && (lo..hi).contains(&c.y)
+        })
+        .collect()
+}
+
+/// Refines, three levels deep, the leaves of the base triangles in [lo, hi)².
+fn refine_area(mesh: &mut SubdivisionMesh, lo: f32, hi: f32) {
+    for _ in 0..3 {
+        let leaves: Vec<_> = bases_in(mesh, lo, hi)
+            .into_iter()
+            .flat_map(|b| mesh.leaves_of_base(b))
+            .collect();
+        mesh.refine(&leaves, &|_| false);
+    }
+}
+
+#[test]
+fn a_camera_on_one_area_loads_only_its_records_and_the_others_stay_in_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = config(&dir);
+    let (mut mesh, mut cache) = fresh();
+    let mut file = CacheFile::open(&config.path, config.save_every, &key(), &mesh).unwrap();
+    refine_area(&mut mesh, 0.0, 1.5);
+    refine_area(&mut mesh, 4.5, 6.0);
+    shade(&mesh, &mut cache);
+    file.samples_changed(0..mesh.vertex_count() as u32);
+    let saved = shown(&mesh, &cache);
+    file.close(&mut mesh, &cache);
+
+    // Opening reads no record; a camera on the first area loads only its base triangles'.
+    let (mut mesh, mut cache) = fresh();
+    let mut file = CacheFile::open(&config.path, config.save_every, &key(), &mesh).unwrap();
+    let stored = file.unloaded_count;
+    assert_eq!(file.restored().bases, 0);
+    let near = bases_in(&mesh, 0.0, 1.5);
+    let far = bases_in(&mesh, 4.5, 6.0);
+    let steps = file.load(near.iter().copied(), &mut mesh, &mut cache);
+    assert!(!steps.is_empty(), "the loaded leaves come as steps");
+    assert_eq!(
+        file.restored().bases,
+        near.len(),
+        "one record per base of the area"
+    );
+    assert!(stored >= near.len() + far.len());
+    assert!(
+        far.iter().all(|&b| mesh.leaves_of_base(b).len() == 1),
+        "the far area is not loaded"
+    );
+    assert!(near.iter().all(|&b| mesh.leaves_of_base(b).len() > 1));
+    assert_eq!(
+        file.load(near.iter().copied(), &mut mesh, &mut cache),
+        Vec::new()
+    );
+
+    // Work in the near area is saved; the far area's records, never loaded, stay as they were,
+    // though samples of its vertices changed meanwhile.
+    refine(&mut mesh, &[0]);
+    shade(&mesh, &mut cache);
+    file.samples_changed(0..mesh.vertex_count() as u32);
+    file.close(&mut mesh, &cache);
+    let (mut mesh, mut cache) = fresh();
+    let _file = open_all(&config, &key(), &mut mesh, &mut cache).unwrap();
+    let far_leaves = |shown: &Shown| {
+        shown
+            .iter()
+            .filter(|(corners, _)| corners.iter().all(|c| f32::from_bits(c[0]) >= 4.5))
+            .map(|(c, s)| (c.clone(), s.clone()))
+            .collect::<Vec<_>>()
+    };
+    let after = shown(&mesh, &cache);
+    assert!(!far_leaves(&saved).is_empty());
+    assert_eq!(far_leaves(&after), far_leaves(&saved));
+}
+
+#[test]
+fn a_record_that_does_not_decode_is_left_out_and_the_others_load() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = config(&dir);
+    save_one(&config);
+    {
+        const BASES: TableDefinition<u32, &[u8]> = TableDefinition::new("bases");
+        let db = Database::create(&config.path).unwrap();
+        let txn = db.begin_write().unwrap();
+        txn.open_table(BASES)
+            .unwrap()
+            .insert(0, [0xFF_u8; 3].as_slice())
+            .unwrap();
+        txn.commit().unwrap();
+    }
+    let (mut mesh, mut cache) = fresh();
+    let file = open_all(&config, &key(), &mut mesh, &mut cache).expect("opens");
+    assert!(
+        !file_refused(&config),
+        "one bad record does not refuse the file"
+    );
+    assert!(file.warned_unreadable);
+    assert!(file.restored().bases > 0);
+    assert!(!cache.is_empty());
 }

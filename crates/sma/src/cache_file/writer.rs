@@ -48,7 +48,7 @@ pub struct Writer {
 pub struct Busy(pub Vec<(u32, Option<BaseRecord>)>);
 
 impl Writer {
-    pub fn spawn(db: Database, label: String) -> std::io::Result<Writer> {
+    pub fn spawn(db: Arc<Database>, label: String) -> std::io::Result<Writer> {
         let (to_writer, from_schedule) = sync_channel(COMMITS_WAITING);
         let stats = Arc::new(Mutex::new(WriterStats::default()));
         let thread = {
@@ -114,7 +114,7 @@ impl Drop for Writer {
 }
 
 fn write_loop(
-    db: Database,
+    db: Arc<Database>,
     from_schedule: Receiver<ToWriter>,
     stats: &Mutex<WriterStats>,
     label: &str,

@@ -74,6 +74,28 @@ impl SubdivisionMesh {
         steps
     }
 
+    /// Splits every node of `targets` red (a leaf, or a green-split node whose greens go), then
+    /// closes the mesh once, as one step: the cache file's replay of a whole level of stored
+    /// splits (DESIGN.md §5). Split one call at a time, each closure would green the neighbours
+    /// the same level then splits red, and the steps would cost more than the splits. Skipped
+    /// like [`Self::refine`]'s: red already, dead, degenerate, too short.
+    pub fn split_red_all(&mut self, targets: &[NodeId]) -> RefinementStep {
+        let (mut step, mut queue) = (StepRecorder::bulk(), Vec::new());
+        for &id in targets {
+            let node = self.node(id);
+            if !node.is_alive()
+                || matches!(node.split(), Split::Red { .. })
+                || self.is_degenerate(id)
+                || self.longest_edge(id) < self.min_split_edge
+            {
+                continue;
+            }
+            self.red_split(id, &mut step, &mut queue);
+        }
+        self.close(&mut step, &mut queue);
+        step.finish(self)
+    }
+
     /// Splits leaves with hanging vertices until none is left: one hanging edge gets a green
     /// bisection (or, by the thesis's rule, a red split: `neighbour_rule`), two or three a red
     /// split; a green leaf with any has its parent split red.
@@ -306,6 +328,22 @@ mod tests {
             step.new_leaves
                 .iter()
                 .all(|&l| mesh.node(l).parent() == Some(1))
+        );
+    }
+
+    #[test]
+    fn neighbours_split_together_leave_no_greens_between_them() {
+        let mut mesh = SubdivisionMesh::new(&square(), MeshParams::default());
+        let step = mesh.split_red_all(&[0, 1]);
+        assert!(matches!(mesh.node(0).split(), Split::Red { .. }));
+        assert!(matches!(mesh.node(1).split(), Split::Red { .. }));
+        assert_eq!(mesh.leaf_count(), 8);
+        assert_eq!(step.replaced_leaves, vec![0, 1]);
+        assert_eq!(step.new_leaves.len(), 8, "no green made and undone");
+        assert_eq!(step.new_vertices.len(), 5);
+        assert!(
+            mesh.split_red_all(&[0]).new_leaves.is_empty(),
+            "red already"
         );
     }
 
