@@ -221,6 +221,7 @@ fn wall(n: usize) -> Vec<ShownTriangle> {
                     id,
                     positions,
                     radiance: positions.map(radiance),
+                    direct_share: Default::default(),
                 });
             }
         }
@@ -246,6 +247,7 @@ fn random_triangle(id: u64, rng: &mut XorShift) -> ShownTriangle {
         id,
         positions: [p(), p(), p()],
         radiance: [p(), p(), p()],
+        direct_share: Default::default(),
     }
 }
 

@@ -1,15 +1,20 @@
 //! Offscreen drawing of known triangles: expected pixel colours from the Rust tone maps of
 //! `conventions::tone_map` (thesis eq. 4.1, 4.2), so the WGSL shader, which cannot import them, is
 //! held to their values (luminance, both operators, sRGB) on a real wgpu device; Gouraud
-//! interpolation; the depth test; the wireframe overlay; and the headless binary writing its
+//! interpolation; the depth test; the wireframe overlay; per-pixel direct tiles in place of the
+//! vertices' direct part, for the resting camera only; and the headless binary writing its
 //! snapshot files.
 
 mod common;
 
 use common::{StandIn, front_camera, known_triangles, scene};
-use protocol::viewer_link::{Epoch, SmaToViewer, ViewerToSma};
+use protocol::direct_tile::{TilePixel, TileRect, ViewerTile};
+use protocol::viewer_link::{Camera, DirectShare, Epoch, ShownTriangle, SmaToViewer, ViewerToSma};
+use viewer::direct_image::DirectImage;
 use viewer::gpu::{Gpu, headless_or_skip};
-use viewer::{DrawSettings, Snapshot, ToneMap, render_offscreen_with};
+use viewer::{
+    DrawSettings, Snapshot, ToneMap, render_offscreen_with, render_offscreen_with_direct,
+};
 
 const W: u32 = 160;
 const H: u32 = 120;
@@ -378,4 +383,105 @@ fn a_scene_far_from_the_origin_draws_the_centred_picture() {
         differing, 0,
         "{differing} pixels differ far from the origin"
     );
+}
+
+/// The known triangles with half of every vertex's radiance direct.
+fn half_direct_triangles() -> Vec<ShownTriangle> {
+    let mut triangles = known_triangles();
+    for t in &mut triangles {
+        t.direct_share = [DirectShare(128); 3];
+    }
+    triangles
+}
+
+/// A tile of one known direct radiance over `rect`, exact (no standard error).
+fn constant_tile(camera_seq: u64, rect: TileRect, rgb: [f32; 3]) -> ViewerTile {
+    ViewerTile {
+        camera_seq,
+        rect,
+        samples: 16,
+        pixels: vec![TilePixel::new(rgb, 0.0); rect.pixels()],
+    }
+}
+
+#[test]
+fn a_resting_viewer_draws_its_direct_tiles_and_a_camera_move_drops_them() {
+    let Some(gpu) = gpu("a_resting_viewer_draws_its_direct_tiles_and_a_camera_move_drops_them")
+    else {
+        return;
+    };
+    let settings = DrawSettings {
+        l_white: L_WHITE,
+        ..DrawSettings::default()
+    };
+    let triangles = half_direct_triangles();
+    let resting = front_camera(1, W, H);
+    let mut direct = DirectImage::default();
+    direct.follow(&resting);
+    let draw = |direct: &DirectImage, camera| {
+        render_offscreen_with_direct(&gpu, &triangles, direct, camera, &settings).unwrap()
+    };
+    let before = draw(&direct, &resting);
+    // Over part of the flat square (radiance (2, 0.8, 0.3), half of it direct).
+    let rect = TileRect {
+        x: 48,
+        y: 60,
+        width: 16,
+        height: 16,
+    };
+    let tile_direct = [0.5, 0.25, 1.0];
+    assert!(direct.accept(&constant_tile(1, rect, tile_direct)));
+    let after = draw(&direct, &resting);
+    let linear = |s: &Snapshot, x: u32, y: u32| s.linear[(y * W + x) as usize];
+    let rest = 1.0 - f32::from(128u8) / 255.0;
+    let want: [f32; 3] = std::array::from_fn(|i| tile_direct[i] + [2.0, 0.8, 0.3][i] * rest);
+    for (x, y) in [(48, 60), (55, 70), (63, 75)] {
+        let found = linear(&after, x, y);
+        assert!(
+            found
+                .iter()
+                .zip(want)
+                .all(|(f, w)| (f - w).abs() <= 2e-3 * w),
+            "pixel ({x}, {y}) under the tile: {found:?}, expected {want:?}"
+        );
+        assert_close(
+            pixel(&after, x, y),
+            expected(want, ToneMap::Drago),
+            1.0,
+            "tile, tone-mapped",
+        );
+    }
+    // Outside the tile (the same square, and across the tile's edges) nothing changed.
+    for (x, y) in [(40, 70), (47, 70), (64, 70), (55, 59), (55, 76)] {
+        assert_eq!(
+            after.display.get_pixel(x, y),
+            before.display.get_pixel(x, y),
+            "pixel ({x}, {y}) outside the tile"
+        );
+    }
+    let changed = (0..W)
+        .flat_map(|x| (0..H).map(move |y| (x, y)))
+        .filter(|&(x, y)| after.display.get_pixel(x, y) != before.display.get_pixel(x, y))
+        .count();
+    assert_eq!(changed, rect.pixels(), "exactly the tile's pixels change");
+
+    // The camera moves: the picture is the vertices' at once, before the move is even sent.
+    let moved = Camera {
+        eye: [0.05, 0.0, 3.0],
+        ..resting.clone()
+    };
+    let moving = draw(&direct, &moved);
+    let plain = draw(&DirectImage::default(), &moved);
+    assert!(
+        moving.display == plain.display,
+        "a moved camera shows no tile"
+    );
+    // Once the move is sent, the old camera's tiles are dropped and refused.
+    let sent = Camera { seq: 2, ..moved };
+    direct.follow(&sent);
+    assert!(!direct.accept(&constant_tile(1, rect, tile_direct)));
+    assert!(draw(&direct, &sent).display == plain.display);
+    // Back at rest, a tile of the new camera shows again.
+    assert!(direct.accept(&constant_tile(2, rect, tile_direct)));
+    assert!(draw(&direct, &sent).display != plain.display);
 }
