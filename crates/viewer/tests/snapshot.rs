@@ -485,3 +485,74 @@ fn a_resting_viewer_draws_its_direct_tiles_and_a_camera_move_drops_them() {
     assert!(direct.accept(&constant_tile(2, rect, tile_direct)));
     assert!(draw(&direct, &sent).display != plain.display);
 }
+
+#[test]
+fn headless_binary_draws_the_direct_tiles_of_its_camera_only() {
+    let Some(gpu) = gpu("headless_binary_draws_the_direct_tiles_of_its_camera_only") else {
+        return;
+    };
+    let sma = StandIn::start(scene());
+    let out = tempfile::tempdir().unwrap();
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_viewer"))
+        .args(["--connect", &sma.addr, "--headless", "--view", "front"])
+        .args(["--width", &W.to_string(), "--height", &H.to_string()])
+        .args(["--snapshot-when-idle", "--seconds", "60", "--out"])
+        .arg(out.path())
+        .spawn()
+        .unwrap();
+    let camera = sma.expect_camera();
+    let triangles = half_direct_triangles();
+    let n = triangles.len() as u64;
+    sma.send(SmaToViewer::Insert {
+        triangles: triangles.clone(),
+    });
+    sma.send(SmaToViewer::ToneMap { l_white: L_WHITE });
+    let rect = |x| TileRect {
+        x,
+        y: 60,
+        width: 16,
+        height: 16,
+    };
+    // A tile of this camera, and one of an older camera elsewhere on the square.
+    let shown = constant_tile(camera.seq, rect(48), [0.5, 0.25, 1.0]);
+    let stale = constant_tile(camera.seq - 1, rect(24), [3.0, 0.0, 0.0]);
+    sma.send(SmaToViewer::DirectTile(shown.clone()));
+    sma.send(SmaToViewer::DirectTile(stale));
+    sma.send(SmaToViewer::Epoch(Epoch {
+        camera_seq: camera.seq,
+        shown: n,
+        inserted: n,
+        ..Epoch::default()
+    }));
+    let status = child.wait().unwrap();
+    assert!(status.success(), "viewer exited with {status}");
+
+    let csv = std::fs::read_to_string(out.path().join("snapshots.csv")).unwrap();
+    let row: Vec<&str> = csv
+        .lines()
+        .nth(1)
+        .expect("one snapshot")
+        .split(',')
+        .collect();
+    let png = image::open(out.path().join(row[27])).unwrap().into_rgb8();
+    let settings = DrawSettings {
+        l_white: L_WHITE,
+        sky: common::SKY,
+        ..DrawSettings::default()
+    };
+    let mut direct = DirectImage::default();
+    direct.follow(&camera);
+    assert!(direct.accept(&shown));
+    let want = render_offscreen_with_direct(&gpu, &triangles, &direct, &camera, &settings).unwrap();
+    let without = render_offscreen_with(&gpu, &triangles, &camera, &settings).unwrap();
+    let same = |s: &Snapshot| {
+        png.pixels()
+            .zip(s.display.pixels())
+            .all(|(a, b)| a.0[..3] == b.0[..3])
+    };
+    assert!(
+        same(&want),
+        "the snapshot differs from the drawing with the tile"
+    );
+    assert!(!same(&without), "the snapshot does not show the tile");
+}
