@@ -86,19 +86,12 @@ impl Offscreen {
     pub fn draw_frame(
         &self,
         gpu: &Gpu,
-        triangles: &GpuTriangles,
+        layers: Layers,
         camera: &Camera,
         depth: (f32, f32),
         settings: &DrawSettings,
     ) -> anyhow::Result<()> {
-        self.draw_into(
-            gpu,
-            &[&self.display],
-            (triangles, None),
-            camera,
-            depth,
-            settings,
-        );
+        self.draw_into(gpu, &[&self.display], layers, camera, depth, settings);
         gpu.wait_idle()
     }
 
