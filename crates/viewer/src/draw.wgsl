@@ -37,8 +37,10 @@ struct VertexOut {
     // GL's -1..1 before the fixed function divides by w, which loses the precision reversed Z
     // keeps far from the eye; a fragment's own z / w is the same on every backend.
     @location(2) zw: vec2<f32>,
-    // The share of `radiance` that is the direct part (albedo × direct illumination).
-    @location(3) direct_share: f32,
+    // `radiance` less its direct part (albedo × direct illumination): interpolated on its own,
+    // as the product of an interpolated share and an interpolated sum is not the interpolated
+    // rest (across a shadow edge it would carry the lit side's direct light into the shadow).
+    @location(3) rest: vec3<f32>,
 };
 
 struct FragmentOut {
@@ -57,7 +59,7 @@ fn vs_main(
     out.clip = u.view_proj * vec4<f32>(position, 1.0);
     out.zw = out.clip.zw;
     out.radiance = radiance;
-    out.direct_share = direct_share;
+    out.rest = radiance * (1.0 - direct_share);
     let k = index % 3u;
     out.bary = vec3<f32>(f32(k == 0u), f32(k == 1u), f32(k == 2u));
     return out;
@@ -141,7 +143,7 @@ fn with_direct_tiles(in: VertexOut) -> vec3<f32> {
     if texel.a < 0.5 {
         return in.radiance;
     }
-    return texel.rgb + in.radiance * (1.0 - in.direct_share);
+    return texel.rgb + in.rest;
 }
 
 fn shade(in: VertexOut) -> vec4<f32> {

@@ -464,6 +464,7 @@ fn a_resting_viewer_draws_its_direct_tiles_and_a_camera_move_drops_them() {
         .filter(|&(x, y)| after.display.get_pixel(x, y) != before.display.get_pixel(x, y))
         .count();
     assert_eq!(changed, rect.pixels(), "exactly the tile's pixels change");
+    ramp_rest_is_interpolated_per_vertex(&gpu, &settings, &resting);
 
     // The camera moves: the picture is the vertices' at once, before the move is even sent.
     let moved = Camera {
@@ -555,4 +556,35 @@ fn headless_binary_draws_the_direct_tiles_of_its_camera_only() {
         "the snapshot differs from the drawing with the tile"
     );
     assert!(!same(&without), "the snapshot does not show the tile");
+}
+
+/// Across the ramp square, all direct at its left edge (radiance 0.2) and none at its right (4.0):
+/// under a tile the rest of the vertices' radiance grows linearly from 0 to 4, as the product of
+/// an interpolated share and an interpolated sum would not.
+fn ramp_rest_is_interpolated_per_vertex(gpu: &Gpu, settings: &DrawSettings, camera: &Camera) {
+    let mut triangles = known_triangles();
+    for t in triangles.iter_mut().filter(|t| t.id == 20 || t.id == 21) {
+        t.direct_share = t
+            .radiance
+            .map(|r| DirectShare(if r[0] < 1.0 { 255 } else { 0 }));
+    }
+    let mut direct = DirectImage::default();
+    direct.follow(camera);
+    let rect = TileRect {
+        x: 96,
+        y: 52,
+        width: 16,
+        height: 16,
+    };
+    assert!(direct.accept(&constant_tile(camera.seq, rect, [0.25; 3])));
+    let s = render_offscreen_with_direct(gpu, &triangles, &direct, camera, settings).unwrap();
+    for px in [98, 105, 110] {
+        let rest = 4.0 * (world_x(px) - 0.2) / 1.2;
+        let found = s.linear[(60 * W + px) as usize];
+        let want = 0.25 + rest;
+        assert!(
+            found.iter().all(|&c| (c - want).abs() <= 2e-3 * want),
+            "ramp x={px}: {found:?}, expected {want}"
+        );
+    }
 }
