@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use protocol::frame::{DEFAULT_MAX_FRAME, decode, encode};
 use protocol::split_tcp;
-use protocol::viewer_link::{Epoch, ShownTriangle, SmaToViewer, ViewerToSma};
+use protocol::viewer_link::{DirectShare, Epoch, ShownTriangle, SmaToViewer, ViewerToSma};
 
 use testkit::child::{start_server, strings};
 
@@ -21,6 +21,7 @@ fn insert_batch(first_id: u64) -> SmaToViewer {
                 id: first_id + i,
                 positions: [[f, 0.5, -f], [f + 1.0, 2.0, 3.0], [0.25, f, 1.0]],
                 radiance: [[0.1, 0.2, 0.3], [f * 1e-3, 0.5, 0.6], [0.7, 0.8, 0.9]],
+                direct_share: [DirectShare(100), DirectShare(255), DirectShare(0)],
             }
         })
         .collect();

@@ -9,9 +9,12 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
+use protocol::direct_tile::{TilePixel, TileRect, ViewerTile};
 use protocol::types::Viewpoint;
 use protocol::viewer_link::{Camera, ShownTriangle};
 
+use viewer::direct_image::DirectImage;
+use viewer::direct_texture::GpuDirect;
 use viewer::draw::{DrawSettings, depth_range};
 use viewer::gpu::{Gpu, headless_or_skip};
 use viewer::offscreen::Offscreen;
@@ -75,13 +78,30 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
         let with_upload = apply_rates(&plan, Some(gpu))?;
         let label = format!("updates applied + uploaded ({})", batch_words(&plan));
         row(&mut out, &label, &with_upload, "M tri/s")?;
+        let mut tile_ratio = None;
         for &n in plan.frame_sizes {
-            let times = frame_times(gpu, n, plan.frames)?;
+            let times = frame_times(gpu, n, plan.frames, false)?;
             row(
                 &mut out,
                 &format!("frame time, {n} triangles, {WIDTH}×{HEIGHT}"),
                 &times,
                 "ms",
+            )?;
+            let with_tiles = frame_times(gpu, n, plan.frames, true)?;
+            row(
+                &mut out,
+                &format!("frame time, {n} triangles, direct tiles over the view"),
+                &with_tiles,
+                "ms",
+            )?;
+            tile_ratio.get_or_insert((n, median(with_tiles) / median(times)));
+        }
+        if let Some((n, ratio)) = tile_ratio {
+            let verdict = if ratio <= 1.1 { "met" } else { "NOT met" };
+            writeln!(
+                out,
+                "\nFrame with per-pixel direct tiles at {n} triangles: {ratio:.2}× the frame \
+                 without (target at most 1.1×): {verdict}."
             )?;
         }
         let verdict = if median(with_upload.clone()) >= 2.0 {
@@ -171,8 +191,9 @@ fn apply_rates(plan: &Plan, gpu: Option<&Gpu>) -> anyhow::Result<Vec<f64>> {
     Ok(rates)
 }
 
-/// Milliseconds per frame (draw + wait) for a wall of `n` triangles filling the view.
-fn frame_times(gpu: &Gpu, n: usize, frames: usize) -> anyhow::Result<Vec<f64>> {
+/// Milliseconds per frame (draw + wait) for a wall of `n` triangles filling the view, with direct
+/// tiles over the whole view (every pixel shown from its tile) if `tiles`.
+fn frame_times(gpu: &Gpu, n: usize, frames: usize, tiles: bool) -> anyhow::Result<Vec<f64>> {
     let mut table = TriangleTable::new();
     table.apply(&[TableOp::Insert(wall(n))]);
     let mut triangles = GpuTriangles::new(gpu);
@@ -184,11 +205,26 @@ fn frame_times(gpu: &Gpu, n: usize, frames: usize) -> anyhow::Result<Vec<f64>> {
         l_white: 2.0,
         ..DrawSettings::default()
     };
-    offscreen.draw_frame(gpu, &triangles, &camera, depth, &settings)?; // warm-up
+    let mut direct = GpuDirect::new(&gpu.device);
+    if tiles {
+        let mut image = DirectImage::default();
+        image.follow(&camera);
+        for rect in TileRect::cover(WIDTH, HEIGHT) {
+            image.accept(&ViewerTile {
+                camera_seq: camera.seq,
+                rect,
+                samples: 16,
+                pixels: vec![TilePixel::new([0.3, 0.2, 0.1], 0.0); rect.pixels()],
+            });
+        }
+        direct.upload(gpu, &image);
+    }
+    let layers = (&triangles, tiles.then_some(&direct));
+    offscreen.draw_frame(gpu, layers, &camera, depth, &settings)?; // warm-up
     (0..frames)
         .map(|_| {
             let start = Instant::now();
-            offscreen.draw_frame(gpu, &triangles, &camera, depth, &settings)?;
+            offscreen.draw_frame(gpu, layers, &camera, depth, &settings)?;
             Ok(start.elapsed().as_secs_f64() * 1e3)
         })
         .collect()
@@ -221,6 +257,7 @@ fn wall(n: usize) -> Vec<ShownTriangle> {
                     id,
                     positions,
                     radiance: positions.map(radiance),
+                    direct_share: Default::default(),
                 });
             }
         }
@@ -246,6 +283,7 @@ fn random_triangle(id: u64, rng: &mut XorShift) -> ShownTriangle {
         id,
         positions: [p(), p(), p()],
         radiance: [p(), p(), p()],
+        direct_share: Default::default(),
     }
 }
 

@@ -18,7 +18,7 @@
 //! use protocol::frame::{decode, encode};
 //! use protocol::viewer_link::{SmaToViewer, ShownTriangle};
 //! let msg = SmaToViewer::Insert {
-//!     triangles: vec![ShownTriangle { id: 7, positions: [[0.0; 3]; 3], radiance: [[1.0; 3]; 3] }],
+//!     triangles: vec![ShownTriangle { id: 7, positions: [[0.0; 3]; 3], radiance: [[1.0; 3]; 3], direct_share: Default::default() }],
 //! };
 //! let bytes = encode(&msg).unwrap();
 //! assert_eq!(decode::<SmaToViewer>(&bytes).unwrap(), msg);

@@ -18,13 +18,46 @@ pub type TriangleId = u64;
 pub struct ShownTriangle {
     pub id: TriangleId,
     pub positions: [Vec3f; 3],
+    /// Per vertex the displayed radiance, albedo × (direct + indirect) + view-dependent part.
     pub radiance: [Rgb; 3],
+    /// Per vertex the displayed direct part's share of `radiance` ([`DirectShare`]): a viewer
+    /// that draws per-pixel direct light (`direct_tile`) subtracts it there.
+    pub direct_share: [DirectShare; 3],
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Recolour {
     pub id: TriangleId,
     pub radiance: [Rgb; 3],
+    pub direct_share: [DirectShare; 3],
+}
+
+/// The share of a vertex's displayed radiance that is its displayed direct part (albedo × direct
+/// illumination), by luminance, in 255ths: one byte on the wire (DESIGN.md §3 step 8). The
+/// direct part is taken to have the radiance's colour; a viewer drawing a tile's per-pixel
+/// direct light in its place keeps `radiance × (1 − share)` of the vertex's.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct DirectShare(pub u8);
+
+impl DirectShare {
+    /// `direct` of `total` (RGB radiance): 0 where the total is black, at most the whole.
+    pub fn of(direct: Rgb, total: Rgb) -> DirectShare {
+        let (d, t) = (
+            conventions::luminance(direct),
+            conventions::luminance(total),
+        );
+        let share = if t > 0.0 && d.is_finite() && t.is_finite() {
+            (d / t).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        DirectShare((share * 255.0).round() as u8)
+    }
+
+    /// The share as a fraction, 0..=1.
+    pub fn fraction(self) -> f32 {
+        f32::from(self.0) / 255.0
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

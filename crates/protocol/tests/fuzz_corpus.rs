@@ -18,8 +18,8 @@ use protocol::renderer_link::{
 };
 use protocol::types::{Bounds, Viewpoint};
 use protocol::viewer_link::{
-    Camera, Epoch, MeshShape, Recolour, SceneInfo, ShownTriangle, SkyInfo, SmaMemory, SmaToViewer,
-    Stats, SunInfo, ViewerToSma,
+    Camera, DirectShare, Epoch, MeshShape, Recolour, SceneInfo, ShownTriangle, SkyInfo, SmaMemory,
+    SmaToViewer, Stats, SunInfo, ViewerToSma,
 };
 use protocol::{
     Hello, HelloReply, PROTOCOL_VERSION, PartEstimate, Role, SampleParts, SceneIdentity, Side,
@@ -334,6 +334,7 @@ fn viewer_link_seeds() -> Vec<(String, Vec<u8>)> {
         id,
         positions: [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
         radiance: [[0.5; 3], [1.0; 3], [0.0; 3]],
+        direct_share: [DirectShare(128), DirectShare(255), DirectShare(0)],
     };
     let to_viewer = [
         (
@@ -386,6 +387,7 @@ fn viewer_link_seeds() -> Vec<(String, Vec<u8>)> {
                 triangles: vec![Recolour {
                     id: 1,
                     radiance: [[2.0; 3]; 3],
+                    direct_share: [DirectShare(7); 3],
                 }],
             },
         ),

@@ -57,13 +57,18 @@ fn point() -> impl Strategy<Value = ShadePoint> {
         )
 }
 fn shown() -> impl Strategy<Value = ShownTriangle> {
-    (any::<u64>(), [v3(), v3(), v3()], [v3(), v3(), v3()]).prop_map(|(id, positions, radiance)| {
-        ShownTriangle {
+    (
+        any::<u64>(),
+        [v3(), v3(), v3()],
+        [v3(), v3(), v3()],
+        any::<[u8; 3]>(),
+    )
+        .prop_map(|(id, positions, radiance, share)| ShownTriangle {
             id,
             positions,
             radiance,
-        }
-    })
+            direct_share: share.map(DirectShare),
+        })
 }
 fn viewpoint() -> impl Strategy<Value = Viewpoint> {
     ("[A-Za-z0-9]{0,8}", v3(), v3(), v3(), 1f32..170.0).prop_map(
@@ -265,14 +270,19 @@ fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
         prop::collection::vec(shown(), 0..40)
             .prop_map(|triangles| SmaToViewer::Insert { triangles }),
         prop::collection::vec(any::<u64>(), 0..100).prop_map(|ids| SmaToViewer::Remove { ids }),
-        prop::collection::vec((any::<u64>(), [v3(), v3(), v3()]), 0..40).prop_map(|v| {
-            SmaToViewer::Update {
-                triangles: v
-                    .into_iter()
-                    .map(|(id, radiance)| Recolour { id, radiance })
-                    .collect(),
-            }
-        }),
+        prop::collection::vec((any::<u64>(), [v3(), v3(), v3()], any::<[u8; 3]>()), 0..40)
+            .prop_map(|v| {
+                SmaToViewer::Update {
+                    triangles: v
+                        .into_iter()
+                        .map(|(id, radiance, share)| Recolour {
+                            id,
+                            radiance,
+                            direct_share: share.map(DirectShare),
+                        })
+                        .collect(),
+                }
+            }),
         finite().prop_map(|l_white| SmaToViewer::ToneMap { l_white }),
         any::<[u64; 8]>().prop_map(|c| SmaToViewer::Epoch(Epoch {
             camera_seq: c[0],
@@ -367,7 +377,8 @@ proptest! {
     }
 }
 
-/// Bulk data stays compact: a shown triangle is its id varint plus 18 little-endian floats.
+/// Bulk data stays compact: a shown triangle is its id varint, 18 little-endian floats and a
+/// byte of direct share per vertex.
 #[test]
 fn triangles_encode_compactly() {
     let triangles: Vec<ShownTriangle> = (0..1000)
@@ -375,12 +386,13 @@ fn triangles_encode_compactly() {
             id: i,
             positions: [[1.0; 3]; 3],
             radiance: [[0.5; 3]; 3],
+            direct_share: [DirectShare(100); 3],
         })
         .collect();
     let bytes = encode(&SmaToViewer::Insert { triangles }).unwrap();
     let per_triangle = bytes.len() as f64 / 1000.0;
     assert!(
-        per_triangle <= 18.0 * 4.0 + 3.0,
+        per_triangle <= 18.0 * 4.0 + 3.0 + 3.0,
         "{per_triangle} bytes per triangle"
     );
 }

@@ -22,6 +22,7 @@ use std::collections::HashMap;
 
 use glam::Vec3;
 use protocol::renderer_link::SampleKey;
+use protocol::viewer_link::DirectShare;
 use protocol::{PartEstimate, Side};
 
 use crate::mesh::fast_hash::FastHash;
@@ -366,27 +367,34 @@ impl ShadingCache {
         })
     }
 
-    /// [`Self::leaf_radiance`] as seen from `eye`: view-dependent vertices give the radiance of
-    /// their kept eye nearest to it.
-    pub fn leaf_radiance_from(
+    /// [`Self::leaf_radiance`] as seen from `eye`, with each vertex's direct share, as a viewer
+    /// is sent them: view-dependent vertices give the radiance of their kept eye nearest to it.
+    pub fn leaf_colours_from(
         &self,
         mesh: &SubdivisionMesh,
         leaf: NodeId,
         side: Side,
         eye: Vec3,
-    ) -> Option<[[f32; 3]; 3]> {
-        self.leaf_radiance_with(mesh, leaf, side, |key| {
-            self.get_seen_from(key, Some(eye)).map(|s| s.rgb())
-        })
+    ) -> Option<([[f32; 3]; 3], [DirectShare; 3])> {
+        let colours = self.leaf_radiance_with(mesh, leaf, side, |key| {
+            self.get_seen_from(key, Some(eye)).map(|s| {
+                let [r, g, b] = s.rgb();
+                [r, g, b, s.direct_share().fraction()]
+            })
+        })?;
+        let share = |[_, _, _, s]: [f32; 4]| DirectShare((s * 255.0).round() as u8);
+        Some((colours.map(|[r, g, b, _]| [r, g, b]), colours.map(share)))
     }
 
-    fn leaf_radiance_with(
+    /// A leaf's vertices as `value_of` gives them, if all are cached (a failed vertex takes the
+    /// mean of the others).
+    fn leaf_radiance_with<const N: usize>(
         &self,
         mesh: &SubdivisionMesh,
         leaf: NodeId,
         side: Side,
-        rgb_of: impl Fn(SampleKey) -> Option<[f32; 3]>,
-    ) -> Option<[[f32; 3]; 3]> {
+        rgb_of: impl Fn(SampleKey) -> Option<[f32; N]>,
+    ) -> Option<[[f32; N]; 3]> {
         let keys = mesh
             .node(leaf)
             .vertices
@@ -402,7 +410,7 @@ impl ShadingCache {
         {
             return None;
         }
-        let known: Vec<[f32; 3]> = rgb.iter().flatten().copied().collect();
+        let known: Vec<[f32; N]> = rgb.iter().flatten().copied().collect();
         if known.is_empty() {
             return None;
         }

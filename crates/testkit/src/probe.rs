@@ -240,7 +240,7 @@ impl Probe {
                         .table
                         .get_mut(&r.id)
                         .with_context(|| format!("update of unknown {}", r.id))?;
-                    t.radiance = r.radiance;
+                    (t.radiance, t.direct_share) = (r.radiance, r.direct_share);
                 }
             }
             SmaToViewer::ToneMap { l_white } => self.l_white = Some(l_white),

@@ -56,7 +56,8 @@ impl CameraSender {
     }
 }
 
-fn same_view(a: &Camera, b: &Camera) -> bool {
+/// Whether two cameras see the same image (their sequence numbers aside).
+pub(crate) fn same_view(a: &Camera, b: &Camera) -> bool {
     a.eye == b.eye
         && a.orientation == b.orientation
         && a.fov_y_deg == b.fov_y_deg

@@ -1,5 +1,7 @@
 //! The drawing pass: Gouraud-interpolated vertex radiance, tone-mapped in the shader
-//! (`draw.wgsl`), with an optional wireframe overlay to see the refinement mesh.
+//! (`draw.wgsl`), with an optional wireframe overlay to see the refinement mesh, and where a
+//! resting camera's per-pixel direct tiles have arrived, their direct part in place of the
+//! vertices' (`direct_texture`).
 //! The same pass draws into a window surface and into offscreen targets.
 
 use bytemuck::{Pod, Zeroable};
@@ -7,6 +9,7 @@ use conventions::ToneMap;
 use glam::Vec3;
 use protocol::viewer_link::{Camera, SkyInfo};
 
+use crate::direct_texture::{self, GpuDirect};
 use crate::table::{Extent, Vertex};
 use crate::vertex_buffer::GpuTriangles;
 
@@ -56,6 +59,9 @@ struct Uniforms {
     sky: [f32; 4],
     sun_dir: [f32; 4],
     sun_radiance: [f32; 4],
+    /// 1 where the direct texture holds tiles of this picture (`direct_image`).
+    tiles: u32,
+    _pad: [u32; 3],
 }
 
 impl Uniforms {
@@ -90,6 +96,8 @@ pub struct Drawer {
     bind_group: wgpu::BindGroup,
     output: Output,
     encode_srgb: bool,
+    /// Bound when a frame has no direct tiles.
+    no_tiles: GpuDirect,
 }
 
 impl Drawer {
@@ -124,7 +132,7 @@ impl Drawer {
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("draw"),
-            bind_group_layouts: &[Some(&layout)],
+            bind_group_layouts: &[Some(&layout), Some(&direct_texture::layout(device))],
             immediate_size: 0,
         });
         let sky = pipeline(device, &pipeline_layout, &shader, format, Pass::Sky);
@@ -137,10 +145,13 @@ impl Drawer {
             bind_group,
             output,
             encode_srgb,
+            no_tiles: GpuDirect::new(device),
         }
     }
 
-    /// Records one frame: the sky over the whole target, then every live triangle over it.
+    /// Records one frame: the sky over the whole target, then every live triangle over it, with
+    /// the per-pixel direct light of `direct` where it holds tiles of this picture (the caller
+    /// passes it only for the camera its tiles are of: `DirectImage::shown_for`).
     #[allow(clippy::too_many_arguments)]
     pub fn draw(
         &self,
@@ -149,6 +160,7 @@ impl Drawer {
         colour: &wgpu::TextureView,
         depth: &wgpu::TextureView,
         triangles: &GpuTriangles,
+        direct: Option<&GpuDirect>,
         camera: &Camera,
         depth_range: (f32, f32),
         settings: &DrawSettings,
@@ -172,6 +184,10 @@ impl Drawer {
             encode_srgb: u32::from(self.encode_srgb),
             ..Zeroable::zeroed()
         };
+        let direct = direct
+            .filter(|d| d.shows((camera.width, camera.height)))
+            .inspect(|_| uniforms.tiles = 1)
+            .unwrap_or(&self.no_tiles);
         uniforms.set_sky(camera, &settings.sky);
         queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&uniforms));
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -198,6 +214,7 @@ impl Drawer {
             multiview_mask: None,
         });
         pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.set_bind_group(1, direct.bind_group(), &[]);
         pass.set_pipeline(&self.sky);
         pass.draw(0..3, 0..1);
         if triangles.count() > 0 {
@@ -228,7 +245,7 @@ fn pipeline(
     let vertex_layout = [Some(wgpu::VertexBufferLayout {
         array_stride: std::mem::size_of::<Vertex>() as u64,
         step_mode: wgpu::VertexStepMode::Vertex,
-        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
+        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32],
     })];
     let (vertex_entry, fragment_entry) = if geometry {
         ("vs_main", "fs_main")

@@ -20,9 +20,13 @@ struct Uniforms {
     // Unit direction toward the sun; w: 1 - cos of the disc's angular radius (0: no sun).
     sun_dir: vec4<f32>,
     sun_radiance: vec4<f32>,
+    // 1 when `direct_tiles` holds per-pixel direct light of this picture (DESIGN.md §3 step 8).
+    tiles: u32,
 };
 
 @group(0) @binding(0) var<uniform> u: Uniforms;
+// Per pixel the direct part of a resting camera's tiles, alpha 1 where it is shown (direct_image.rs).
+@group(1) @binding(0) var direct_tiles: texture_2d<f32>;
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
@@ -33,6 +37,10 @@ struct VertexOut {
     // GL's -1..1 before the fixed function divides by w, which loses the precision reversed Z
     // keeps far from the eye; a fragment's own z / w is the same on every backend.
     @location(2) zw: vec2<f32>,
+    // `radiance` less its direct part (albedo × direct illumination): interpolated on its own,
+    // as the product of an interpolated share and an interpolated sum is not the interpolated
+    // rest (across a shadow edge it would carry the lit side's direct light into the shadow).
+    @location(3) rest: vec3<f32>,
 };
 
 struct FragmentOut {
@@ -45,11 +53,13 @@ fn vs_main(
     @builtin(vertex_index) index: u32,
     @location(0) position: vec3<f32>,
     @location(1) radiance: vec3<f32>,
+    @location(2) direct_share: f32,
 ) -> VertexOut {
     var out: VertexOut;
     out.clip = u.view_proj * vec4<f32>(position, 1.0);
     out.zw = out.clip.zw;
     out.radiance = radiance;
+    out.rest = radiance * (1.0 - direct_share);
     let k = index % 3u;
     out.bary = vec3<f32>(f32(k == 0u), f32(k == 1u), f32(k == 2u));
     return out;
@@ -123,14 +133,28 @@ fn fs_main(in: VertexOut) -> FragmentOut {
     return FragmentOut(in.zw.x / in.zw.y, shade(in));
 }
 
+// Where a tile's pixel is shown: its direct part plus the interpolated rest (indirect and
+// view-dependent), the vertices' radiance less their direct share (DESIGN.md §3 step 8).
+fn with_direct_tiles(in: VertexOut) -> vec3<f32> {
+    if u.tiles == 0u {
+        return in.radiance;
+    }
+    let texel = textureLoad(direct_tiles, vec2<i32>(in.clip.xy), 0);
+    if texel.a < 0.5 {
+        return in.radiance;
+    }
+    return texel.rgb + in.rest;
+}
+
 fn shade(in: VertexOut) -> vec4<f32> {
     // Derivatives first, in uniform control flow.
     let edge = min(in.bary.x, min(in.bary.y, in.bary.z));
     let edge_width = fwidth(edge);
+    let radiance = with_direct_tiles(in);
     if u.mode == 0u {
-        return vec4<f32>(in.radiance, 1.0);
+        return vec4<f32>(radiance, 1.0);
     }
-    var colour = tone_map(in.radiance);
+    var colour = tone_map(radiance);
     if u.wireframe == 1u {
         let line = 1.0 - smoothstep(0.0, 1.5 * edge_width, edge);
         colour = mix(colour, vec3<f32>(0.1, 0.9, 0.3), 0.8 * line);

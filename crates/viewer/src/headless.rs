@@ -245,9 +245,9 @@ impl Headless<'_> {
             });
         }
         let camera = &self.walk.as_ref().expect("set above").camera;
-        self.link.send(ViewerToSma::Camera(
-            self.sender.force(camera, Instant::now()),
-        ));
+        let sent = self.sender.force(camera, Instant::now());
+        self.state.direct.follow(&sent);
+        self.link.send(ViewerToSma::Camera(sent));
         for msg in preferences(self.config.criterion.as_deref(), self.config.no_refine) {
             self.link.send(msg);
         }
@@ -266,6 +266,7 @@ impl Headless<'_> {
         *camera =
             Camera::from_viewpoint(&path.at(t as f32), 0, self.config.width, self.config.height);
         if let Some(sent) = self.sender.offer(camera, Instant::now()) {
+            self.state.direct.follow(&sent);
             self.link.send(ViewerToSma::Camera(sent));
         }
     }
@@ -287,7 +288,12 @@ impl Headless<'_> {
             paused: self.config.no_refine,
             ..Facts::of(&self.state, &self.config.connect)
         });
-        let frame = Frame::capture(&self.state.table, &walk.camera, settings, facts);
+        let frame = Frame::capture(
+            (&self.state.table, &self.state.direct),
+            &walk.camera,
+            settings,
+            facts,
+        );
         let (inserted, removed) = self.state.take_interval();
         let epoch = self.state.epoch.unwrap_or_default();
         let record = SnapshotRecord {

@@ -5,6 +5,8 @@
 //! - [`table`]: triangle table, O(1) insert/remove/recolour; [`vertex_buffer`]: its GPU copy,
 //!   patched with partial uploads and a compute scatter;
 //! - [`update`]: changes held back until the `Epoch` that closes them;
+//! - [`direct_image`]: the resting camera's per-pixel direct tiles; [`direct_texture`]: their GPU
+//!   copy, which the drawing pass shows in place of the vertices' direct part;
 //! - [`link`]: the SMA connection with reconnect and backoff; [`view_state`] follows its events;
 //! - [`draw`] (with `draw.wgsl`): the pass with tone mapping (`conventions::tone_map`, held to
 //!   the shader by a test); [`offscreen`]: the same pass into textures, read back;
@@ -22,6 +24,8 @@ pub(crate) mod camera_path;
 pub(crate) mod camera_sender;
 pub mod cli;
 pub(crate) mod config;
+pub mod direct_image;
+pub mod direct_texture;
 pub mod draw;
 pub mod gpu;
 pub(crate) mod headless;
@@ -42,4 +46,4 @@ pub mod window;
 
 pub use conventions::ToneMap;
 pub use draw::DrawSettings;
-pub use offscreen::{Snapshot, render_offscreen_with};
+pub use offscreen::{Snapshot, render_offscreen_with, render_offscreen_with_direct};

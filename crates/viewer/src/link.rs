@@ -12,6 +12,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use protocol::connection::{TcpReader, TcpWriter, connect_handshake};
+use protocol::direct_tile::ViewerTile;
 use protocol::frame::DEFAULT_MAX_FRAME;
 use protocol::liveness::Liveness;
 use protocol::viewer_link::{SceneInfo, SmaToViewer, Stats, ViewerToSma};
@@ -34,6 +35,9 @@ pub enum LinkEvent {
         paused: bool,
     },
     Stats(Stats),
+    /// Per-pixel direct light of a resting camera (not part of an update: a tile is drawn as it
+    /// comes, for the camera it names).
+    DirectTile(ViewerTile),
     /// The SMA reported an error; the session goes on.
     RemoteError(String),
     /// The session ended; reconnecting.
@@ -263,11 +267,9 @@ async fn session(
                             return SessionEnd::Lost(e.to_string());
                         }
                     }
-                    // The SMA sends these only under `--per-pixel-direct on`: this viewer does
-                    // not draw them yet (DESIGN.md §3 step 8), and says so once per tile.
-                    Ok(SmaToViewer::DirectTile(tile)) => {
-                        tracing::debug!(camera = tile.camera_seq, rect = ?tile.rect, "direct tile not drawn");
-                    }
+                    // Not held for an epoch: a tile replaces nothing of the table (DESIGN.md §3
+                    // step 8).
+                    Ok(SmaToViewer::DirectTile(tile)) => notify(LinkEvent::DirectTile(tile)),
                     Ok(msg) => match staging.stage(msg) {
                         Staged::Held => {}
                         Staged::Closed(update) => notify(LinkEvent::Update(update)),

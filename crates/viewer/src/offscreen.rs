@@ -4,6 +4,8 @@
 use anyhow::{Context, anyhow};
 use protocol::viewer_link::{Camera, ShownTriangle};
 
+use crate::direct_image::DirectImage;
+use crate::direct_texture::GpuDirect;
 use crate::draw::{DrawSettings, Drawer, Output, depth_range, depth_texture, texture_2d};
 use crate::gpu::Gpu;
 use crate::table::TriangleTable;
@@ -18,6 +20,9 @@ const LINEAR_FORMATS: [wgpu::TextureFormat; 2] = [
     wgpu::TextureFormat::Rgba32Float,
     wgpu::TextureFormat::Rgba16Float,
 ];
+
+/// What a picture draws: the triangles, and the direct tiles of its camera if any.
+pub type Layers<'a> = (&'a GpuTriangles, Option<&'a GpuDirect>);
 
 /// Drawing recorded over the display image, given as a target view and its size in pixels.
 pub type PaintOver<'a> = dyn FnMut(&mut wgpu::CommandEncoder, (&wgpu::TextureView, [u32; 2])) + 'a;
@@ -81,26 +86,27 @@ impl Offscreen {
     pub fn draw_frame(
         &self,
         gpu: &Gpu,
-        triangles: &GpuTriangles,
+        layers: Layers,
         camera: &Camera,
         depth: (f32, f32),
         settings: &DrawSettings,
     ) -> anyhow::Result<()> {
-        self.draw_into(gpu, &[&self.display], triangles, camera, depth, settings);
+        self.draw_into(gpu, &[&self.display], layers, camera, depth, settings);
         gpu.wait_idle()
     }
 
-    /// Draws both images and reads them back. The camera's own size is ignored: the target's is
-    /// used (a camera sent to the SMA carries the same size anyway).
+    /// Draws both images and reads them back, with `direct`'s tiles where it holds some of this
+    /// picture. The camera's own size is ignored: the target's is used (a camera sent to the SMA
+    /// carries the same size anyway).
     pub fn snapshot(
         &self,
         gpu: &Gpu,
-        triangles: &GpuTriangles,
+        layers: Layers,
         camera: &Camera,
         depth: (f32, f32),
         settings: &DrawSettings,
     ) -> anyhow::Result<Snapshot> {
-        self.snapshot_painted(gpu, triangles, camera, depth, settings, &mut |_, _| {})
+        self.snapshot_painted(gpu, layers, camera, depth, settings, &mut |_, _| {})
     }
 
     /// [`Offscreen::snapshot`], with `paint` recording more drawing over the display image
@@ -108,7 +114,7 @@ impl Offscreen {
     pub fn snapshot_painted(
         &self,
         gpu: &Gpu,
-        triangles: &GpuTriangles,
+        layers: Layers,
         camera: &Camera,
         depth: (f32, f32),
         settings: &DrawSettings,
@@ -117,7 +123,7 @@ impl Offscreen {
         self.draw_into(
             gpu,
             &[&self.display, &self.linear],
-            triangles,
+            layers,
             camera,
             depth,
             settings,
@@ -150,7 +156,7 @@ impl Offscreen {
         &self,
         gpu: &Gpu,
         targets: &[&Target],
-        triangles: &GpuTriangles,
+        (triangles, direct): Layers,
         camera: &Camera,
         depth: (f32, f32),
         settings: &DrawSettings,
@@ -168,6 +174,7 @@ impl Offscreen {
                 &target.view,
                 &self.depth,
                 triangles,
+                direct,
                 &camera,
                 depth,
                 settings,
@@ -257,11 +264,33 @@ pub fn render_offscreen_with(
     camera: &Camera,
     settings: &DrawSettings,
 ) -> anyhow::Result<Snapshot> {
+    render_offscreen_with_direct(gpu, triangles, &DirectImage::default(), camera, settings)
+}
+
+/// [`render_offscreen_with`], with the direct tiles of `direct` where a picture of `camera` shows
+/// them (`DirectImage::shown_for`).
+pub fn render_offscreen_with_direct(
+    gpu: &Gpu,
+    triangles: &[ShownTriangle],
+    direct: &DirectImage,
+    camera: &Camera,
+    settings: &DrawSettings,
+) -> anyhow::Result<Snapshot> {
     let mut table = TriangleTable::new();
     table.apply(&[TableOp::Insert(triangles.to_vec())]);
     let mut gpu_triangles = GpuTriangles::new(gpu);
     gpu_triangles.sync(gpu, &mut table);
     let offscreen = Offscreen::new(gpu, camera.width.max(1), camera.height.max(1));
     let depth = depth_range(camera, table.extent());
-    offscreen.snapshot(gpu, &gpu_triangles, camera, depth, settings)
+    let mut gpu_direct = GpuDirect::new(&gpu.device);
+    if direct.shown_for(camera) {
+        gpu_direct.upload(gpu, direct);
+    }
+    offscreen.snapshot(
+        gpu,
+        (&gpu_triangles, Some(&gpu_direct)),
+        camera,
+        depth,
+        settings,
+    )
 }

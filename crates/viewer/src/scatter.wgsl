@@ -1,5 +1,5 @@
 // Scatters changed triangles into the vertex buffer (vertex_buffer.rs): removals and recolours hit
-// random slots, and one dispatch over a packed list of (slot, 18 floats) is far cheaper than a
+// random slots, and one dispatch over a packed list of (slot, 21 floats) is far cheaper than a
 // buffer write per slot.
 
 struct Params {
@@ -8,7 +8,9 @@ struct Params {
     row: u32,
 };
 
-const WORDS: u32 = 19u; // slot + 3 vertices × (position, radiance)
+// Words of one triangle: 3 vertices × (position, radiance, direct share), as `table::Vertex`.
+const TRIANGLE_WORDS: u32 = 21u;
+const WORDS: u32 = 22u; // slot + the triangle
 
 @group(0) @binding(0) var<storage, read> patches: array<u32>;
 @group(0) @binding(1) var<storage, read_write> vertices: array<u32>;
@@ -21,8 +23,8 @@ fn scatter(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let source = i * WORDS;
-    let to = patches[source] * 18u;
-    for (var k = 0u; k < 18u; k++) {
+    let to = patches[source] * TRIANGLE_WORDS;
+    for (var k = 0u; k < TRIANGLE_WORDS; k++) {
         vertices[to + k] = patches[source + 1u + k];
     }
 }

@@ -438,7 +438,12 @@ mod tests {
         };
         let table = crate::table::TriangleTable::new();
         for index in 0..6 {
-            let frame = Frame::capture(&table, &camera, Default::default(), None);
+            let frame = Frame::capture(
+                (&table, &Default::default()),
+                &camera,
+                Default::default(),
+                None,
+            );
             writer.write(record(index), frame).unwrap();
         }
         writer.finish().unwrap();

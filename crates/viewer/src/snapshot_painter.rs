@@ -14,6 +14,8 @@
 use anyhow::Context;
 use protocol::viewer_link::Camera;
 
+use crate::direct_image::DirectImage;
+use crate::direct_texture::GpuDirect;
 use crate::draw::{DrawSettings, depth_range};
 use crate::gpu::Gpu;
 use crate::offscreen::{DISPLAY_FORMAT, Offscreen, Snapshot};
@@ -31,12 +33,14 @@ pub struct Frame {
     pub settings: DrawSettings,
     /// The panel drawn over the display image (`--overlay`), or none.
     pub facts: Option<Facts>,
+    /// The direct tiles of the camera, if a picture of it shows some.
+    pub direct: Option<DirectImage>,
 }
 
 impl Frame {
     /// The copy of `table` and the rest of what the viewer would draw now.
     pub fn capture(
-        table: &TriangleTable,
+        (table, direct): (&TriangleTable, &DirectImage),
         camera: &Camera,
         settings: DrawSettings,
         facts: Option<Facts>,
@@ -47,12 +51,17 @@ impl Frame {
             camera: camera.clone(),
             settings,
             facts,
+            direct: direct.copy_for(camera),
         }
     }
 
     /// Memory the frame holds while it waits to be drawn.
     pub fn bytes(&self) -> usize {
-        std::mem::size_of::<Frame>() + std::mem::size_of_val(self.vertices.as_slice())
+        let direct = self
+            .direct
+            .as_ref()
+            .map_or(0, |d| std::mem::size_of_val(d.texels()));
+        std::mem::size_of::<Frame>() + std::mem::size_of_val(self.vertices.as_slice()) + direct
     }
 }
 
@@ -69,6 +78,7 @@ pub struct SnapshotPainter {
     gpu: Gpu,
     offscreen: Offscreen,
     triangles: GpuTriangles,
+    direct: GpuDirect,
     panel: Option<PanelPainter>,
 }
 
@@ -82,6 +92,7 @@ impl SnapshotPainter {
         Ok(SnapshotPainter {
             offscreen: Offscreen::new(&gpu, canvas.width, canvas.height),
             triangles: GpuTriangles::new(&gpu),
+            direct: GpuDirect::new(&gpu.device),
             panel,
             gpu,
         })
@@ -96,6 +107,10 @@ impl SnapshotPainter {
     pub fn paint(&mut self, frame: &Frame) -> anyhow::Result<Snapshot> {
         self.triangles
             .replace(&self.gpu, &frame.vertices, frame.extent);
+        let direct = frame.direct.as_ref().map(|image| {
+            self.direct.upload(&self.gpu, image);
+            &self.direct
+        });
         let depth = depth_range(&frame.camera, frame.extent);
         let gpu = (&self.gpu.device, &self.gpu.queue);
         let panel = &mut self.panel;
@@ -107,7 +122,7 @@ impl SnapshotPainter {
         };
         self.offscreen.snapshot_painted(
             &self.gpu,
-            &self.triangles,
+            (&self.triangles, direct),
             &frame.camera,
             depth,
             &frame.settings,

@@ -15,16 +15,18 @@ use std::ops::Range;
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
-use protocol::viewer_link::{Recolour, ShownTriangle, TriangleId};
+use protocol::viewer_link::{DirectShare, Recolour, ShownTriangle, TriangleId};
 
 use crate::update::TableOp;
 
-/// One vertex as the GPU reads it: position, then linear RGB radiance.
+/// One vertex as the GPU reads it: position, then linear RGB radiance, then the share of it that
+/// is the direct part (0..1), which a per-pixel direct tile replaces (`direct_image`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct Vertex {
     pub position: [f32; 3],
     pub radiance: [f32; 3],
+    pub direct_share: f32,
 }
 
 /// Bytes of one triangle in the vertex buffer.
@@ -111,6 +113,8 @@ impl TriangleTable {
             id,
             positions: [v[0].position, v[1].position, v[2].position],
             radiance: [v[0].radiance, v[1].radiance, v[2].radiance],
+            direct_share: [v[0], v[1], v[2]]
+                .map(|v| DirectShare((v.direct_share * 255.0).round() as u8)),
         })
     }
 
@@ -186,6 +190,7 @@ impl TriangleTable {
             self.vertices[base + k] = Vertex {
                 position: t.positions[k],
                 radiance: sanitize(t.radiance[k]),
+                direct_share: t.direct_share[k].fraction(),
             };
         }
         self.grow_extent(&t.positions);
@@ -217,7 +222,9 @@ impl TriangleTable {
         };
         let base = 3 * slot as usize;
         for k in 0..3 {
-            self.vertices[base + k].radiance = sanitize(r.radiance[k]);
+            let vertex = &mut self.vertices[base + k];
+            vertex.radiance = sanitize(r.radiance[k]);
+            vertex.direct_share = r.direct_share[k].fraction();
         }
         self.dirty.push(slot);
         true
@@ -274,6 +281,7 @@ mod tests {
             id,
             positions: [[x, 0.0, 0.0], [x + 1.0, 0.0, 0.0], [x, 1.0, 0.0]],
             radiance: [[x; 3]; 3],
+            direct_share: Default::default(),
         }
     }
 
@@ -297,6 +305,7 @@ mod tests {
         let recolour = |id| Recolour {
             id,
             radiance: [[1.0; 3]; 3],
+            direct_share: Default::default(),
         };
         t.apply(&[TableOp::Recolour(vec![
             recolour(2),

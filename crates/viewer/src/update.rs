@@ -79,6 +79,7 @@ mod tests {
             id: 5,
             positions: [[0.0; 3]; 3],
             radiance: [[1.0; 3]; 3],
+            direct_share: Default::default(),
         };
         assert_eq!(
             s.stage(SmaToViewer::Insert {

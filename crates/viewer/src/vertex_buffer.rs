@@ -23,7 +23,8 @@ const LONG_RUN_SLOTS: u32 = 32;
 /// Without the compute pass: slots closer than this are written as one range (rewriting up to 64
 /// unchanged triangles, 4.5 KiB, costs less than another staging copy).
 const MERGE_GAP_SLOTS: u32 = 64;
-const PATCH_WORDS: usize = 19;
+/// A patch: the slot, then its three vertices' words (`scatter.wgsl` reads the same count).
+const PATCH_WORDS: usize = 1 + 3 * std::mem::size_of::<Vertex>() / 4;
 const WORKGROUP: u32 = 64;
 
 pub struct GpuTriangles {
@@ -233,7 +234,7 @@ fn relative_vertices(
         .iter()
         .map(|v| Vertex {
             position: relative_to(glam::Vec3::from(v.position), origin).to_array(),
-            radiance: v.radiance,
+            ..*v
         })
         .collect()
 }
@@ -396,6 +397,7 @@ mod tests {
             id,
             positions: [[v, 1.0, 2.0], [3.0, v, 4.0], [5.0, 6.0, v]],
             radiance: [[v * 0.5; 3], [1.0, v, 2.0], [v, 0.25, 0.125]],
+            direct_share: Default::default(),
         }
     }
 
@@ -450,6 +452,7 @@ mod tests {
                         Some(Recolour {
                             id,
                             radiance: [[next(100) as f32; 3]; 3],
+                            direct_share: Default::default(),
                         })
                     })
                     .collect();
@@ -469,7 +472,7 @@ mod tests {
                         position: (glam::Vec3::from(v.position).as_dvec3() - origin)
                             .as_vec3()
                             .to_array(),
-                        radiance: v.radiance,
+                        ..*v
                     })
                     .collect();
                 assert!(

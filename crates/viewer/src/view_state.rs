@@ -3,6 +3,7 @@
 
 use protocol::viewer_link::{Epoch, SceneInfo, SkyInfo, Stats};
 
+use crate::direct_image::DirectImage;
 use crate::link::LinkEvent;
 use crate::table::TriangleTable;
 
@@ -39,11 +40,15 @@ pub enum Reaction {
     Resend,
     /// An epoch closed an update; the table changed.
     Drawn(Epoch),
+    /// A direct tile of the current camera arrived: the picture changed.
+    Tile,
 }
 
 pub struct ViewState {
     pub scene: Option<SceneInfo>,
     pub table: TriangleTable,
+    /// The per-pixel direct tiles of the camera last sent (the front end follows its cameras).
+    pub direct: DirectImage,
     /// The SMA's L_white (thesis §2.3); 1 until it sends one.
     pub l_white: f32,
     pub epoch: Option<Epoch>,
@@ -63,6 +68,7 @@ impl Default for ViewState {
         ViewState {
             scene: None,
             table: TriangleTable::new(),
+            direct: DirectImage::default(),
             l_white: 1.0,
             epoch: None,
             interval_inserted: 0,
@@ -98,6 +104,7 @@ impl ViewState {
         match event {
             LinkEvent::Connected(info) => {
                 self.table.clear();
+                self.direct.clear();
                 self.epoch = None;
                 self.stats_seen = false;
                 self.refinement = info.criteria.first().map(|c| (c.clone(), false));
@@ -127,6 +134,11 @@ impl ViewState {
                 self.interval_removed += update.epoch.removed;
                 self.epoch = Some(update.epoch);
                 return Reaction::Drawn(update.epoch);
+            }
+            LinkEvent::DirectTile(tile) => {
+                if self.direct.accept(&tile) {
+                    return Reaction::Tile;
+                }
             }
             LinkEvent::Refinement { criterion, paused } => {
                 self.refinement = Some((criterion, paused))

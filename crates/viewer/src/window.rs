@@ -22,6 +22,7 @@ use winit::window::{Window, WindowId};
 
 use crate::camera_sender::{CameraSender, DEFAULT_INTERVAL};
 use crate::config::ViewerConfig;
+use crate::direct_texture::GpuDirect;
 use crate::draw::{DrawSettings, Drawer, Output, depth_range, depth_texture};
 use crate::gpu::Gpu;
 use crate::link::{EventQueue, Link, event_queue};
@@ -76,6 +77,8 @@ struct LinkWoke;
 struct Display {
     overlay: Overlay,
     triangles: GpuTriangles,
+    /// The per-pixel direct tiles of the resting camera (`ViewState::direct`).
+    direct: GpuDirect,
     drawer: Drawer,
     depth: wgpu::TextureView,
     config: wgpu::SurfaceConfiguration,
@@ -114,6 +117,7 @@ impl Display {
         Ok(Display {
             overlay: Overlay::new(window.clone(), &gpu.device, config.format),
             triangles: GpuTriangles::new(&gpu),
+            direct: GpuDirect::new(&gpu.device),
             drawer: Drawer::new(&gpu.device, config.format, Output::Display),
             depth: depth_texture(&gpu.device, config.width, config.height),
             config,
@@ -256,6 +260,7 @@ impl App {
         if let (Some(walk), Some(d)) = (&self.walk, &self.display) {
             let (w, h) = d.size();
             let camera = self.sender.force(&walk.camera(w, h), Instant::now());
+            self.state.direct.follow(&camera);
             self.link.send(ViewerToSma::Camera(camera));
         }
         for msg in preferences(self.criterion.as_deref(), self.paused) {
@@ -267,6 +272,7 @@ impl App {
         if let (Some(walk), Some(d)) = (&self.walk, &self.display) {
             let (w, h) = d.size();
             if let Some(camera) = self.sender.offer(&walk.camera(w, h), Instant::now()) {
+                self.state.direct.follow(&camera);
                 self.link.send(ViewerToSma::Camera(camera));
             }
         }
@@ -373,6 +379,7 @@ impl App {
         };
         let upload = d.triangles.sync(&d.gpu, &mut self.state.table);
         tracing::trace!(?upload, "frame upload");
+        d.direct.sync(&d.gpu, &mut self.state.direct);
         let texture = match d.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t)
             | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
@@ -399,6 +406,7 @@ impl App {
             &view,
             &d.depth,
             &d.triangles,
+            self.state.direct.shown_for(&camera).then_some(&d.direct),
             &camera,
             depth,
             &self.settings,
@@ -477,7 +485,7 @@ impl ApplicationHandler<LinkWoke> for App {
         while let Ok(event) = self.events.receiver.try_recv() {
             match self.state.handle(event) {
                 Reaction::Resend => self.restate(),
-                Reaction::Drawn(_) | Reaction::Nothing => {}
+                Reaction::Drawn(_) | Reaction::Tile | Reaction::Nothing => {}
             }
         }
         self.redraw();

@@ -63,6 +63,7 @@ fn triangle(id: u64, shade: f32) -> ShownTriangle {
         id,
         positions: [[x, 0.0, 0.0], [x + 1.0, 0.0, 0.0], [x, 1.0, shade]],
         radiance: [[shade, 1.0, 2.0], [0.5, shade, 0.25], [1.0, 1.0, shade]],
+        direct_share: Default::default(),
     }
 }
 
@@ -104,6 +105,7 @@ fn send_and_model(op: &Op, model: &mut HashMap<u64, ShownTriangle>) -> SmaToView
                 .map(|&(id, s)| Recolour {
                     id,
                     radiance: triangle(id, s).radiance,
+                    direct_share: Default::default(),
                 })
                 .collect();
             for r in &triangles {

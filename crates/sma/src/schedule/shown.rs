@@ -7,7 +7,7 @@ use std::collections::HashMap;
 
 use glam::Vec3;
 use protocol::Side;
-use protocol::viewer_link::{Recolour, ShownTriangle, SmaToViewer, TriangleId};
+use protocol::viewer_link::{DirectShare, Recolour, ShownTriangle, SmaToViewer, TriangleId};
 
 use crate::cache::ShadingCache;
 use crate::mesh::fast_hash::FastHash;
@@ -34,6 +34,7 @@ pub struct ShownSet {
 #[derive(Clone, Copy, Debug)]
 struct Entry {
     radiance: [[f32; 3]; 3],
+    direct_share: [DirectShare; 3],
     /// Its corners when sent: the mesh reuses removed nodes' ids (`mesh::free_nodes`), so an id
     /// may come back as another triangle; vertices are never reused, so they tell.
     vertices: [VertexId; 3],
@@ -64,25 +65,32 @@ impl ShownSet {
         let mut removed = Vec::new();
         for &(node, side) in targets {
             let id = shown_id(node, side);
-            let radiance = cache.leaf_radiance_from(mesh, node, side, eye);
+            let colours = cache.leaf_colours_from(mesh, node, side, eye);
             let vertices = mesh.node(node).vertices;
             if self.shown.get(&id).is_some_and(|s| s.vertices != vertices) {
                 self.shown.remove(&id);
                 removed.push(id);
             }
-            match (self.shown.get_mut(&id), radiance) {
-                (Some(shown), radiance) => {
+            match (self.shown.get_mut(&id), colours) {
+                (Some(shown), colours) => {
                     shown.wanted_at = sync;
-                    if let Some(radiance) = radiance.filter(|&r| r != shown.radiance) {
-                        shown.radiance = radiance;
-                        updates.push(Recolour { id, radiance });
+                    if let Some((radiance, direct_share)) =
+                        colours.filter(|&c| c != (shown.radiance, shown.direct_share))
+                    {
+                        (shown.radiance, shown.direct_share) = (radiance, direct_share);
+                        updates.push(Recolour {
+                            id,
+                            radiance,
+                            direct_share,
+                        });
                     }
                 }
-                (None, Some(radiance)) => {
+                (None, Some((radiance, direct_share))) => {
                     self.shown.insert(
                         id,
                         Entry {
                             radiance,
+                            direct_share,
                             vertices,
                             wanted_at: sync,
                         },
@@ -91,6 +99,7 @@ impl ShownSet {
                         id,
                         positions: mesh.leaf_positions(node).map(|p| p.to_array()),
                         radiance,
+                        direct_share,
                     });
                 }
                 (None, None) => self.unshown += 1,

@@ -18,16 +18,19 @@ use std::time::Instant;
 use indexmap::IndexMap;
 use protocol::direct_tile::ViewerTile;
 use protocol::types::Rgb;
-use protocol::viewer_link::{Epoch, Recolour, ShownTriangle, SmaToViewer, Stats, TriangleId};
+use protocol::viewer_link::{
+    DirectShare, Epoch, Recolour, ShownTriangle, SmaToViewer, Stats, TriangleId,
+};
 use tokio::sync::Notify;
 
 /// Inserts and updates are split so no frame nears the protocol's maximum.
 const MAX_TRIANGLES_PER_MESSAGE: usize = 100_000;
 
-/// Encoded sizes, at most, of what a change sends (postcard: a varint id, f32 triples).
+/// Encoded sizes, at most, of what a change sends (postcard: a varint id, f32 triples, a byte of
+/// direct share per vertex).
 const ID_BYTES: usize = 10;
-const TRIANGLE_BYTES: usize = ID_BYTES + 2 * 9 * 4;
-const RECOLOUR_BYTES: usize = ID_BYTES + 9 * 4;
+const TRIANGLE_BYTES: usize = ID_BYTES + 2 * 9 * 4 + 3;
+const RECOLOUR_BYTES: usize = ID_BYTES + 9 * 4 + 3;
 const NOTE_BYTES: usize = 256;
 /// A `ViewerTile`'s bytes besides its pixels', at most, and each pixel's (four halves).
 const TILE_BYTES: usize = 48;
@@ -41,7 +44,8 @@ enum Change {
     /// The viewer holds an older triangle under this id: remove it, then insert this one.
     Replace(ShownTriangle),
     Remove,
-    Update([Rgb; 3]),
+    /// Radiance and direct share per vertex.
+    Update([Rgb; 3], [DirectShare; 3]),
 }
 
 impl Change {
@@ -50,7 +54,7 @@ impl Change {
             Change::Insert(_) => TRIANGLE_BYTES,
             Change::Replace(_) => TRIANGLE_BYTES + ID_BYTES,
             Change::Remove => ID_BYTES,
-            Change::Update(_) => RECOLOUR_BYTES,
+            Change::Update(..) => RECOLOUR_BYTES,
         }
     }
 
@@ -58,22 +62,22 @@ impl Change {
     fn then(self, next: Change) -> Option<Change> {
         use Change::*;
         Some(match (self, next) {
-            (Insert(mut t), Update(r)) => {
-                t.radiance = r;
+            (Insert(mut t), Update(r, d)) => {
+                (t.radiance, t.direct_share) = (r, d);
                 Insert(t)
             }
-            (Replace(mut t), Update(r)) => {
-                t.radiance = r;
+            (Replace(mut t), Update(r, d)) => {
+                (t.radiance, t.direct_share) = (r, d);
                 Replace(t)
             }
             (Insert(_), Remove) => return None,
-            (Replace(_) | Update(_) | Remove, Remove) => Remove,
+            (Replace(_) | Update(..) | Remove, Remove) => Remove,
             (Insert(_), Insert(t)) => Insert(t),
-            (Replace(_) | Remove | Update(_), Insert(t) | Replace(t)) => Replace(t),
+            (Replace(_) | Remove | Update(..), Insert(t) | Replace(t)) => Replace(t),
             (Insert(_), Replace(t)) => Insert(t),
             // Nothing shown under the id to update.
-            (Remove, Update(_)) => Remove,
-            (Update(_), Update(r)) => Update(r),
+            (Remove, Update(..)) => Remove,
+            (Update(..), Update(r, d)) => Update(r, d),
         })
     }
 }
@@ -120,7 +124,11 @@ impl Changes {
                     inserts.push(t);
                 }
                 Change::Remove => removed.push(id),
-                Change::Update(radiance) => updates.push(Recolour { id, radiance }),
+                Change::Update(radiance, direct_share) => updates.push(Recolour {
+                    id,
+                    radiance,
+                    direct_share,
+                }),
             }
         }
         if !removed.is_empty() {
@@ -181,7 +189,8 @@ impl Pending {
             }
             SmaToViewer::Update { triangles } => {
                 for t in triangles {
-                    self.open.fold(t.id, Change::Update(t.radiance));
+                    self.open
+                        .fold(t.id, Change::Update(t.radiance, t.direct_share));
                 }
             }
             SmaToViewer::ToneMap { l_white } => self.open.tone_map = Some(l_white),

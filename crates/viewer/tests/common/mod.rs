@@ -54,11 +54,13 @@ pub fn known_triangles() -> Vec<ShownTriangle> {
                 id,
                 positions: [a, b, c],
                 radiance: [left, right, right],
+                direct_share: Default::default(),
             },
             ShownTriangle {
                 id: id + 1,
                 positions: [a, c, d],
                 radiance: [left, right, left],
+                direct_share: Default::default(),
             },
         ]
     };
@@ -67,6 +69,7 @@ pub fn known_triangles() -> Vec<ShownTriangle> {
         id: 30,
         positions: [[-1.3, 0.1, 0.5], [-0.9, 0.1, 0.5], [-1.1, 0.5, 0.5]],
         radiance: [[0.1, 0.9, 0.1]; 3],
+        direct_share: Default::default(),
     }];
     t.extend(quad(10, -1.4, -0.2, 0.0, [2.0, 0.8, 0.3], [2.0, 0.8, 0.3]));
     t.extend(quad(20, 0.2, 1.4, 0.0, [0.2, 0.2, 0.2], [4.0, 4.0, 4.0]));

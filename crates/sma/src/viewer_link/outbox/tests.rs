@@ -9,6 +9,7 @@ fn triangle(id: TriangleId, value: f32) -> ShownTriangle {
         id,
         positions: [[value, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
         radiance: [[value; 3]; 3],
+        direct_share: Default::default(),
     }
 }
 
@@ -76,6 +77,7 @@ fn stream(steps: &[(u8, u8, f32, bool)]) -> Vec<(SmaToViewer, bool)> {
                 triangles: vec![Recolour {
                     id,
                     radiance: [[value; 3]; 3],
+                    direct_share: Default::default(),
                 }],
             },
             (1, true) => {
@@ -138,6 +140,7 @@ fn a_viewer_that_does_not_read_holds_at_most_the_latest_state_of_each_triangle()
                 .map(|id| Recolour {
                     id,
                     radiance: [[step as f32; 3]; 3],
+                    direct_share: Default::default(),
                 })
                 .collect(),
         });

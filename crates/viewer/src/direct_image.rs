@@ -1,0 +1,202 @@
+//! The per-pixel direct light of the resting camera (DESIGN.md §3 step 8): the SMA sends it in
+//! tiles (`protocol::direct_tile::ViewerTile`) while the camera this viewer last sent rests. A
+//! pixel of a tile is shown in place of the vertices' direct part once its estimate is good
+//! enough ([`PRESENT_RELATIVE_ERROR`]); the drawing pass (`draw.wgsl`) then shows
+//! `tile direct + interpolated radiance × (1 − interpolated direct share)`. Tiles of another
+//! camera are ignored; sending a new camera drops the old one's, and a picture drawn for a camera
+//! other than the tiles' (a move the camera sender has not sent yet) shows none of them.
+
+use conventions::luminance;
+use protocol::direct_tile::ViewerTile;
+use protocol::viewer_link::Camera;
+
+use crate::camera_sender::same_view;
+
+/// A tile's pixel stands in for the vertices' direct part once its standard error is at most
+/// this fraction of its luminance. The vertices' own error is not on the wire; a tenth of a
+/// pixel's value is where tone-mapped noise stops showing as grain at a glance, and a pixel in
+/// full sun or full shadow (no variance) is shown from its first pass.
+pub const PRESENT_RELATIVE_ERROR: f32 = 0.1;
+
+/// One texel per pixel: the direct part's RGB and 1 where it is shown (0: the vertices' instead).
+pub type DirectTexel = [f32; 4];
+
+/// The direct tiles of the camera this viewer last sent, per pixel (rows from the top).
+#[derive(Clone, Debug, Default)]
+pub struct DirectImage {
+    camera: Option<Camera>,
+    /// Counts the cameras followed: a GPU copy of another generation holds none of these tiles.
+    generation: u64,
+    /// `width × height` texels once a tile of the camera has arrived; empty before, so a moving
+    /// camera costs no clearing.
+    texels: Vec<DirectTexel>,
+    tiles: usize,
+    /// Tiles accepted since the GPU copy last took them (`direct_texture`).
+    dirty: Vec<protocol::direct_tile::TileRect>,
+}
+
+impl DirectImage {
+    /// `camera` was sent to the SMA: tiles of any other camera are dropped from now on.
+    pub fn follow(&mut self, camera: &Camera) {
+        if self.camera.as_ref().is_some_and(|c| c.seq == camera.seq) {
+            return;
+        }
+        self.camera = Some(camera.clone());
+        self.generation += 1;
+        self.texels.clear();
+        self.tiles = 0;
+        self.dirty.clear();
+    }
+
+    /// Takes `tile` into the image if it is of the followed camera and well formed; says
+    /// whether it did (a malformed tile is logged).
+    pub fn accept(&mut self, tile: &ViewerTile) -> bool {
+        let Some(camera) = &self.camera else {
+            return false;
+        };
+        if tile.camera_seq != camera.seq {
+            tracing::trace!(
+                tile = tile.camera_seq,
+                camera = camera.seq,
+                "stale direct tile"
+            );
+            return false;
+        }
+        let (width, height) = (camera.width, camera.height);
+        if let Err(reason) = tile.check(width, height) {
+            tracing::warn!(%reason, "direct tile refused");
+            return false;
+        }
+        if self.texels.is_empty() {
+            self.texels = vec![[0.0; 4]; width as usize * height as usize];
+        }
+        let rect = tile.rect;
+        for (i, pixel) in tile.pixels.iter().enumerate() {
+            let (x, y) = (
+                rect.x as usize + i % rect.width as usize,
+                rect.y as usize + i / rect.width as usize,
+            );
+            let rgb = pixel.rgb.map(|h| h.decode());
+            let shown = pixel.standard_error.decode() <= PRESENT_RELATIVE_ERROR * luminance(rgb);
+            self.texels[y * width as usize + x] =
+                [rgb[0], rgb[1], rgb[2], f32::from(u8::from(shown))];
+        }
+        self.tiles += 1;
+        self.dirty.push(rect);
+        true
+    }
+
+    /// Whether a picture drawn for `camera` shows tiles: some have arrived for it.
+    pub fn shown_for(&self, camera: &Camera) -> bool {
+        self.tiles > 0 && self.camera.as_ref().is_some_and(|c| same_view(c, camera))
+    }
+
+    /// The image's size in pixels (the followed camera's), if it has texels.
+    pub fn size(&self) -> Option<(u32, u32)> {
+        let camera = self.camera.as_ref()?;
+        (!self.texels.is_empty()).then_some((camera.width, camera.height))
+    }
+
+    pub fn generation(&self) -> u64 {
+        self.generation
+    }
+
+    pub fn texels(&self) -> &[DirectTexel] {
+        &self.texels
+    }
+
+    /// The tiles accepted since the last call.
+    pub fn take_dirty(&mut self) -> Vec<protocol::direct_tile::TileRect> {
+        std::mem::take(&mut self.dirty)
+    }
+
+    /// The tiles of the followed camera, if a picture of `camera` shows them (a snapshot's copy).
+    pub fn copy_for(&self, camera: &Camera) -> Option<DirectImage> {
+        self.shown_for(camera).then(|| DirectImage {
+            dirty: Vec::new(),
+            ..self.clone()
+        })
+    }
+
+    /// Drops everything (a new session: the SMA knows no camera of this viewer).
+    pub fn clear(&mut self) {
+        self.camera = None;
+        self.generation += 1;
+        self.texels.clear();
+        self.tiles = 0;
+        self.dirty.clear();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use protocol::direct_tile::{TilePixel, TileRect};
+
+    use super::*;
+
+    fn camera(seq: u64, x: f32) -> Camera {
+        Camera {
+            seq,
+            eye: [x, 0.0, 0.0],
+            orientation: [0.0, 0.0, 0.0, 1.0],
+            fov_y_deg: 60.0,
+            width: 8,
+            height: 4,
+        }
+    }
+
+    fn tile(camera_seq: u64, standard_error: f32) -> ViewerTile {
+        ViewerTile {
+            camera_seq,
+            rect: TileRect {
+                x: 2,
+                y: 1,
+                width: 2,
+                height: 2,
+            },
+            samples: 4,
+            pixels: vec![TilePixel::new([1.0, 2.0, 3.0], standard_error); 4],
+        }
+    }
+
+    #[test]
+    fn tiles_of_the_followed_camera_fill_their_pixels_and_others_are_ignored() {
+        let mut image = DirectImage::default();
+        assert!(!image.accept(&tile(1, 0.0)), "no camera followed yet");
+        image.follow(&camera(1, 0.0));
+        assert!(!image.accept(&tile(2, 0.0)), "a tile of another camera");
+        assert!(!image.shown_for(&camera(1, 0.0)));
+        assert!(image.accept(&tile(1, 0.0)));
+        assert!(image.shown_for(&camera(1, 0.0)));
+        assert!(
+            !image.shown_for(&camera(1, 0.5)),
+            "a moved camera shows no tiles"
+        );
+        let texels = image.texels();
+        assert_eq!(texels[8 + 2], [1.0, 2.0, 3.0, 1.0]);
+        assert_eq!(texels[2 * 8 + 3], [1.0, 2.0, 3.0, 1.0]);
+        assert_eq!(texels[0], [0.0; 4]);
+        assert_eq!(texels[8 + 4], [0.0; 4]);
+        assert_eq!(image.take_dirty(), vec![tile(1, 0.0).rect]);
+        assert!(image.take_dirty().is_empty());
+        // A new camera drops the old one's tiles.
+        image.follow(&camera(2, 0.5));
+        assert!(!image.shown_for(&camera(2, 0.5)) && image.size().is_none());
+        assert!(!image.accept(&tile(1, 0.0)));
+    }
+
+    #[test]
+    fn noisy_pixels_are_kept_but_not_shown_and_malformed_tiles_are_refused() {
+        let mut image = DirectImage::default();
+        image.follow(&camera(3, 0.0));
+        // Luminance of (1, 2, 3) is about 1.93: an error of 1 is far above a tenth of it.
+        assert!(image.accept(&tile(3, 1.0)));
+        assert_eq!(image.texels()[8 + 2][3], 0.0);
+        let mut outside = tile(3, 0.0);
+        outside.rect.x = 7;
+        assert!(!image.accept(&outside));
+        let mut short = tile(3, 0.0);
+        short.pixels.pop();
+        assert!(!image.accept(&short));
+    }
+}
