@@ -174,19 +174,12 @@ impl Probe {
         }
     }
 
-    /// Reads until a `Stats` says the SMA has converged, within `timeout`.
+    /// Reads until a `Stats` read by this call says the SMA has converged, within `timeout`. One
+    /// read before it does not count: it may have been sent for the camera before the last one.
     pub async fn until_converged(&mut self, timeout: Duration) -> anyhow::Result<Stats> {
-        tokio::time::timeout(timeout, async {
-            loop {
-                let message = self.read().await?;
-                self.apply(message)?;
-                if let Some(stats) = self.stats.filter(|s| s.converged) {
-                    return Ok(stats);
-                }
-            }
-        })
-        .await
-        .with_context(|| format!("not converged within {timeout:?}; last {:?}", self.stats))?
+        self.until_stats(timeout, |s| s.converged)
+            .await
+            .with_context(|| format!("not converged; last {:?}", self.stats))
     }
 
     /// Reads until a `Stats` satisfies `done`, within `timeout`.
