@@ -263,19 +263,27 @@ pub(crate) fn combine_part(a: &PartEstimate, na: f64, b: &PartEstimate, nb: f64)
     }
 }
 
+/// The mean of `values` and their sample variance: what an estimate of those paths should
+/// say, for tests here and of the filters that read estimates.
+#[cfg(test)]
+pub(crate) fn mean_and_variance(values: &[f32]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let mean = values.iter().map(|&v| f64::from(v)).sum::<f64>() / n;
+    let var = values
+        .iter()
+        .map(|&v| (f64::from(v) - mean).powi(2))
+        .sum::<f64>()
+        / (n - 1.0);
+    (mean, var)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use rand::{RngExt, SeedableRng};
 
     fn estimate(values: &[f32], depth: Option<u32>) -> Estimate {
-        let n = values.len() as f64;
-        let mean = values.iter().map(|&v| f64::from(v)).sum::<f64>() / n;
-        let var = values
-            .iter()
-            .map(|&v| (f64::from(v) - mean).powi(2))
-            .sum::<f64>()
-            / (n - 1.0);
+        let (mean, var) = mean_and_variance(values);
         // A quarter of every path is direct light, half indirect, a quarter view-dependent: the
         // parts' variances are then a sixteenth, a quarter and a sixteenth of the paths'.
         let part = |share: f64| PartEstimate {

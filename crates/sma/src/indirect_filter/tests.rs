@@ -7,6 +7,7 @@ use scene::{Mesh, Triangle};
 use super::*;
 use crate::cache::{CachedSample, ShadingCache};
 use crate::mesh::{MeshParams, SubdivisionMesh, grid_mesh};
+use crate::sample::mean_and_variance;
 use crate::visible_set::VisibleSet;
 
 /// Grid cells per side of the test patches (unit cells).
@@ -80,17 +81,6 @@ fn filter(
 ) -> FilterRun {
     let view = all_leaves(mesh);
     IndirectFilter::new(settings, mesh).run(mesh, [&view], cache)
-}
-
-fn mean_and_variance(values: &[f32]) -> (f64, f64) {
-    let n = values.len() as f64;
-    let mean = values.iter().map(|&v| f64::from(v)).sum::<f64>() / n;
-    let var = values
-        .iter()
-        .map(|&v| (f64::from(v) - mean).powi(2))
-        .sum::<f64>()
-        / (n - 1.0);
-    (mean, var)
 }
 
 #[test]
