@@ -16,7 +16,13 @@ use sma::mesh::{MeshParams, SubdivisionMesh, grid_mesh};
 
 use super::stats::median;
 
+mod crash;
 mod monolithic;
+mod pauses;
+pub(crate) mod revisit;
+
+pub use crash::crash_child;
+use crash::crash_trials;
 
 /// 2 × 45² base triangles, split red four levels deep: 4,050 × 256 = 1,036,800 leaves.
 const GRID: u32 = 45;
@@ -43,11 +49,15 @@ fn refine_uniformly(mesh: &mut SubdivisionMesh, levels: usize) {
     }
 }
 
-/// Refines the leaves within `radius` of `centre` once more: "one view" of a walk.
-fn refine_one_view(mesh: &mut SubdivisionMesh, centre: glam::Vec3, radius: f32) {
+/// Refines the leaves within `radius` of `centre` once more, those fewer than `finest` splits
+/// below their base triangle: "one view" of a walk. A walk's views overlap, and the SMA refines
+/// a surface only down to the size its criterion asks for (DESIGN.md §4), not once more per view
+/// that sees it: uncapped, a spot seen by a dozen overlapping views is split a dozen levels deep
+/// (4^12 leaves per base triangle), which outgrew the machine's memory.
+fn refine_one_view(mesh: &mut SubdivisionMesh, centre: glam::Vec3, radius: f32, finest: u32) {
     let near: Vec<_> = mesh
         .leaves()
-        .filter(|&l| mesh.leaf_positions(l)[0].distance(centre) < radius)
+        .filter(|&l| mesh.leaf_positions(l)[0].distance(centre) < radius && mesh.depth(l) < finest)
         .collect();
     mesh.refine(&near, &|_| false);
 }
@@ -114,6 +124,7 @@ struct Trial {
     leaves: usize,
     samples: usize,
     snapshot_s: f64,
+    snapshot_cpu_s: f64,
     writer_s: f64,
     save_wall_s: f64,
     full_bytes: u64,
@@ -173,14 +184,16 @@ fn trial(dir: &Path, levels: usize) -> anyhow::Result<Trial> {
     let mut file = open(&path, &mut mesh, &mut cache)?;
     refine_uniformly(&mut mesh, levels);
     shade(&mesh, &mut cache);
-    let t = Instant::now();
+    let (t, cpu) = (Instant::now(), pauses::thread_cpu_time());
     file.save_now(&mut mesh, &cache);
     let save_wall_s = t.elapsed().as_secs_f64();
+    // The calling thread's CPU: the snapshot, and next to nothing while it waits for the commit.
+    let snapshot_cpu_s = (pauses::thread_cpu_time() - cpu).as_secs_f64();
     let (full, pauses) = (file.writer_stats(), file.pauses());
     let (leaves, samples) = (mesh.leaf_count(), cache.len());
 
     let centre = glam::Vec3::new(GRID as f32 * 0.5, GRID as f32 * 0.5, 0.0);
-    refine_one_view(&mut mesh, centre, 2.0);
+    refine_one_view(&mut mesh, centre, 2.0, u32::MAX);
     let shaded = shade(&mesh, &mut cache);
     file.samples_changed(shaded);
     let before = (file.writer_stats(), file.pauses());
@@ -207,6 +220,7 @@ fn trial(dir: &Path, levels: usize) -> anyhow::Result<Trial> {
         leaves,
         samples,
         snapshot_s: pauses.total.as_secs_f64(),
+        snapshot_cpu_s,
         writer_s: full.busy.as_secs_f64(),
         save_wall_s,
         full_bytes: full.bytes,
@@ -223,38 +237,9 @@ fn trial(dir: &Path, levels: usize) -> anyhow::Result<Trial> {
     })
 }
 
-/// The pauses of periodic saves while a mesh is refined one view at a time, each timed from
-/// outside: each `save_if_due` snapshots changed base triangles for at most `SNAPSHOT_SLICE`.
-/// Returns (median, 95th percentile, longest) in ms, and the count.
-fn periodic_pauses(dir: &Path, steps: u32) -> anyhow::Result<(f64, f64, f64, usize)> {
-    let path = dir.join("periodic.redb");
-    let _ = std::fs::remove_file(&path);
-    let (mut mesh, mut cache) = fresh();
-    let mut file = CacheFile::open(&path, Duration::ZERO, &key(), &mesh)
-        .ok_or_else(|| anyhow::anyhow!("the cache file could not be opened"))?;
-    refine_uniformly(&mut mesh, 2);
-    let mut pauses = Vec::new();
-    for step in 0..steps {
-        let centre = glam::Vec3::new(
-            (step % GRID) as f32 + 0.5,
-            ((step / 3) % GRID) as f32 + 0.5,
-            0.0,
-        );
-        refine_one_view(&mut mesh, centre, 3.0);
-        let shaded = shade(&mesh, &mut cache);
-        file.samples_changed(shaded);
-        let t = Instant::now();
-        file.save_if_due(&mut mesh, &cache);
-        pauses.push(t.elapsed().as_secs_f64() * 1e3);
-    }
-    file.close(&mut mesh, &cache);
-    pauses.sort_by(f64::total_cmp);
-    let at = |q: f64| pauses[((pauses.len() - 1) as f64 * q).round() as usize];
-    Ok((at(0.5), at(0.95), at(1.0), pauses.len()))
-}
-
 pub fn section(quick: bool) -> anyhow::Result<String> {
     let dir = tempfile_dir()?;
+    let load_at_start = super::machine::load_average();
     let (levels, runs) = if quick {
         (QUICK_LEVELS, 1)
     } else {
@@ -271,11 +256,15 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
         "A {GRID}×{GRID} grid ({} base triangles) split red {levels} levels deep: {} leaves, {} samples \
          (one per vertex), saved to a fresh `redb` file, loaded into a fresh SMA mesh and cache, \
          then one view (the leaves within 2 units of the centre) refined once more and saved \
-         again. {runs} run(s) on this shared 2-core machine (load average about 10 while measured: other \
-         builds and benchmarks beside it): the times are noisy and pessimistic, the bytes are not.\n",
+         again. {runs} run(s) on this shared 2-core machine (one-minute load average {} at the start, \
+         {} after the runs: other builds and benchmarks beside it): the times are noisy and \
+         pessimistic, the bytes are not. Measured {}.\n",
         2 * GRID * GRID,
         t.leaves,
-        t.samples
+        t.samples,
+        load_at_start,
+        super::machine::load_average(),
+        super::machine::measured_stamp(),
     )?;
     writeln!(md, "| measure | value | target |\n|---|---:|---:|")?;
     writeln!(
@@ -285,8 +274,9 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
     )?;
     writeln!(
         md,
-        "| full save: snapshot on the schedule's thread | {:.2} s | (a clean stop; periodic saves are sliced) |",
-        med(|t| t.snapshot_s)
+        "| full save: snapshot on the schedule's thread, by the wall clock (by the thread's CPU clock) | {:.2} s ({:.2} s) | (a clean stop; periodic saves are sliced) |",
+        med(|t| t.snapshot_s),
+        med(|t| t.snapshot_cpu_s)
     )?;
     writeln!(
         md,
@@ -348,11 +338,10 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
         "| monolithic snapshot: bytes an incremental save writes after one view | {:.1} MiB (the whole file, every save) | only what changed |",
         t.mono.bytes as f64 / 1048576.0
     )?;
-    let (p50, p95, longest, count) = periodic_pauses(&dir, if quick { 60 } else { 150 })?;
-    writeln!(
-        md,
-        "| schedule's pause per periodic save, {count} saves while refining view by view: median, 95th percentile, longest | {p50:.1} ms, {p95:.1} ms, {longest:.1} ms | <= 20 ms |\n",
-    )?;
+    for walk in pauses::walks(levels, quick) {
+        pauses::rows(&mut md, &walk, &pauses::periodic_pauses(&dir, &walk)?)?;
+    }
+    md.push('\n');
     writeln!(
         md,
         "Layout: one record per base triangle in `redb` against one monolithic snapshot of the same \
@@ -374,13 +363,20 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
             "only it saves incrementally and loads lazily, though it misses a time target here"
         }
     )?;
-    let (trials, good, failures) = crash_trials(&dir, if quick { 4 } else { 20 })?;
+    let crash = crash_trials(&dir, if quick { 4 } else { 24 })?;
     writeln!(
         md,
-        "Crash trials: a process saving view after view (the SMA's `CacheFile`, each save a commit) \
-         killed with SIGKILL at a random moment, {trials} times; the file then opened with the \
-         previous or the new commit's leaves in {good} of them (target: all).{}\n",
-        failures
+        "Crash trials: a process saving view after view (the SMA's `CacheFile`, each save a commit \
+         it waits for; each trial's process loads the file the last one left and walks other \
+         views) killed with SIGKILL during its first, second or third save, a random time into \
+         it shorter than the longest save seen, {} times, {} of them while a commit was under \
+         way (the others just after one); the file then opened with the previous or the new \
+         commit's leaves in {} of them (target: all).{}\n",
+        crash.trials,
+        crash.during_save,
+        crash.good,
+        crash
+            .failures
             .iter()
             .map(|f| format!("\n- {f}"))
             .collect::<String>()
@@ -397,93 +393,4 @@ fn tempfile_dir() -> anyhow::Result<std::path::PathBuf> {
     ));
     std::fs::create_dir_all(&dir)?;
     Ok(dir)
-}
-
-/// The child of a crash trial (`walkthrough-bench cache-file-crash-child`): refines view after
-/// view and saves after each, saying on stdout how many leaves each save holds, before it
-/// starts (`saving N`) and once committed (`saved N`), until it is killed.
-pub fn crash_child(path: &Path) -> anyhow::Result<()> {
-    use std::io::Write as _;
-    let (mut mesh, mut cache) = fresh();
-    let mut file = open(path, &mut mesh, &mut cache)?;
-    let mut out = std::io::stdout().lock();
-    writeln!(out, "saved {}", mesh.leaf_count())?;
-    for step in 0u32.. {
-        let centre = glam::Vec3::new(
-            (step * 7 % GRID) as f32 + 0.5,
-            (step * 3 % GRID) as f32 + 0.5,
-            0.0,
-        );
-        refine_one_view(&mut mesh, centre, 4.0);
-        let shaded = shade(&mesh, &mut cache);
-        file.samples_changed(shaded);
-        writeln!(out, "saving {}", mesh.leaf_count())?;
-        out.flush()?;
-        file.save_now(&mut mesh, &cache);
-        writeln!(out, "saved {}", mesh.leaf_count())?;
-        out.flush()?;
-    }
-    Ok(())
-}
-
-/// Crash trials: a child saving view after view is killed with SIGKILL at a random moment; the
-/// file must then open (not refused) with the leaves of the last commit the child finished or
-/// of the one it was making, never anything else. Returns (trials, good ones, a failure's words).
-fn crash_trials(dir: &Path, trials: usize) -> anyhow::Result<(usize, usize, Vec<String>)> {
-    use rand::{RngExt, SeedableRng};
-    use std::io::Read as _;
-    let exe = std::env::current_exe()?;
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
-    let (mut good, mut failures) = (0, Vec::new());
-    let path = dir.join("crash.redb");
-    let _ = std::fs::remove_file(&path);
-    // The leaves the file held after the previous trial: all a child killed while loading it
-    // can leave there.
-    let mut previous = fresh().0.leaf_count();
-    for trial in 0..trials {
-        let mut child = std::process::Command::new(&exe)
-            .arg("cache-file-crash-child")
-            .arg(&path)
-            .stdout(std::process::Stdio::piped())
-            .stderr(std::process::Stdio::null())
-            .spawn()?;
-        std::thread::sleep(Duration::from_millis(rng.random_range(300..1500)));
-        child.kill()?;
-        child.wait()?;
-        let mut said = String::new();
-        child
-            .stdout
-            .take()
-            .expect("piped")
-            .read_to_string(&mut said)?;
-        let counts = |word: &str| -> Vec<usize> {
-            said.lines()
-                .filter_map(|l| l.strip_prefix(word)?.trim().parse().ok())
-                .collect()
-        };
-        let (saved, saving) = (counts("saved "), counts("saving "));
-        let allowed: Vec<usize> = [saved.last().copied().unwrap_or(previous)]
-            .into_iter()
-            .chain(saving.last().copied())
-            .collect();
-        let (mut mesh, mut cache) = fresh();
-        let opened = open(&path, &mut mesh, &mut cache);
-        let refused = sma_rejected(&path).exists();
-        match opened {
-            Ok(_) if !refused && allowed.contains(&mesh.leaf_count()) => good += 1,
-            _ => failures.push(format!(
-                "trial {trial}: {} leaves after the kill, the child said {allowed:?}, refused: {refused}",
-                mesh.leaf_count()
-            )),
-        }
-        previous = mesh.leaf_count();
-        if refused {
-            let _ = std::fs::remove_file(sma_rejected(&path));
-        }
-    }
-    Ok((trials, good, failures))
-}
-
-fn sma_rejected(path: &Path) -> std::path::PathBuf {
-    std::path::PathBuf::from(format!("{}.rejected", path.display()))
 }

@@ -38,7 +38,10 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
         BenchCommand::CacheFile { quick, out } => {
             crate::report::write(&out, quick, &["cache-file".to_string()])
         }
-        BenchCommand::CacheFileCrashChild { file } => crate::cache_file::crash_child(&file),
+        BenchCommand::CacheFileRevisit(args) => crate::cache_file::revisit::run(&args.config()),
+        BenchCommand::CacheFileCrashChild { file, first_view } => {
+            crate::cache_file::crash_child(&file, first_view)
+        }
         BenchCommand::LoopbackSink { listen } => crate::protocol::loopback_sink(&listen),
         BenchCommand::Walk(args) => crate::walk::run(args.config()),
         BenchCommand::Reproduction { runs } => {
@@ -70,6 +73,10 @@ pub enum BenchCommand {
         #[arg(long, default_value = "BENCHMARKS.md")]
         out: PathBuf,
     },
+    /// The cache file's revisit: a view converged, the SMA stopped cleanly and started again on
+    /// its cache file; samples and FLIP of the revisit's first complete picture
+    /// (docs/bench/cache-file-revisit.md, then BENCHMARKS.md).
+    CacheFileRevisit(RevisitArgs),
     /// Convergence per viewpoint against the ground truth, per criterion (DESIGN.md §10).
     Convergence(ConvergenceArgs),
     /// Time to reach error levels against a direct per-pixel render (DESIGN.md §10).
@@ -92,7 +99,12 @@ pub enum BenchCommand {
     },
     /// The process the cache file's crash trials kill (started by `cache-file` as a child).
     #[command(hide = true)]
-    CacheFileCrashChild { file: PathBuf },
+    CacheFileCrashChild {
+        file: PathBuf,
+        /// The first view of its walk.
+        #[arg(long, default_value_t = 0)]
+        first_view: u32,
+    },
     /// The receiving end of the loopback protocol benchmark (started by `report` as a child).
     #[command(hide = true)]
     LoopbackSink {
@@ -278,6 +290,52 @@ impl WalkArgs {
             no_report: self.no_report,
             write_paths: self.write_paths,
             ..defaults
+        }
+    }
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct RevisitArgs {
+    /// A scene TOML file or a built-in name.
+    #[arg(long, default_value = "bracara")]
+    pub scene: String,
+    #[arg(long, default_value = "MC")]
+    pub view: String,
+    #[arg(long, default_value_t = 512)]
+    pub width: u32,
+    #[arg(long, default_value_t = 384)]
+    pub height: u32,
+    /// Paths per pixel of the ground truth (rendered into --gt-cache when missing).
+    #[arg(long, default_value_t = 256)]
+    pub gt_spp: u32,
+    #[arg(long, default_value = "out/gt")]
+    pub gt_cache: PathBuf,
+    /// Seconds each visit may run before it is taken as it stands, unconverged.
+    #[arg(long, default_value_t = 900.0)]
+    pub limit_s: f64,
+    /// Runs, each with a fresh cache file (medians over them, targets judged on the worst).
+    #[arg(long, default_value_t = 3)]
+    pub runs: usize,
+    /// Flags passed on to both `walkthrough sma` runs, e.g. `--sma-flags=--criterion,rnd`.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub sma_flags: Vec<String>,
+    #[arg(long, default_value = "BENCHMARKS.md")]
+    pub out: PathBuf,
+}
+
+impl RevisitArgs {
+    fn config(self) -> crate::cache_file::revisit::RevisitConfig {
+        crate::cache_file::revisit::RevisitConfig {
+            scene: self.scene,
+            view: self.view,
+            width: self.width,
+            height: self.height,
+            gt_spp: self.gt_spp,
+            gt_cache: self.gt_cache,
+            limit: std::time::Duration::from_secs_f64(self.limit_s.clamp(1.0, 86_400.0)),
+            runs: self.runs,
+            sma_flags: self.sma_flags,
+            out: self.out,
         }
     }
 }

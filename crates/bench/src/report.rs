@@ -18,8 +18,9 @@ const SECTIONS: &[Section] = &[
 ];
 
 /// Sections written by the long end-to-end benchmarks (`convergence`, `accuracy`, `cost`,
-/// `mesh-options`, `walk`) and from their runs (`reproduction`).
+/// `mesh-options`, `walk`, `cache-file-revisit`) and from their runs (`reproduction`).
 const EXTERNAL_SECTIONS: &[&str] = &[
+    "cache-file-revisit",
     "convergence",
     "accuracy",
     "cost",

@@ -41,7 +41,7 @@ use redb::Database;
 use crate::cache::ShadingCache;
 use crate::mesh::{RefinementStep, SubdivisionMesh, VertexId};
 pub use key::{FORMAT_VERSION, MeshKey, SampleMeaning, StoreKey};
-use record::BaseRecord;
+use record::{BaseRecord, Numbering};
 pub use restore::Restored;
 use restore::{BadRecord, Parsed};
 use store::{Opened, Unusable};
@@ -130,10 +130,15 @@ pub struct CacheFile {
     vertex_base: Vec<u32>,
     save_every: Duration,
     last_save: Instant,
+    /// A periodic snapshot ran out of its slice with base triangles left: the save goes on at
+    /// the next turn. Base triangles marked between saves (new samples) wait for the period.
+    sliced: bool,
     pauses: Pauses,
     restored: Restored,
     /// Per base triangle: the file holds a record of it not loaded yet.
     unloaded: Vec<bool>,
+    /// The snapshots' scratch.
+    numbering: Numbering,
     unloaded_count: usize,
     /// One warning for records that cannot be read, not one per load.
     warned_unreadable: bool,
@@ -183,9 +188,11 @@ impl CacheFile {
             vertex_base: Vec::new(),
             save_every,
             last_save: Instant::now(),
+            sliced: false,
             pauses: Pauses::default(),
             restored: Restored::default(),
             unloaded,
+            numbering: Numbering::default(),
             unloaded_count: opened.stored.len(),
             warned_unreadable: false,
         };
@@ -332,12 +339,12 @@ impl CacheFile {
     /// The periodic save: when due, snapshots changed base triangles for at most
     /// [`SNAPSHOT_SLICE`] and hands them to the writer; what is left waits for the next call.
     pub fn save_if_due(&mut self, mesh: &mut SubdivisionMesh, cache: &ShadingCache) {
-        let leftover = !self.dirty.is_empty();
-        if !leftover && self.last_save.elapsed() < self.save_every {
+        if !self.sliced && self.last_save.elapsed() < self.save_every {
             return;
         }
         let start = Instant::now();
         let records = self.snapshot(mesh, cache, Some(start + SNAPSHOT_SLICE));
+        self.sliced = !self.dirty.is_empty();
         if !records.is_empty()
             && let Err(writer::Busy(back)) = self.writer.try_commit(records)
         {
@@ -345,7 +352,7 @@ impl CacheFile {
             back.iter().for_each(|(base, _)| self.mark(*base));
         }
         self.note_pause(start.elapsed());
-        if self.dirty.is_empty() {
+        if !self.sliced {
             self.last_save = Instant::now();
         }
     }
@@ -353,10 +360,10 @@ impl CacheFile {
     /// When [`Self::save_if_due`] next has work: now while a sliced snapshot has base triangles
     /// left, else a period after the last save.
     pub fn save_due_at(&self) -> Instant {
-        if self.dirty.is_empty() {
-            self.last_save + self.save_every
-        } else {
+        if self.sliced {
             Instant::now()
+        } else {
+            self.last_save + self.save_every
         }
     }
 
@@ -368,6 +375,7 @@ impl CacheFile {
         self.note_pause(start.elapsed());
         self.writer.commit_and_wait(records);
         self.last_save = Instant::now();
+        self.sliced = false;
     }
 
     /// The clean stop: a last save, then the writer finishes and the file is closed.
@@ -431,7 +439,7 @@ impl CacheFile {
         let mut taken = 0;
         while taken < self.dirty.len() && until.is_none_or(|t| Instant::now() < t) {
             let base = self.dirty[taken];
-            let (record, vertices) = BaseRecord::snapshot(mesh, cache, base);
+            let (record, vertices) = BaseRecord::snapshot(mesh, cache, base, &mut self.numbering);
             self.note_owner(&vertices, base);
             records.push((base, (!record.is_empty()).then_some(record)));
             taken += 1;
@@ -447,8 +455,14 @@ impl CacheFile {
 /// benchmark's monolithic snapshot writes to one file instead, to compare the two layouts.
 #[cfg(feature = "testing")]
 pub fn encoded_records(mesh: &SubdivisionMesh, cache: &ShadingCache) -> Vec<(u32, Vec<u8>)> {
+    let mut numbering = Numbering::default();
     (0..mesh.base_count() as u32)
-        .map(|base| (base, BaseRecord::snapshot(mesh, cache, base).0))
+        .map(|base| {
+            (
+                base,
+                BaseRecord::snapshot(mesh, cache, base, &mut numbering).0,
+            )
+        })
         .filter(|(_, record)| !record.is_empty())
         .map(|(base, record)| {
             (

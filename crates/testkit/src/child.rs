@@ -92,6 +92,24 @@ impl Process {
         Some((ticks(14)? + ticks(15)?) / CLOCK_TICKS_PER_SECOND)
     }
 
+    /// Stops the child as Ctrl-C does (SIGINT: a server's clean stop) and waits for it to exit,
+    /// within `timeout`; past it, kills it and fails.
+    pub fn interrupt_and_wait(&mut self, timeout: Duration) -> anyhow::Result<ExitStatus> {
+        self.signal(libc::SIGINT);
+        let deadline = std::time::Instant::now() + timeout;
+        loop {
+            if let Some(status) = self.exited() {
+                return Ok(status);
+            }
+            if std::time::Instant::now() > deadline {
+                let failure = self.failure(&format!("did not stop within {timeout:?} of SIGINT"));
+                self.kill();
+                return Err(failure);
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
     /// Stops the child with SIGSTOP (a hung host: its sockets stay open, it answers nothing).
     pub fn pause(&self) {
         self.signal(libc::SIGSTOP);
@@ -278,4 +296,29 @@ pub fn start_sma(
 /// `["a", "b"]` as owned strings, for argument lists.
 pub fn strings(v: &[&str]) -> Vec<String> {
     v.iter().map(|s| s.to_string()).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn shell(name: &str, script: &str) -> Process {
+        Process::spawn(Path::new("/bin/sh"), name, &strings(&["-c", script]), None).unwrap()
+    }
+
+    #[test]
+    fn an_interrupt_stops_a_child_and_one_that_ignores_it_is_killed_at_the_timeout() {
+        let mut plain = shell("sleeper", "exec sleep 30");
+        let status = plain.interrupt_and_wait(Duration::from_secs(20)).unwrap();
+        assert!(!status.success(), "sleep ends by the signal: {status}");
+        let mut stubborn = shell("stubborn", "trap '' INT; exec sleep 30");
+        let started = std::time::Instant::now();
+        assert!(
+            stubborn
+                .interrupt_and_wait(Duration::from_millis(300))
+                .is_err()
+        );
+        assert!(started.elapsed() < Duration::from_secs(20));
+        assert!(stubborn.exited().is_some(), "killed and reaped");
+    }
 }

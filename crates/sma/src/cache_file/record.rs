@@ -117,23 +117,6 @@ pub fn synthetic_corners(shape: &[u8]) -> Result<(Vec<[u32; 3]>, u32), BadShape>
     Ok((corners, next))
 }
 
-/// The nodes of `base`'s live subtree in pre-order, with their shape codes.
-pub fn subtree(mesh: &SubdivisionMesh, base: u32) -> (Vec<NodeId>, Vec<u8>) {
-    let (mut nodes, mut shape) = (Vec::new(), Vec::new());
-    let mut stack = vec![base];
-    while let Some(id) = stack.pop() {
-        let node = mesh.node(id);
-        nodes.push(id);
-        shape.push(match node.split() {
-            Split::None => LEAF,
-            Split::Red { .. } => RED,
-            Split::Green { edge, .. } => GREEN_ALONG + edge,
-        });
-        stack.extend(node.children().rev());
-    }
-    (nodes, shape)
-}
-
 /// The mesh vertex behind each of the shape's vertex numbers, from the mesh nodes that stand for
 /// the shape's nodes (`node_of[i]` for the shape's node `i`, None where the mesh has none).
 pub fn vertex_map(
@@ -153,20 +136,76 @@ pub fn vertex_map(
     map
 }
 
+/// Which mesh vertices one snapshot has numbered already: a stamp per vertex, so a snapshot on
+/// the schedule's thread costs a lookup per split rather than a hash of every midpoint
+/// (DESIGN.md §3: the schedule may pause at most 20 ms for a save). Kept across snapshots.
+#[derive(Default)]
+pub struct Numbering {
+    stamp: Vec<u32>,
+    serial: u32,
+}
+
+impl Numbering {
+    /// Starts a snapshot's numbering of a mesh of `vertex_count` vertices: none numbered yet.
+    fn begin(&mut self, vertex_count: usize) {
+        if self.stamp.len() < vertex_count {
+            self.stamp.resize(vertex_count, 0);
+        }
+        self.serial = self.serial.wrapping_add(1);
+        if self.serial == 0 {
+            self.stamp.fill(0);
+            self.serial = 1;
+        }
+    }
+
+    /// Numbers `vertex`; whether it had no number yet.
+    fn number(&mut self, vertex: VertexId) -> bool {
+        let stamp = &mut self.stamp[vertex as usize];
+        let new = *stamp != self.serial;
+        *stamp = self.serial;
+        new
+    }
+}
+
 impl BaseRecord {
     /// `base`'s subtree and the cached samples of its vertices, now; also the mesh vertices it
-    /// covers.
+    /// covers, in the shape's numbering (`synthetic_corners`). The subtree is walked once in
+    /// pre-order, and each split numbers the midpoints it made as `synthetic_corners` does
+    /// (a red split's in the order of its middle child's corners, a green split's one), taken
+    /// from the mesh's children, whose corners are laid out as that function's.
     pub fn snapshot(
         mesh: &SubdivisionMesh,
         cache: &ShadingCache,
         base: u32,
+        numbering: &mut Numbering,
     ) -> (BaseRecord, Vec<VertexId>) {
-        let (nodes, shape) = subtree(mesh, base);
-        let (corners, count) = synthetic_corners(&shape).expect("a live subtree is a tree");
-        let vertices: Vec<VertexId> = vertex_map(mesh, &corners, count, |i| Some(nodes[i]))
-            .into_iter()
-            .map(|v| v.expect("every shape vertex is a corner of a node"))
-            .collect();
+        numbering.begin(mesh.vertex_count());
+        let mut shape = Vec::new();
+        // The base triangle's corners are 0, 1 and 2 whatever they are.
+        let mut vertices = mesh.node(base).vertices.to_vec();
+        for &v in &vertices {
+            numbering.number(v);
+        }
+        let mut stack = vec![base];
+        while let Some(id) = stack.pop() {
+            let node = mesh.node(id);
+            match node.split() {
+                Split::None => shape.push(LEAF),
+                Split::Red { first_child } => {
+                    shape.push(RED);
+                    let midpoints = mesh.node(first_child + 3).vertices;
+                    vertices.extend(midpoints.into_iter().filter(|&m| numbering.number(m)));
+                }
+                Split::Green { edge, first_child } => {
+                    shape.push(GREEN_ALONG + edge);
+                    let midpoint = mesh.node(first_child).vertices[1];
+                    if numbering.number(midpoint) {
+                        vertices.push(midpoint);
+                    }
+                }
+            }
+            stack.extend(node.children().rev());
+        }
         let samples = vertices
             .iter()
             .map(|&vertex| {
@@ -189,6 +228,61 @@ impl BaseRecord {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::MeshParams;
+    use crate::mesh::test_meshes::grid;
+
+    /// `base`'s shape, and its vertices by the shape's own numbering (`synthetic_corners` laid
+    /// over the subtree's nodes): what a snapshot's single walk must agree with.
+    fn by_synthetic_corners(mesh: &SubdivisionMesh, base: u32) -> (Vec<u8>, Vec<VertexId>) {
+        let (mut nodes, mut shape) = (Vec::new(), Vec::new());
+        let mut stack = vec![base];
+        while let Some(id) = stack.pop() {
+            let node = mesh.node(id);
+            nodes.push(id);
+            shape.push(match node.split() {
+                Split::None => LEAF,
+                Split::Red { .. } => RED,
+                Split::Green { edge, .. } => GREEN_ALONG + edge,
+            });
+            stack.extend(node.children().rev());
+        }
+        let (corners, count) = synthetic_corners(&shape).unwrap();
+        let vertices = vertex_map(mesh, &corners, count, |i| Some(nodes[i]))
+            .into_iter()
+            .map(|v| v.expect("every shape vertex is a corner of a node"))
+            .collect();
+        (shape, vertices)
+    }
+
+    #[test]
+    fn a_snapshot_numbers_the_vertices_as_the_shape_does() {
+        let mut mesh = SubdivisionMesh::new(&grid(4), MeshParams::default());
+        // A third of the leaves, picked anew each round, split: deep subtrees, greens between.
+        for round in 0..6u32 {
+            let picked: Vec<NodeId> = mesh
+                .leaves()
+                .filter(|&l| l.wrapping_mul(2_654_435_761).wrapping_add(round) % 3 == 0)
+                .collect();
+            mesh.refine(&picked, &|_| false);
+        }
+        let cache = ShadingCache::new(usize::MAX);
+        let mut numbering = Numbering::default();
+        let (mut greens, mut deepest) = (0, 0);
+        // Twice over: the stamps of one snapshot must not leak into the next.
+        for base in (0..mesh.base_count() as u32).chain(0..mesh.base_count() as u32) {
+            let (record, vertices) = BaseRecord::snapshot(&mesh, &cache, base, &mut numbering);
+            let (shape, expected) = by_synthetic_corners(&mesh, base);
+            assert_eq!(record.shape, shape, "base {base}");
+            assert_eq!(vertices, expected, "base {base}");
+            assert_eq!(record.samples.len(), vertices.len());
+            greens += shape.iter().filter(|&&c| c >= GREEN_ALONG).count();
+            deepest = deepest.max(shape.len());
+        }
+        assert!(
+            greens > 0 && deepest > 50,
+            "{greens} greens, {deepest} nodes at most"
+        );
+    }
 
     #[test]
     fn a_red_split_names_three_midpoints_and_its_children_share_them() {

@@ -334,6 +334,27 @@ fn periodic_saves_pause_for_a_slice_at_most_and_catch_up() {
 }
 
 #[test]
+fn new_samples_between_periodic_saves_wait_for_the_period() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = Config {
+        save_every: Duration::from_secs(3600),
+        ..config(&dir)
+    };
+    let (mut mesh, mut cache) = fresh();
+    let mut file = open_all(&config, &key(), &mut mesh, &mut cache).unwrap();
+    refine(&mut mesh, &[1, 2, 3]);
+    shade(&mesh, &mut cache);
+    file.samples_changed(0..mesh.vertex_count() as VertexId);
+    for _ in 0..10 {
+        file.save_if_due(&mut mesh, &cache);
+    }
+    assert_eq!(file.pauses().count, 0, "no save before the period is over");
+    assert!(file.save_due_at() > Instant::now() + Duration::from_secs(3000));
+    file.save_now(&mut mesh, &cache);
+    assert_eq!(file.writer_stats().commits, 1);
+}
+
+#[test]
 fn a_per_scene_file_is_named_by_scene_and_fingerprint() {
     let config = CacheFileConfig {
         location: Location::PerScene(PathBuf::from("/cache/walkthrough")),
