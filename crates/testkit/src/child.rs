@@ -311,7 +311,20 @@ mod tests {
         let mut plain = shell("sleeper", "exec sleep 30");
         let status = plain.interrupt_and_wait(Duration::from_secs(20)).unwrap();
         assert!(!status.success(), "sleep ends by the signal: {status}");
-        let mut stubborn = shell("stubborn", "trap '' INT; exec sleep 30");
+        // It says when its trap is set: a signal before that would end it.
+        let ready = std::env::temp_dir().join(format!("testkit-stubborn-{}", std::process::id()));
+        let _ = std::fs::remove_file(&ready);
+        let script = format!("trap '' INT; touch '{}'; exec sleep 30", ready.display());
+        let mut stubborn = shell("stubborn", &script);
+        let deadline = std::time::Instant::now() + Duration::from_secs(20);
+        while !ready.exists() {
+            assert!(
+                std::time::Instant::now() < deadline,
+                "the shell never set its trap"
+            );
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let _ = std::fs::remove_file(&ready);
         let started = std::time::Instant::now();
         assert!(
             stubborn

@@ -57,6 +57,9 @@ struct Moment {
 /// One visit: its first complete picture and its last (converged, or at the limit).
 struct Visit {
     camera: Camera,
+    /// The first epoch showing as many triangles as `shown_before` (the first visit's last
+    /// picture), and when: the restored mesh on screen, whatever refinement does next.
+    as_many: Option<(f64, Epoch)>,
     complete: Moment,
     end: Moment,
     converged: bool,
@@ -92,9 +95,16 @@ pub fn run(config: &RevisitConfig) -> anyhow::Result<()> {
         std::fs::create_dir_all(&dir)?;
         let file = dir.join("cache.redb");
         eprintln!("revisit {run}: first visit, empty cache file…");
-        let mut first = runtime.block_on(visit(&exe, &dir, config, &file, "first"))?;
+        let mut first = runtime.block_on(visit(&exe, &dir, config, &file, "first", None))?;
         eprintln!("revisit {run}: the SMA stopped; again on its cache file…");
-        let mut again = runtime.block_on(visit(&exe, &dir, config, &file, "again"))?;
+        let mut again = runtime.block_on(visit(
+            &exe,
+            &dir,
+            config,
+            &file,
+            "again",
+            Some(first.end.epoch.shown),
+        ))?;
         let camera = first.camera.clone();
         for visit in [&mut first, &mut again] {
             for moment in [&mut visit.complete, &mut visit.end] {
@@ -139,6 +149,7 @@ async fn visit(
     config: &RevisitConfig,
     file: &Path,
     label: &str,
+    shown_before: Option<u64>,
 ) -> anyhow::Result<Visit> {
     let sma_log = dir.join(format!("sma-{label}.log"));
     let renderer = start_renderer(
@@ -157,8 +168,12 @@ async fn visit(
         .view(&config.view, config.width, config.height)
         .await?;
     let seq = camera.seq;
+    let mut as_many: Option<(f64, Epoch)> = None;
     let complete = probe
         .until(config.limit, |e| {
+            if as_many.is_none() && shown_before.is_some_and(|n| e.shown >= n) {
+                as_many = Some((t0.elapsed().as_secs_f64(), *e));
+            }
             e.camera_seq == seq && e.visible_leaves > 0 && e.shown == e.visible_leaves
         })
         .await?;
@@ -187,6 +202,7 @@ async fn visit(
         .collect();
     Ok(Visit {
         camera,
+        as_many,
         complete,
         end,
         converged,
@@ -254,6 +270,19 @@ fn section(
                     m.flip,
                 )?;
             }
+        }
+    }
+    for (k, (_, again)) in runs.iter().enumerate() {
+        if let Some((time_s, e)) = again.as_many {
+            writeln!(
+                md,
+                "| {} | again | as many triangles shown as the first visit's last picture | {time_s:.1} | {} | {:.1} M | {} / {} | |",
+                k + 1,
+                e.samples,
+                e.paths as f64 / 1e6,
+                e.shown,
+                e.visible_leaves,
+            )?;
         }
     }
     let share = |(first, again): &(Visit, Visit), of: fn(&Epoch) -> u64| {
