@@ -130,6 +130,8 @@ struct Trial {
     full_bytes: u64,
     file_bytes: u64,
     load_s: f64,
+    /// The load by the calling thread's CPU clock: the work, without the machine's other work.
+    load_cpu_s: f64,
     /// Of the load: opening (integrity check, the list of records), reading and decoding the
     /// records, replaying the splits, filling the cache.
     load_parts: (f64, f64, f64, f64),
@@ -205,9 +207,10 @@ fn trial(dir: &Path, levels: usize) -> anyhow::Result<Trial> {
     let file_bytes = std::fs::metadata(&path)?.len();
 
     let (mut mesh, mut cache) = fresh();
-    let t = Instant::now();
+    let (t, cpu) = (Instant::now(), pauses::thread_cpu_time());
     let loaded = open(&path, &mut mesh, &mut cache)?;
     let load_s = t.elapsed().as_secs_f64();
+    let load_cpu_s = (pauses::thread_cpu_time() - cpu).as_secs_f64();
     let r = loaded.restored();
     let load_parts = (
         r.open.as_secs_f64(),
@@ -226,6 +229,7 @@ fn trial(dir: &Path, levels: usize) -> anyhow::Result<Trial> {
         full_bytes: full.bytes,
         file_bytes,
         load_s,
+        load_cpu_s,
         load_parts,
         mono,
         saved_leaves,
@@ -291,8 +295,9 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
     )?;
     writeln!(
         md,
-        "| load of every record (a camera that sees the whole site: open with integrity check, read and decode, replay splits, fill cache) | {:.2} s | <= 1 s |",
-        med(|t| t.load_s)
+        "| load of every record (a camera that sees the whole site: open with integrity check, read and decode, replay splits, fill cache), by the wall clock (by the thread's CPU clock) | {:.2} s ({:.2} s) | <= 1 s |",
+        med(|t| t.load_s),
+        med(|t| t.load_cpu_s)
     )?;
     writeln!(
         md,
