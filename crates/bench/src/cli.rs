@@ -313,6 +313,10 @@ pub struct RevisitArgs {
     /// Seconds each visit may run before it is taken as it stands, unconverged.
     #[arg(long, default_value_t = 900.0)]
     pub limit_s: f64,
+    /// The control: once the restarted SMA converged, a look at this view and back (an empty
+    /// value skips it).
+    #[arg(long, default_value = "VR")]
+    pub away_view: String,
     /// Runs, each with a fresh cache file (medians over them, targets judged on the worst).
     #[arg(long, default_value_t = 3)]
     pub runs: usize,
@@ -334,6 +338,7 @@ impl RevisitArgs {
             gt_cache: self.gt_cache,
             limit: std::time::Duration::from_secs_f64(self.limit_s.clamp(1.0, 86_400.0)),
             runs: self.runs,
+            away: Some(self.away_view).filter(|v| !v.is_empty()),
             sma_flags: self.sma_flags,
             out: self.out,
         }

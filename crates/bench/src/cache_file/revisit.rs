@@ -39,6 +39,9 @@ pub struct RevisitConfig {
     /// Runs, each with a fresh file: the figures are medians over them, the targets judged on
     /// the worst.
     pub runs: usize,
+    /// The control, in the restarted SMA once it has converged: a look at this other view and
+    /// back, the return's first complete picture counted as the revisit's is (None: skipped).
+    pub away: Option<String>,
     /// More `walkthrough sma` flags for both visits.
     pub sma_flags: Vec<String>,
     /// BENCHMARKS.md, reassembled with the section.
@@ -54,6 +57,72 @@ struct Moment {
     flip: f64,
 }
 
+/// The control: back at the view after a look elsewhere, in a running SMA that holds its
+/// leaves and samples. Counts from the return.
+#[derive(Clone, Copy)]
+struct Back {
+    complete_s: f64,
+    complete: Epoch,
+    end_s: f64,
+    end: Epoch,
+    converged: bool,
+}
+
+/// Whether `e` is the first complete picture of camera `seq`: every visible leaf shown.
+fn complete_for(e: &Epoch, seq: u64) -> bool {
+    e.camera_seq == seq && e.visible_leaves > 0 && e.shown == e.visible_leaves
+}
+
+/// A look at `away` until its first complete picture, then back to the view: the return's
+/// first complete picture and convergence, counted from the return.
+async fn away_and_back(
+    probe: &mut Probe,
+    config: &RevisitConfig,
+    away: &str,
+) -> anyhow::Result<Back> {
+    let away_seq = probe.view(away, config.width, config.height).await?.seq;
+    probe
+        .until(config.limit, |e| complete_for(e, away_seq))
+        .await?;
+    let t = Instant::now();
+    let seq = probe
+        .view(&config.view, config.width, config.height)
+        .await?
+        .seq;
+    let mut at_return: Option<Epoch> = None;
+    let complete = probe
+        .until(config.limit, |e| {
+            at_return.get_or_insert(*e);
+            complete_for(e, seq)
+        })
+        .await?;
+    let complete_s = t.elapsed().as_secs_f64();
+    let converged = probe.until_converged(config.limit).await.is_ok();
+    let end = *probe.epochs.last().expect("an epoch came");
+    let end_s = t.elapsed().as_secs_f64();
+    // Counted from the epoch before the return's first: what the look away had asked for.
+    let base = probe
+        .epochs
+        .iter()
+        .rev()
+        .find(|e| e.camera_seq == away_seq)
+        .copied()
+        .or(at_return)
+        .expect("an epoch came");
+    let since = |e: Epoch| Epoch {
+        samples: e.samples - base.samples,
+        paths: e.paths - base.paths,
+        ..e
+    };
+    Ok(Back {
+        complete_s,
+        complete: since(complete),
+        end_s,
+        end: since(end),
+        converged,
+    })
+}
+
 /// One visit: its first complete picture and its last (converged, or at the limit).
 struct Visit {
     camera: Camera,
@@ -63,6 +132,8 @@ struct Visit {
     complete: Moment,
     end: Moment,
     converged: bool,
+    /// The control's figures, in the restarted SMA.
+    back: Option<Back>,
     /// The cache file's size after the visit's clean stop.
     file_bytes: u64,
     /// The SMA's log lines about its cache file.
@@ -174,7 +245,7 @@ async fn visit(
             if as_many.is_none() && shown_before.is_some_and(|n| e.shown >= n) {
                 as_many = Some((t0.elapsed().as_secs_f64(), *e));
             }
-            e.camera_seq == seq && e.visible_leaves > 0 && e.shown == e.visible_leaves
+            complete_for(e, seq)
         })
         .await?;
     let complete = Moment {
@@ -191,6 +262,10 @@ async fn visit(
         triangles: probe.table.values().cloned().collect(),
         flip: f64::NAN,
     };
+    let back = match (&config.away, shown_before) {
+        (Some(away), Some(_)) => Some(away_and_back(&mut probe, config, away).await?),
+        _ => None,
+    };
     drop(probe);
     let status = sma.process.interrupt_and_wait(Duration::from_secs(120))?;
     anyhow::ensure!(status.success(), "the SMA's clean stop failed ({status})");
@@ -206,6 +281,7 @@ async fn visit(
         complete,
         end,
         converged,
+        back,
         file_bytes: std::fs::metadata(file).map(|m| m.len()).unwrap_or(0),
         file_log,
     })
@@ -285,6 +361,29 @@ fn section(
             )?;
         }
     }
+    for (k, (_, again)) in runs.iter().enumerate() {
+        let Some(back) = again.back else { continue };
+        let away = config.away.as_deref().unwrap_or_default();
+        let end = if back.converged {
+            "converged"
+        } else {
+            "at the limit, not converged"
+        };
+        for (what, time_s, e) in [
+            ("first complete picture", back.complete_s, back.complete),
+            (end, back.end_s, back.end),
+        ] {
+            writeln!(
+                md,
+                "| {} | again, back from `{away}` (counted from the return) | {what} | {time_s:.1} | {} | {:.1} M | {} / {} | |",
+                k + 1,
+                e.samples,
+                e.paths as f64 / 1e6,
+                e.shown,
+                e.visible_leaves,
+            )?;
+        }
+    }
     let share = |(first, again): &(Visit, Visit), of: fn(&Epoch) -> u64| {
         100.0 * of(&again.complete.epoch) as f64 / of(&first.end.epoch).max(1) as f64
     };
@@ -322,6 +421,31 @@ fn section(
         crate::stats::median(runs.iter().map(|r| r.0.end.time_s).collect()),
         runs[0].0.file_bytes as f64 / 1048576.0,
     )?;
+    let backs: Vec<Back> = runs.iter().filter_map(|(_, again)| again.back).collect();
+    if !backs.is_empty() {
+        let of_first = |e: fn(&Back) -> u64| -> Vec<f64> {
+            runs.iter()
+                .filter_map(|(first, again)| {
+                    let back = again.back?;
+                    Some(100.0 * e(&back) as f64 / first.end.epoch.samples.max(1) as f64)
+                })
+                .collect()
+        };
+        let complete = of_first(|b| b.complete.samples);
+        let end = of_first(|b| b.end.samples);
+        writeln!(
+            md,
+            "The control, in the restarted SMA once converged: a look at `{}` and back, every leaf \
+             and sample in memory. The return's first complete picture cost {:.2} % of the first \
+             visit's samples (median; at most {:.2} %), its convergence {:.2} % (median): what a \
+             running SMA does on coming back to a view, beside what the restart from the file \
+             costs.\n",
+            config.away.as_deref().unwrap_or_default(),
+            crate::stats::median(complete.clone()),
+            complete.iter().copied().fold(0.0, f64::max),
+            crate::stats::median(end),
+        )?;
+    }
     if !all_converged {
         writeln!(
             md,
