@@ -17,7 +17,8 @@
 //!   written: the file keeps its record as it was.
 //! - Saving is periodic and at a clean stop: the schedule's thread only snapshots the changed
 //!   base triangles, at most [`SNAPSHOT_SLICE`] of them per turn's worth of time, and the writer
-//!   thread (`writer`) encodes and commits them.
+//!   thread (`writer`) encodes and commits them. Base triangles changed between saves wait for
+//!   the period (a save per turn would cost the schedule a pause each turn).
 //! - A store that is not this SMA's (truncated, corrupt, another scene, version or settings) is
 //!   refused with one warning naming why, renamed to `PATH.rejected`, and the SMA starts empty. A
 //!   store it cannot use now (locked by another SMA, an unwritable directory) gets one warning,
