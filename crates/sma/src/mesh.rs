@@ -36,6 +36,7 @@ mod adjacency;
 mod angles;
 mod changed;
 mod coarsen;
+mod compact;
 pub(crate) mod fast_hash;
 mod free_nodes;
 #[cfg(any(test, feature = "testing"))]

@@ -96,10 +96,16 @@ impl SubdivisionMesh {
         bytes
     }
 
-    /// Makes the nodes removed so far reusable by later splits. Call only where nothing outside
-    /// the mesh names a removed node any more (see `free_nodes`); returns whether any was.
+    /// Makes the nodes removed so far reusable by later splits, and gives back the node array's
+    /// free end (`compact`: live nodes near the end move down, so their ids change too). Call
+    /// only where nothing outside the mesh names a node any more but a shown table, which
+    /// tells a triangle by its corners (see `free_nodes`); returns whether any was removed.
     pub(crate) fn recycle_removed(&mut self) -> bool {
-        self.free_nodes.recycle()
+        if !self.free_nodes.recycle() {
+            return false;
+        }
+        self.compact_nodes();
+        true
     }
 
     /// How many times removed nodes were recycled: a node id held from before a later recycle
