@@ -281,6 +281,8 @@ mod tests {
         assert_eq!(budget.cache_budget(&account(900, 0, 200)), 0);
         assert!(budget.fits(&account(400, 300, 100), 100));
         assert!(!budget.fits(&account(400, 300, 100), 101));
+        assert_eq!(budget.excess(&account(400, 300, 100), 101), 1);
+        assert_eq!(budget.excess(&account(400, 300, 100), 0), 0);
         assert!(
             budget.fits(&account(800, 0, 0), 100),
             "a cache that needs little"
