@@ -26,7 +26,7 @@ use protocol::viewer_link::DirectShare;
 use protocol::{PartEstimate, Side};
 
 use crate::mesh::fast_hash::FastHash;
-use crate::mesh::{NodeId, SubdivisionMesh, push_lean, set_bytes, table_bytes};
+use crate::mesh::{NodeId, SubdivisionMesh, VertexId, push_lean, set_bytes, table_bytes};
 use crate::sample::{Estimate, Merge, display_radiance};
 use crate::visible_set::VisibleSet;
 use conventions::luminance;
@@ -499,6 +499,22 @@ impl ShadingCache {
         if let Some(&moved) = self.owners.get(s) {
             self.slots[moved as usize] = s as u32;
         }
+    }
+
+    /// Drops every sample of `vertices`, whose ids the mesh freed for reuse
+    /// (`SubdivisionMesh::free_unused_midpoints`): a reused id is traced afresh, and its albedo
+    /// looked up again.
+    pub fn forget_vertices(&mut self, vertices: &[VertexId]) {
+        for &v in vertices {
+            for slot in [2 * v as usize, 2 * v as usize + 1] {
+                if self.slots.get(slot).is_some_and(|&s| s != NO_SLOT) {
+                    self.remove(slot);
+                }
+                self.drop_eyes(slot);
+                self.failed.remove(&(slot as u32));
+            }
+        }
+        self.albedos.forget(vertices);
     }
 
     pub fn len(&self) -> usize {

@@ -7,13 +7,17 @@
 //! round may add, stays under nine tenths of the budget: past it, the subdivision of the base
 //! triangles seen least recently, and in no current view, is collapsed first, the removed
 //! nodes are reused (`mesh::free_nodes`) and the node array's free end given back
-//! (`mesh::compact`); with nothing out of view left to collapse, the samples no current view
-//! shows are evicted. When the current views alone need more, refinement stops and the SMA says
+//! (`mesh::compact`), and the midpoint vertices and split edges no live node uses are freed for
+//! reuse; with nothing out of view left to collapse, the samples no current view shows are
+//! evicted. When the current views alone need more, refinement stops and the SMA says
 //! it is memory-bound (`Stats`, and one log line each way).
+
+use std::collections::HashSet;
 
 use protocol::viewer_link::SmaMemory;
 
-use crate::mesh::MeshMemory;
+use crate::mesh::fast_hash::FastHash;
+use crate::mesh::{MeshMemory, VertexId};
 use crate::viewer_link::ViewerId;
 
 /// Near the budget: past this share of it, refinement gives way to coarsening. The cache shrinks
@@ -163,6 +167,9 @@ impl super::Schedule {
             && self.mesh.recycle_removed();
         if recycled {
             self.viewers.leaves_changed();
+            if pressed {
+                self.free_unused_midpoints();
+            }
         }
         let mut leaves_changed = self.refinement.coarsen_stale(&mut self.mesh, self.frame);
         if pressed {
@@ -235,6 +242,22 @@ impl super::Schedule {
                 return false;
             }
         }
+    }
+
+    /// Under pressure, with no refinement step pending: the midpoint vertices no live node
+    /// uses are freed for reuse, with their samples (`SubdivisionMesh::free_unused_midpoints`),
+    /// but for those a shown triangle or a sample asked for still names.
+    fn free_unused_midpoints(&mut self) {
+        let shown = self.viewers.iter().flat_map(|v| v.shown.shown_triangles());
+        let named: HashSet<VertexId, FastHash> = self
+            .requests
+            .vertices()
+            .chain(shown.flat_map(|(corners, _)| corners))
+            .collect();
+        let freed = self.mesh.free_unused_midpoints(&|v| named.contains(&v));
+        self.cache.forget_vertices(&freed);
+        self.answers
+            .forget_vertices(&freed.into_iter().collect::<HashSet<_, FastHash>>());
     }
 
     fn round_fits_budget(&self, account: &MemoryAccount) -> bool {

@@ -47,7 +47,8 @@ struct Entry {
     /// The luminance of the radiance last sent, per corner: what `nld-is` reads.
     luminance: [f32; 3],
     /// Its corners when sent: the mesh reuses removed nodes' ids (`mesh::free_nodes`), so an id
-    /// may come back as another triangle; vertices are never reused, so they tell.
+    /// may come back as another triangle; a shown triangle's vertices are never reused
+    /// (`SubdivisionMesh::free_unused_midpoints` keeps them), so they tell.
     vertices: [VertexId; 3],
     /// The sync that last wanted it (wrapping: only equality with the current one is read).
     wanted_at: u32,
