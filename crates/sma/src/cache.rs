@@ -457,50 +457,6 @@ impl ShadingCache {
         }
     }
 
-    /// When over budget, removes samples not seen longest first, down to 90 % of the budget;
-    /// `keep` and samples seen at `now` are spared. Returns how many were removed.
-    pub fn evict(&mut self, now: u64, keep: &dyn Fn(SampleKey) -> bool) -> usize {
-        if self.bytes() <= self.budget_bytes {
-            return 0;
-        }
-        let target = (self.budget_bytes as f64 * EVICT_TO_FRACTION) as usize;
-        let now = stamp(now);
-        let mut candidates: Vec<(Stamp, u32)> = self
-            .samples
-            .iter()
-            .zip(&self.owners)
-            .filter(|&(s, &slot)| s.last_seen < now && !keep(slot_key(slot)))
-            .map(|(s, &slot)| (s.last_seen, slot))
-            .collect();
-        candidates.sort_unstable();
-        let mut removed = 0;
-        for (_, slot) in candidates {
-            if self.bytes() <= target {
-                break;
-            }
-            self.remove(slot as usize);
-            removed += 1;
-        }
-        // The budget counts capacity, and a budget that shrank (the mesh grew) must free it:
-        // arrays left far larger than what stays are cut to a quarter above it.
-        let lean = self.samples.len() + self.samples.len() / 4 + 16;
-        if removed > 0 && self.samples.capacity() > lean {
-            self.samples.shrink_to(lean);
-            self.owners.shrink_to(lean);
-        }
-        removed
-    }
-
-    fn remove(&mut self, slot: usize) {
-        let s = std::mem::replace(&mut self.slots[slot], NO_SLOT) as usize;
-        self.samples.swap_remove(s);
-        self.owners.swap_remove(s);
-        self.drop_eyes(slot);
-        if let Some(&moved) = self.owners.get(s) {
-            self.slots[moved as usize] = s as u32;
-        }
-    }
-
     pub fn len(&self) -> usize {
         self.samples.len()
     }
@@ -587,11 +543,12 @@ impl ShadingCache {
 pub const L_WHITE_OUTLIERS: f64 = 0.001;
 
 mod albedo;
+mod leaving;
 mod packed;
 mod quantised;
 use albedo::VertexAlbedos;
 pub use packed::CachedSample;
-use packed::{PackedSample, Stamp, sample_of, stamp};
+use packed::{PackedSample, sample_of, stamp};
 
 #[cfg(test)]
 mod tests;

@@ -61,6 +61,9 @@ pub trait Criterion: Send {
     fn select(&mut self, input: &CriterionInput, max: usize) -> Vec<NodeId>;
     /// Start over (the camera moved).
     fn reset(&mut self);
+    /// What its state for the current camera holds, by capacity: part of the viewer's share of
+    /// the memory budget (`schedule::memory`).
+    fn heap_bytes(&self) -> usize;
 }
 
 /// The criteria there are; on the wire and the command line by [`CriterionKind::name`].

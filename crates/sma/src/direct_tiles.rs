@@ -85,6 +85,18 @@ impl DirectTiles {
         self.tiles.clear();
     }
 
+    /// Heap bytes by capacity: the tiles and their pixels (part of the viewer's share of the
+    /// memory budget, `schedule::memory`).
+    pub fn heap_bytes(&self) -> usize {
+        self.tiles.capacity() * size_of::<Tile>()
+            + self
+                .tiles
+                .iter()
+                .map(|t| t.pixels.capacity() * size_of::<PartEstimate>())
+                .sum::<usize>()
+            + self.withdrawn.capacity() * size_of::<u64>()
+    }
+
     /// The passes of old cameras still asked for.
     pub fn take_withdrawn(&mut self) -> Vec<u64> {
         std::mem::take(&mut self.withdrawn)

@@ -36,6 +36,7 @@ mod adjacency;
 mod angles;
 mod changed;
 mod coarsen;
+mod compact;
 pub(crate) mod fast_hash;
 mod free_nodes;
 #[cfg(any(test, feature = "testing"))]
@@ -285,7 +286,7 @@ pub struct SubdivisionMesh {
     /// Keyed by point pair; kept when the count drops to zero so a re-split reuses the point.
     edge_splits: HashMap<u64, EdgeSplit, FastHash>,
     /// Keyed by vertex pair: one midpoint vertex per side of a seam, for edges with a seam vertex
-    /// at an end (the others find theirs in `edge_splits`); kept for ever so a re-split finds the
+    /// at an end (the others find theirs in `edge_splits`); kept, unless memory is pressed, so a re-split finds the
     /// vertex, and its cached samples, again.
     seam_midpoints: HashMap<u64, VertexId, FastHash>,
     leaf_count: usize,
@@ -295,6 +296,8 @@ pub struct SubdivisionMesh {
     changed: changed::ChangedBases,
     /// Removed children, reused by later splits once recycled.
     free_nodes: free_nodes::FreeNodes,
+    /// Midpoint vertices freed under memory pressure (`memory`), reused by later splits.
+    free_vertices: Vec<VertexId>,
 }
 
 /// Flag in `vertex_point` of a vertex whose point may hold other vertices (a seam side, or a
@@ -391,6 +394,7 @@ impl SubdivisionMesh {
             splits: 0,
             changed: changed::ChangedBases::new(base_count),
             free_nodes: free_nodes::FreeNodes::default(),
+            free_vertices: Vec::new(),
         }
     }
 

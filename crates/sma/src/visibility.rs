@@ -7,6 +7,7 @@
 //! - [`id_pass`]: triangles into an R32Uint ID buffer with depth, per-triangle pixel coverage;
 //! - `levels`: level 1 over the base mesh, level 2 over the leaves of visible base triangles;
 //! - `luminance_pass`: the Gouraud luminance image of what a viewer shows, for `nld-is`;
+//! - `pixel_leaves`: the leaf under each pixel of a view, as runs;
 //! - `coverage_mask`: the pixels a set of triangles covers, for tests (behind the `testing`
 //!   feature);
 //! - `view`: a camera and depth range; every pass draws camera-relative.
@@ -19,6 +20,7 @@ mod guards;
 pub mod id_pass;
 mod levels;
 mod luminance_pass;
+mod pixel_leaves;
 mod view;
 
 pub use carry_over::carry_over;
@@ -28,4 +30,5 @@ pub use gpu::{Gpu, GpuError};
 pub use id_pass::{Coverage, IdImage, IdPass, TriangleBuffer};
 pub use levels::{LeafView, Visibility, scene_view, side_facing};
 pub use luminance_pass::LuminancePass;
+pub use pixel_leaves::PixelLeaves;
 pub use view::View;

@@ -11,7 +11,7 @@ use std::collections::HashMap;
 use glam::Vec3;
 use protocol::viewer_link::Camera;
 use sma::mesh::{MeshParams, NodeId, SubdivisionMesh};
-use sma::visibility::{Gpu, LeafView, Visibility, carry_over};
+use sma::visibility::{Gpu, LeafView, PixelLeaves, Visibility, carry_over};
 use testkit::gpu::gpu_or_skip;
 
 const W: u32 = 256;
@@ -25,7 +25,7 @@ fn camera(vp: &scene::ViewpointSetting) -> Camera {
 type Seen = Vec<(NodeId, protocol::Side, u32)>;
 
 /// What a pass found, in a form two passes can be compared by.
-fn found(view: &LeafView) -> (Seen, &[Option<NodeId>]) {
+fn found(view: &LeafView) -> (Seen, &PixelLeaves) {
     let leaves = view
         .visible
         .leaves
@@ -95,7 +95,7 @@ fn carried_against_fresh(carried: &LeafView, fresh: &LeafView) -> (f64, u32) {
     let differ = carried
         .pixel_leaves
         .iter()
-        .zip(&fresh.pixel_leaves)
+        .zip(fresh.pixel_leaves.iter())
         .filter(|(a, b)| a != b)
         .count();
     let leaves = |v: &LeafView| -> HashMap<(NodeId, protocol::Side), u32> {

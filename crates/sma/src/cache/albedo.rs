@@ -14,13 +14,16 @@ use crate::mesh::{SubdivisionMesh, VertexId};
 /// that states more still fits): steps of 2^-15, far below a display step.
 const STEPS_PER_UNIT: f32 = 32_768.0;
 
-/// The albedo of every vertex looked up so far, by vertex id (vertices are never renumbered).
+/// The albedo of every vertex looked up so far, by vertex id; a midpoint vertex the mesh freed
+/// (`SubdivisionMesh::free_unused_midpoints`) is looked up again once reused.
 #[derive(Clone, Debug, Default)]
 pub(super) struct VertexAlbedos {
     /// Without a scene (the cache's unit tests, benchmarks of the cache alone) every albedo is
     /// one.
     scene: Option<Arc<Scene>>,
     albedos: Vec<[u16; 3]>,
+    /// Freed vertices, looked up again once a split reuses them.
+    stale: Vec<VertexId>,
 }
 
 impl VertexAlbedos {
@@ -28,17 +31,18 @@ impl VertexAlbedos {
         VertexAlbedos {
             scene: Some(scene),
             albedos: Vec::new(),
+            stale: Vec::new(),
         }
     }
 
-    /// Looks up the vertices of `mesh` beyond those already known.
+    /// Looks up the vertices of `mesh` beyond those already known, and the freed ones a split
+    /// has reused since.
     pub(super) fn cover(&mut self, mesh: &SubdivisionMesh) {
         let Some(scene) = &self.scene else {
             return;
         };
-        let known = self.albedos.len();
-        self.albedos.extend((known..mesh.vertex_count()).map(|v| {
-            let vertex = mesh.vertex(v as VertexId);
+        let look_up = |v: VertexId| {
+            let vertex = mesh.vertex(v);
             let t = vertex.base_triangle as usize;
             let albedo = if t < scene.mesh.triangles.len() {
                 scene.albedo_at(t, vertex.bary).to_array()
@@ -50,7 +54,25 @@ impl VertexAlbedos {
                     .round()
                     .min(f32::from(u16::MAX)) as u16
             })
-        }));
+        };
+        let known = self.albedos.len();
+        self.albedos
+            .extend((known..mesh.vertex_count()).map(|v| look_up(v as VertexId)));
+        let albedos = &mut self.albedos;
+        self.stale.retain(|&v| {
+            let reused = !mesh.is_free_vertex(v);
+            if reused {
+                albedos[v as usize] = look_up(v);
+            }
+            !reused
+        });
+    }
+
+    /// `vertices` were freed: each is looked up again once reused.
+    pub(super) fn forget(&mut self, vertices: &[VertexId]) {
+        if self.scene.is_some() {
+            self.stale.extend(vertices);
+        }
     }
 
     /// The albedo at `vertex`: one where it was not looked up (no scene).
@@ -62,6 +84,7 @@ impl VertexAlbedos {
 
     pub(super) fn bytes(&self) -> usize {
         self.albedos.capacity() * size_of::<[u16; 3]>()
+            + self.stale.capacity() * size_of::<VertexId>()
     }
 }
 

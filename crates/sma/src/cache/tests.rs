@@ -378,3 +378,24 @@ fn a_failed_key_is_shown_with_the_mean_of_the_others() {
     cache.insert(key(c), sample(5.0, Quality::INTERACTIVE, 0));
     assert!(!cache.is_failed(key(c)), "a valid answer clears the mark");
 }
+
+/// A vertex the mesh freed for reuse loses its samples, both sides, and only its own.
+#[test]
+fn forgotten_vertices_lose_their_samples_and_only_theirs() {
+    let mut cache = ShadingCache::new(1 << 20);
+    for v in 0..6 {
+        cache.insert(key(v), sample(1.0, Quality::DIRECT, 0));
+    }
+    let back = SampleKey {
+        vertex: 2,
+        side: Side::Back,
+    };
+    cache.insert(back, sample(1.0, Quality::DIRECT, 0));
+    cache.forget_vertices(&[2, 4]);
+    assert_eq!(cache.len(), 4);
+    assert!(cache.get(key(2)).is_none() && cache.get(back).is_none());
+    assert!(cache.get(key(4)).is_none());
+    for v in [0, 1, 3, 5] {
+        assert_eq!(cache.get(key(v)).unwrap().rgb(), [1.0; 3], "vertex {v}");
+    }
+}

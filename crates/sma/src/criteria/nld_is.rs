@@ -21,8 +21,8 @@ use super::{
     Criterion, CriterionInput, CriterionKind, CriterionSettings, LuminanceImage, Metric, Passes,
     leaf_display_error, nld_mm,
 };
-use crate::mesh::NodeId;
 use crate::mesh::fast_hash::FastHash;
+use crate::mesh::{NodeId, set_bytes};
 use crate::nld::{nld_metric, noise_aware_nld};
 use crate::sample::display;
 
@@ -219,11 +219,15 @@ impl Criterion for NldIs {
     }
 
     fn reset(&mut self) {
-        self.queue.clear();
+        self.queue = VecDeque::new();
         self.pass_due = true;
         self.in_pass = false;
         self.found = false;
-        self.selected.clear();
+        self.selected = HashSet::default();
+    }
+
+    fn heap_bytes(&self) -> usize {
+        set_bytes(&self.selected) + self.queue.capacity() * size_of::<Quad>()
     }
 }
 

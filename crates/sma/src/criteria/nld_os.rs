@@ -19,8 +19,8 @@ use super::{
     Criterion, CriterionInput, CriterionKind, CriterionSettings, Metric, is_large,
     leaf_nld_and_floor,
 };
-use crate::mesh::NodeId;
 use crate::mesh::fast_hash::FastHash;
+use crate::mesh::{NodeId, set_bytes};
 
 pub struct NldOs {
     settings: CriterionSettings,
@@ -147,6 +147,10 @@ impl Criterion for NldOs {
 
     fn reset(&mut self) {
         *self = NldOs::new(&self.settings, self.metric);
+    }
+
+    fn heap_bytes(&self) -> usize {
+        set_bytes(&self.offered)
     }
 }
 

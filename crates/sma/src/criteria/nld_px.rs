@@ -33,8 +33,8 @@ use super::{
     Criterion, CriterionInput, CriterionKind, CriterionSettings, Metric, is_large,
     leaf_nld_and_floor,
 };
-use crate::mesh::NodeId;
 use crate::mesh::fast_hash::FastHash;
+use crate::mesh::{NodeId, set_bytes};
 
 pub struct NldPx {
     settings: CriterionSettings,
@@ -90,7 +90,12 @@ impl Criterion for NldPx {
     }
 
     fn reset(&mut self) {
-        self.offered.clear();
+        // A new set, not a cleared one: what a camera offered is given back to the memory budget.
+        self.offered = HashSet::default();
+    }
+
+    fn heap_bytes(&self) -> usize {
+        set_bytes(&self.offered)
     }
 }
 

@@ -14,8 +14,8 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
 use super::{Criterion, CriterionInput, CriterionKind, CriterionSettings, Passes};
-use crate::mesh::NodeId;
 use crate::mesh::fast_hash::FastHash;
+use crate::mesh::{NodeId, set_bytes};
 
 pub struct Rnd {
     seed: u64,
@@ -97,7 +97,11 @@ impl Criterion for Rnd {
         self.rng = Pcg64Mcg::seed_from_u64(self.seed);
         self.picks = 0;
         self.found = false;
-        self.offered.clear();
+        self.offered = HashSet::default();
+    }
+
+    fn heap_bytes(&self) -> usize {
+        set_bytes(&self.offered)
     }
 }
 

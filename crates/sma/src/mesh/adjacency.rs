@@ -154,6 +154,9 @@ impl BaseAdjacency {
             across.extend(list);
             offsets.push(across.len() as u32);
         }
+        // Kept for the mesh's life and counted by capacity (`mesh::memory`): no growth slack.
+        offsets.shrink_to_fit();
+        across.shrink_to_fit();
         BaseAdjacency { offsets, across }
     }
 

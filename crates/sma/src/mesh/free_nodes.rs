@@ -42,11 +42,34 @@ impl FreeNodes {
         if self.retired.iter().all(Vec::is_empty) {
             return false;
         }
+        // Taken, not drained: the retired lists' capacity goes back to the memory budget.
         for (free, retired) in self.free.iter_mut().zip(&mut self.retired) {
-            free.append(retired);
+            free.extend(std::mem::take(retired));
         }
         self.recycles += 1;
         true
+    }
+
+    /// Takes every block ready for reuse, as (first id, length).
+    pub(super) fn take_free(&mut self) -> Vec<(NodeId, usize)> {
+        let mut blocks = Vec::new();
+        for (free, len) in self.free.iter_mut().zip(BLOCK) {
+            blocks.extend(std::mem::take(free).into_iter().map(|first| (first, len)));
+        }
+        blocks
+    }
+
+    /// Makes `blocks` (first id, length) the ones ready for reuse, lowest ids taken first: the
+    /// array's end then stays free for the next compaction to give back.
+    pub(super) fn set_free(&mut self, mut blocks: Vec<(NodeId, usize)>) {
+        debug_assert!(self.free.iter().all(Vec::is_empty));
+        blocks.sort_unstable_by(|a, b| b.cmp(a));
+        for (first, len) in blocks {
+            self.free[class(len)].push(first);
+        }
+        for free in &mut self.free {
+            free.shrink_to_fit();
+        }
     }
 
     pub(super) fn recycles(&self) -> u64 {

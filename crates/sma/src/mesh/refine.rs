@@ -231,7 +231,9 @@ impl SubdivisionMesh {
     /// making the point and the vertex the first time.
     fn split_edge(&mut self, id: NodeId, k: usize, step: &mut StepRecorder) -> VertexId {
         let (va, vb) = self.edge_vertices(id, k);
-        let next_vertex = self.vertices.len() as VertexId;
+        // A freed midpoint vertex is reused first (`memory::free_unused_midpoints`).
+        let next_vertex =
+            (self.free_vertices.last().copied()).unwrap_or(self.vertices.len() as VertexId);
         let split = self
             .edge_splits
             .entry(pair_key(self.point_of(va), self.point_of(vb)))
@@ -255,11 +257,14 @@ impl SubdivisionMesh {
             (self.point_of(first), self.vertex(first).position)
         };
         let vertex = self.midpoint_vertex(id, va, vb, position);
-        push_lean(&mut self.vertices, vertex);
-        push_lean(
-            &mut self.vertex_point,
-            if seam { point | SEAM_VERTEX } else { point },
-        );
+        let point = if seam { point | SEAM_VERTEX } else { point };
+        if self.free_vertices.pop().is_some() {
+            self.vertices[next_vertex as usize] = vertex;
+            self.vertex_point[next_vertex as usize] = point;
+        } else {
+            push_lean(&mut self.vertices, vertex);
+            push_lean(&mut self.vertex_point, point);
+        }
         if seam {
             self.seam_midpoints.insert(pair_key(va, vb), next_vertex);
         }

@@ -86,7 +86,7 @@ pub fn focus(
 /// any: a leaf's centroid stands for it.
 pub fn centre_depth(view: &LeafView, mesh: &SubdivisionMesh, camera: &Camera) -> Option<f32> {
     let (w, h) = (view.visible.width as usize, view.visible.height as usize);
-    let leaf = (*view.pixel_leaves.get(h / 2 * w + w / 2)?)?;
+    let leaf = view.pixel_leaves.get(h / 2 * w + w / 2)?;
     let [a, b, c] = mesh.leaf_positions(leaf);
     let centroid: Vec3 = (a + b + c) / 3.0;
     let depth = (centroid - camera.eye_vec()).dot(camera.pinhole().forward());

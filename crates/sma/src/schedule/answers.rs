@@ -4,12 +4,14 @@
 //! the cache gives up on it (bad input loses nothing else). What the answers change beyond the
 //! cache (the counts, the criteria's input, the viewers' sync) the schedule carries out.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use glam::Vec3;
 use protocol::renderer_link::{Quality, Radiance, SampleKey, ShadeBatch, point_flags};
 
 use crate::cache::{CachedSample, ShadingCache};
+use crate::mesh::VertexId;
+use crate::mesh::fast_hash::FastHash;
 
 /// Rejected answers for one key before the schedule stops asking for it.
 const MAX_REJECTIONS: u8 = 3;
@@ -73,6 +75,12 @@ impl Answers {
             paths: radiance.paths.iter().map(|&p| u64::from(p)).sum(),
             rejected,
         }
+    }
+
+    /// Forgets the rejections of `vertices`, freed by the mesh for reuse.
+    pub fn forget_vertices(&mut self, vertices: &HashSet<VertexId, FastHash>) {
+        self.rejections
+            .retain(|key, _| !vertices.contains(&key.vertex));
     }
 
     /// A point whose answer is not a valid estimate (NaN, infinite or negative radiance or

@@ -7,7 +7,8 @@
 //! A collapse step goes through the pending groups like a refinement step: where it reaches a
 //! leaf someone sees (a green closure in a visible neighbour undone), the viewer keeps the old
 //! leaves until the new ones are shaded, then swaps them in one update. The mesh keeps its
-//! midpoint vertices, so refining a region again reuses them and their cached samples.
+//! midpoint vertices, so refining a region again reuses them and their cached samples, unless
+//! the memory budget is pressed (`schedule::memory`).
 
 use std::collections::BTreeSet;
 

@@ -5,13 +5,19 @@
 //! The cache gets what the mesh and the viewers leave, and evicts what was seen least recently
 //! (`ShadingCache::evict`). A refinement round goes on while everything, grown by what the
 //! round may add, stays under nine tenths of the budget: past it, the subdivision of the base
-//! triangles seen least recently, and in no current view, is collapsed first, and the removed
-//! nodes are reused (`mesh::free_nodes`). When the current views alone need more, refinement
-//! stops and the SMA says it is memory-bound (`Stats`, and one log line each way).
+//! triangles seen least recently, and in no current view, is collapsed first, the removed
+//! nodes are reused (`mesh::free_nodes`) and the node array's free end given back
+//! (`mesh::compact`), and the midpoint vertices and split edges no live node uses are freed for
+//! reuse; with nothing out of view left to collapse, the samples no current view shows are
+//! evicted. When the current views alone need more, refinement stops and the SMA says
+//! it is memory-bound (`Stats`, and one log line each way).
+
+use std::collections::HashSet;
 
 use protocol::viewer_link::SmaMemory;
 
-use crate::mesh::MeshMemory;
+use crate::mesh::fast_hash::FastHash;
+use crate::mesh::{MeshMemory, VertexId};
 use crate::viewer_link::ViewerId;
 
 /// Near the budget: past this share of it, refinement gives way to coarsening. The cache shrinks
@@ -69,7 +75,14 @@ impl MemoryBudget {
 
     /// Whether everything, the mesh grown by `growth` bytes, stays under the pressed share.
     pub fn fits(&self, account: &MemoryAccount, growth: usize) -> bool {
-        (account.total() + growth) as f64 <= PRESSED * self.budget as f64
+        self.excess(account, growth) == 0
+    }
+
+    /// Bytes to free for everything, the mesh grown by `growth` bytes, to stay under the
+    /// pressed share.
+    pub fn excess(&self, account: &MemoryAccount, growth: usize) -> usize {
+        let room = (PRESSED * self.budget as f64) as usize;
+        (account.total() + growth).saturating_sub(room)
     }
 
     /// Splits a round of `selections` may make, for [`crate::mesh::SubdivisionMesh::growth_bytes`].
@@ -154,6 +167,9 @@ impl super::Schedule {
             && self.mesh.recycle_removed();
         if recycled {
             self.viewers.leaves_changed();
+            if pressed {
+                self.free_unused_midpoints();
+            }
         }
         let mut leaves_changed = self.refinement.coarsen_stale(&mut self.mesh, self.frame);
         if pressed {
@@ -172,8 +188,10 @@ impl super::Schedule {
     /// Whether a refinement round for viewer `id` fits the budget. When it does not, what was
     /// seen least recently and is in no view is collapsed, and the viewer waits for the pass
     /// that follows (or for new input); when nothing out of view is left to collapse, the
-    /// current views alone need more: the SMA is memory-bound, and the viewer's samples get
-    /// their paths as when its criterion runs dry (its stated end, DESIGN.md §5).
+    /// cached samples no current view shows are evicted, least recently seen first, as far as
+    /// the round needs. When that is not enough either, the current views alone need more: the
+    /// SMA is memory-bound, and the viewer's samples get their paths as when its criterion runs
+    /// dry (its stated end, DESIGN.md §5).
     pub(super) fn round_fits(&mut self, id: ViewerId) -> bool {
         let account = self.memory_account();
         if self.round_fits_budget(&account) {
@@ -187,6 +205,11 @@ impl super::Schedule {
         {
             self.viewers.leaves_changed();
         }
+        if self.refinement.pressed_in_vain() && self.evict_unseen_for_round() {
+            let account = self.memory_account();
+            self.memory.set_bound(false, &account);
+            return true;
+        }
         let bound = self.refinement.pressed_in_vain();
         self.memory.set_bound(bound, &account);
         if let Some(viewer) = self.viewers.get_mut(id) {
@@ -197,6 +220,44 @@ impl super::Schedule {
             }
         }
         false
+    }
+
+    /// Evicts cached samples that no view showed at the last pass, least recently seen first,
+    /// until a round fits or none is left (the cache's budget is set again before the next
+    /// passes); returns whether it fits now. What the current views show stays cached. The
+    /// budget counts capacity, which an eviction gives back only once the arrays are a quarter
+    /// above what stays (`ShadingCache::evict`): it goes by eighths of the cache at least.
+    fn evict_unseen_for_round(&mut self) -> bool {
+        let splits = MemoryBudget::round_splits(self.config.max_selections);
+        loop {
+            let growth = self.mesh.growth_bytes(splits);
+            let excess = self.memory.excess(&self.memory_account(), growth);
+            if excess == 0 {
+                return true;
+            }
+            let bytes = self.cache.bytes();
+            self.cache
+                .set_budget_bytes(bytes.saturating_sub(excess.max(bytes / 8)));
+            if self.cache.evict(self.frame, &|_| false) == 0 {
+                return false;
+            }
+        }
+    }
+
+    /// Under pressure, with no refinement step pending: the midpoint vertices no live node
+    /// uses are freed for reuse, with their samples (`SubdivisionMesh::free_unused_midpoints`),
+    /// but for those a shown triangle or a sample asked for still names.
+    fn free_unused_midpoints(&mut self) {
+        let shown = self.viewers.iter().flat_map(|v| v.shown.shown_triangles());
+        let named: HashSet<VertexId, FastHash> = self
+            .requests
+            .vertices()
+            .chain(shown.flat_map(|(corners, _)| corners))
+            .collect();
+        let freed = self.mesh.free_unused_midpoints(&|v| named.contains(&v));
+        self.cache.forget_vertices(&freed);
+        self.answers
+            .forget_vertices(&freed.into_iter().collect::<HashSet<_, FastHash>>());
     }
 
     fn round_fits_budget(&self, account: &MemoryAccount) -> bool {
@@ -243,6 +304,8 @@ mod tests {
         assert_eq!(budget.cache_budget(&account(900, 0, 200)), 0);
         assert!(budget.fits(&account(400, 300, 100), 100));
         assert!(!budget.fits(&account(400, 300, 100), 101));
+        assert_eq!(budget.excess(&account(400, 300, 100), 101), 1);
+        assert_eq!(budget.excess(&account(400, 300, 100), 0), 0);
         assert!(
             budget.fits(&account(800, 0, 0), 100),
             "a cache that needs little"

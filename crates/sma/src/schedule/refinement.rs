@@ -286,12 +286,7 @@ pub fn luminance_image(
     let triangles: Vec<_> = viewer
         .shown
         .shown_triangles()
-        .map(|(corners, rgb)| {
-            (
-                corners.map(|v| mesh.vertex(v).position),
-                rgb.map(conventions::luminance),
-            )
-        })
+        .map(|(corners, luminance)| (corners.map(|v| mesh.vertex(v).position), luminance))
         .collect();
     let pass_view = visibility.view(camera);
     let lum = luminance

@@ -10,6 +10,7 @@ use protocol::renderer_link::{Quality, SampleKey, ShadeBatch, ShadePoint};
 
 use super::need::{Need, Urgency, awaited, queue_order};
 use crate::cache::ShadingCache;
+use crate::mesh::VertexId;
 use crate::mesh::fast_hash::FastHash;
 
 /// A batch taken from the queue, and the kind of its needs (`kind_of`).
@@ -156,6 +157,13 @@ impl Requests {
     }
 
     /// Samples asked for and not answered, plus those queued.
+    /// The vertices of every queued and in-flight sample: their ids must not be reused while
+    /// an answer may come (`SubdivisionMesh::free_unused_midpoints`).
+    pub fn vertices(&self) -> impl Iterator<Item = VertexId> + '_ {
+        let queued = self.queue.iter().map(|need| need.point.key.vertex);
+        queued.chain(self.in_flight.keys().map(|key| key.vertex))
+    }
+
     pub fn outstanding(&self) -> usize {
         self.queue.len() + self.in_flight_keys()
     }

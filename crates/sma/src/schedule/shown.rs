@@ -4,25 +4,32 @@
 //! `Epoch`.
 
 use std::collections::HashMap;
+use std::hash::Hasher;
 
 use glam::Vec3;
 use protocol::Side;
 use protocol::viewer_link::{DirectShare, Recolour, ShownTriangle, SmaToViewer, TriangleId};
 
 use crate::cache::ShadingCache;
-use crate::mesh::fast_hash::FastHash;
+use crate::mesh::fast_hash::{FastHash, IdHasher};
 use crate::mesh::{NodeId, SubdivisionMesh, VertexId, table_bytes};
 use crate::visible_set::shown_id;
+
+/// Shown triangles a table keeps room for however few it holds: shrinking below is not worth
+/// its rehash.
+const SHOWN_KEPT: usize = 1024;
 
 /// What one viewer is shown, as this process last sent it.
 #[derive(Debug, Default)]
 pub struct ShownSet {
-    /// Shown triangles, the radiance last sent for each, and the sync that last wanted it (ids
-    /// made by this process: the fast hasher; a sync walks every visible leaf several times a
-    /// second).
-    shown: HashMap<TriangleId, Entry, FastHash>,
+    /// Shown triangles, by their [`TriangleId`] (below 2^30: node ids fit 29 bits, `mesh`),
+    /// with what was last sent for each and the sync that last wanted it (ids made by this
+    /// process: the fast hasher; a sync walks every visible leaf several times a second). One
+    /// entry per visible leaf, so it is kept lean: at 100,000 shown triangles it was the
+    /// largest part of the SMA's memory.
+    shown: HashMap<u32, Entry, FastHash>,
     /// Syncs so far: what a sync does not stamp with its own count has left the view.
-    syncs: u64,
+    syncs: u32,
     /// Δins and Δrem since the last epoch.
     pub inserted: u64,
     pub removed: u64,
@@ -33,12 +40,35 @@ pub struct ShownSet {
 /// One shown triangle.
 #[derive(Clone, Copy, Debug)]
 struct Entry {
-    radiance: [[f32; 3]; 3],
-    direct_share: [DirectShare; 3],
+    /// A hash of the colours last sent (radiance and direct share at each corner): a sync sends
+    /// an `Update` when the cache's differ; two colours alike in their 64-bit hash are taken as
+    /// one.
+    sent: [u32; 2],
+    /// The luminance of the radiance last sent, per corner: what `nld-is` reads.
+    luminance: [f32; 3],
     /// Its corners when sent: the mesh reuses removed nodes' ids (`mesh::free_nodes`), so an id
-    /// may come back as another triangle; vertices are never reused, so they tell.
+    /// may come back as another triangle; a shown triangle's vertices are never reused
+    /// (`SubdivisionMesh::free_unused_midpoints` keeps them), so they tell.
     vertices: [VertexId; 3],
-    wanted_at: u64,
+    /// The sync that last wanted it (wrapping: only equality with the current one is read).
+    wanted_at: u32,
+}
+
+/// A table slot is this, and a control byte: 41 bytes a shown triangle (73 with the colours kept
+/// whole and a 64-bit key).
+const _: () = assert!(size_of::<(u32, Entry)>() == 40);
+
+/// What [`Entry::sent`] holds of a triangle's colours.
+fn colours_hash(radiance: &[[f32; 3]; 3], direct_share: &[DirectShare; 3]) -> [u32; 2] {
+    let mut hasher = IdHasher::default();
+    for c in radiance.as_flattened() {
+        hasher.write_u32(c.to_bits());
+    }
+    for d in direct_share {
+        hasher.write_u8(d.0);
+    }
+    let h = hasher.finish();
+    [h as u32, (h >> 32) as u32]
 }
 
 impl ShownSet {
@@ -58,26 +88,35 @@ impl ShownSet {
         cache: &ShadingCache,
         eye: Vec3,
     ) -> Vec<SmaToViewer> {
-        self.syncs += 1;
+        self.syncs = self.syncs.wrapping_add(1);
         let sync = self.syncs;
         let (mut inserts, mut updates) = (Vec::new(), Vec::new());
         self.unshown = 0;
         let mut removed = Vec::new();
         for &(node, side) in targets {
             let id = shown_id(node, side);
+            let key = id as u32;
             let colours = cache.leaf_colours_from(mesh, node, side, eye);
             let vertices = mesh.node(node).vertices;
-            if self.shown.get(&id).is_some_and(|s| s.vertices != vertices) {
-                self.shown.remove(&id);
+            if self.shown.get(&key).is_some_and(|s| s.vertices != vertices) {
+                self.shown.remove(&key);
                 removed.push(id);
             }
-            match (self.shown.get_mut(&id), colours) {
+            match (self.shown.get_mut(&key), colours) {
                 (Some(shown), colours) => {
                     shown.wanted_at = sync;
-                    if let Some((radiance, direct_share)) =
-                        colours.filter(|&c| c != (shown.radiance, shown.direct_share))
+                    let changed = colours.map(|(radiance, direct_share)| {
+                        (
+                            radiance,
+                            direct_share,
+                            colours_hash(&radiance, &direct_share),
+                        )
+                    });
+                    if let Some((radiance, direct_share, sent)) =
+                        changed.filter(|&(.., sent)| sent != shown.sent)
                     {
-                        (shown.radiance, shown.direct_share) = (radiance, direct_share);
+                        shown.sent = sent;
+                        shown.luminance = radiance.map(conventions::luminance);
                         updates.push(Recolour {
                             id,
                             radiance,
@@ -87,10 +126,10 @@ impl ShownSet {
                 }
                 (None, Some((radiance, direct_share))) => {
                     self.shown.insert(
-                        id,
+                        key,
                         Entry {
-                            radiance,
-                            direct_share,
+                            sent: colours_hash(&radiance, &direct_share),
+                            luminance: radiance.map(conventions::luminance),
                             vertices,
                             wanted_at: sync,
                         },
@@ -105,13 +144,18 @@ impl ShownSet {
                 (None, None) => self.unshown += 1,
             }
         }
-        self.shown.retain(|&id, shown| {
+        self.shown.retain(|&key, shown| {
             let wanted = shown.wanted_at == sync;
             if !wanted {
-                removed.push(id);
+                removed.push(TriangleId::from(key));
             }
             wanted
         });
+        // A table keeps its peak capacity: once the view shrank (a coarsened mesh, a turn to a
+        // plainer wall) to a quarter of it, half is given back to the memory budget.
+        if self.shown.capacity() > 4 * self.shown.len().max(SHOWN_KEPT) {
+            self.shown.shrink_to(2 * self.shown.len());
+        }
         self.inserted += inserts.len() as u64;
         self.removed += removed.len() as u64;
         let mut messages = Vec::new();
@@ -128,12 +172,12 @@ impl ShownSet {
         messages
     }
 
-    /// The shown triangles as (corners, radiance), for the luminance image of `nld-is`: the
-    /// corners as sent, whatever their node's id names now.
-    pub fn shown_triangles(&self) -> impl Iterator<Item = ([VertexId; 3], [[f32; 3]; 3])> + '_ {
+    /// The shown triangles as (corners, luminance of the radiance sent), for the luminance image
+    /// of `nld-is`: the corners as sent, whatever their node's id names now.
+    pub fn shown_triangles(&self) -> impl Iterator<Item = ([VertexId; 3], [f32; 3])> + '_ {
         self.shown
             .values()
-            .map(|shown| (shown.vertices, shown.radiance))
+            .map(|shown| (shown.vertices, shown.luminance))
     }
 
     /// Heap bytes of the table, by capacity.
@@ -245,5 +289,69 @@ mod tests {
             "in step again"
         );
         assert_eq!((shown.inserted, shown.removed), (8, 4));
+    }
+
+    #[test]
+    fn nodes_moved_by_a_compaction_reach_the_viewer_as_remove_then_insert_of_the_same_triangles() {
+        let mut mesh = SubdivisionMesh::new(&grid_mesh(4), Default::default());
+        let eye = Vec3::new(1.0, 1.0, 3.0);
+        let (near, far) = (0, mesh.base_count() as NodeId - 1);
+        mesh.refine(&[near], &|_| false);
+        mesh.refine(&[far], &|_| false);
+        let far_leaves = |mesh: &SubdivisionMesh| -> Vec<(NodeId, Side)> {
+            mesh.leaves_of_base(far)
+                .into_iter()
+                .map(|n| (n, Side::Front))
+                .collect()
+        };
+        let mut cache = ShadingCache::new(1 << 20);
+        cache_all(&mesh, &mut cache, 0.5);
+        let mut shown = ShownSet::default();
+        let before = far_leaves(&mesh);
+        let first = shown.sync(&before, &mesh, &cache, eye);
+        assert_eq!(kinds(&first), [("insert", before.len())]);
+        // The near corner's blocks go; the far one's, the array's end, move into them.
+        assert!(!mesh.coarsen_many(&[near]).is_empty());
+        assert!(mesh.recycle_removed());
+        let after = far_leaves(&mesh);
+        assert_ne!(after, before, "the far leaves were renamed");
+        let messages = shown.sync(&after, &mesh, &cache, eye);
+        let moved = after.iter().filter(|t| !before.contains(t)).count();
+        assert_eq!(kinds(&messages), [("remove", moved), ("insert", moved)]);
+        let positions = |first: &[SmaToViewer]| -> Vec<[[f32; 3]; 3]> {
+            let mut p: Vec<_> = first
+                .iter()
+                .flat_map(|m| match m {
+                    SmaToViewer::Insert { triangles } => triangles.clone(),
+                    _ => Vec::new(),
+                })
+                .map(|t| t.positions)
+                .collect();
+            p.sort_by(|a, b| a.partial_cmp(b).unwrap());
+            p
+        };
+        let mut kept = positions(&first);
+        kept.retain(|p| positions(&messages).contains(p));
+        assert_eq!(kept, positions(&messages), "moved, not changed");
+        assert!(shown.sync(&after, &mesh, &cache, eye).is_empty());
+    }
+
+    #[test]
+    fn a_table_that_shrank_gives_its_capacity_back() {
+        let mesh = SubdivisionMesh::new(&grid_mesh(64), Default::default());
+        let eye = Vec3::new(1.0, 1.0, 3.0);
+        let mut cache = ShadingCache::new(1 << 24);
+        cache_all(&mesh, &mut cache, 0.5);
+        let all: Vec<(NodeId, Side)> = mesh.leaves().map(|n| (n, Side::Front)).collect();
+        let mut shown = ShownSet::default();
+        shown.sync(&all, &mesh, &cache, eye);
+        let full = shown.heap_bytes();
+        shown.sync(&all[..10], &mesh, &cache, eye);
+        assert_eq!(shown.len(), 10);
+        assert!(
+            shown.heap_bytes() < full / 4,
+            "{} of {full}",
+            shown.heap_bytes()
+        );
     }
 }

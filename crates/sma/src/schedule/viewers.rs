@@ -85,12 +85,14 @@ impl Viewer {
         }
     }
 
-    /// What this viewer's state holds, by capacity: its view, targets and shown table, and what
-    /// waits in its outbox.
+    /// What this viewer's state holds, by capacity: its view, targets and shown table, its
+    /// criterion's state, its direct-light tiles, and what waits in its outbox.
     pub fn heap_bytes(&self) -> usize {
         self.view.as_ref().map_or(0, LeafView::heap_bytes)
             + self.targets.capacity() * size_of::<(NodeId, protocol::Side)>()
             + self.shown.heap_bytes()
+            + self.criterion.heap_bytes()
+            + self.direct.heap_bytes()
             + self.outbox.waiting_bytes()
     }
 

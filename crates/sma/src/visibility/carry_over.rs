@@ -21,6 +21,7 @@ use protocol::viewer_link::Camera;
 use super::guards::add_guards;
 use super::id_pass::Coverage;
 use super::levels::{LeafView, side_facing};
+use super::pixel_leaves::PixelLeaves;
 use crate::mesh::fast_hash::FastHash;
 use crate::mesh::{NodeId, SubdivisionMesh};
 use crate::visible_set::{VisibleLeaf, VisibleSet};
@@ -35,20 +36,19 @@ const MOST_PIXELS_CARRIED: f64 = 0.125;
 /// keep their entries; the pixels of the others go to the leaves that now hold them, which get
 /// entries after the kept ones, in pixel order; the guards (`guards`) are found afresh.
 pub fn carry_over(view: LeafView, mesh: &SubdivisionMesh, camera: &Camera) -> Option<LeafView> {
-    let stale: Vec<u32> = view
+    let stale_pixels: u32 = view
         .pixel_leaves
-        .iter()
-        .enumerate()
+        .runs()
         .filter(|(_, p)| p.is_some_and(|leaf| !mesh.is_leaf(leaf)))
-        .map(|(i, _)| i as u32)
-        .collect();
-    if stale.len() as f64 > MOST_PIXELS_CARRIED * view.pixel_leaves.len() as f64 {
+        .map(|(pixels, _)| pixels.len() as u32)
+        .sum();
+    if f64::from(stale_pixels) > MOST_PIXELS_CARRIED * view.pixel_leaves.len() as f64 {
         return None;
     }
     let LeafView {
         visible,
         centroids: old_centroids,
-        mut pixel_leaves,
+        pixel_leaves: old_pixel_leaves,
         camera: view_camera,
         visible_bases,
         submitted_leaves,
@@ -58,20 +58,26 @@ pub fn carry_over(view: LeafView, mesh: &SubdivisionMesh, camera: &Camera) -> Op
     let mut walk = Walk::new(mesh, camera.eye_vec().as_dvec3());
     let mut gained: HashMap<NodeId, Coverage, FastHash> = HashMap::default();
     let mut gained_order = Vec::new();
-    for i in stale {
-        let slot = &mut pixel_leaves[i as usize];
-        let (x, y) = (i % width, i / width);
-        let old = slot.expect("a stale pixel has a leaf");
-        let leaf = walk.locate(old, rays.through(x, y));
-        *slot = Some(leaf);
-        let c = gained.entry(leaf).or_insert_with(|| {
-            gained_order.push(leaf);
-            Coverage::default()
-        });
-        c.pixels += 1;
-        c.sum_x += u64::from(x);
-        c.sum_y += u64::from(y);
+    let mut pixel_leaves = PixelLeaves::default();
+    for (pixels, old) in old_pixel_leaves.runs() {
+        let Some(old) = old.filter(|&leaf| !mesh.is_leaf(leaf)) else {
+            pixel_leaves.push(old, pixels.len() as u32);
+            continue;
+        };
+        for i in pixels {
+            let (x, y) = (i % width, i / width);
+            let leaf = walk.locate(old, rays.through(x, y));
+            pixel_leaves.push(Some(leaf), 1);
+            let c = gained.entry(leaf).or_insert_with(|| {
+                gained_order.push(leaf);
+                Coverage::default()
+            });
+            c.pixels += 1;
+            c.sum_x += u64::from(x);
+            c.sum_y += u64::from(y);
+        }
     }
+    pixel_leaves.shrink_to_fit();
     let (mut leaves, mut centroids) = (Vec::new(), Vec::new());
     for (v, &centroid) in visible.leaves.iter().zip(&old_centroids) {
         if !mesh.is_leaf(v.leaf) {

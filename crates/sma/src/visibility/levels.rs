@@ -11,6 +11,7 @@ use protocol::viewer_link::Camera;
 use super::gpu::{Gpu, GpuError};
 use super::guards::add_guards;
 use super::id_pass::{Coverage, IdPass, TriangleBuffer};
+use super::pixel_leaves::PixelLeaves;
 use super::view::View;
 use crate::mesh::{NodeId, SubdivisionMesh};
 use crate::visible_set::{VisibleLeaf, VisibleSet};
@@ -22,7 +23,7 @@ pub struct LeafView {
     /// Pixel centroid of each entry of `visible.leaves`, same order.
     pub centroids: Vec<(f32, f32)>,
     /// The leaf seen at each pixel, row-major from the top-left; `None` for background.
-    pub pixel_leaves: Vec<Option<NodeId>>,
+    pub pixel_leaves: PixelLeaves,
     /// The camera it was seen from: the view can be carried over to a changed mesh
     /// (`carry_over`) only for that camera.
     pub camera: Option<Camera>,
@@ -36,7 +37,7 @@ impl LeafView {
     pub fn heap_bytes(&self) -> usize {
         self.visible.leaves.capacity() * size_of::<crate::visible_set::VisibleLeaf>()
             + self.centroids.capacity() * size_of::<(f32, f32)>()
-            + self.pixel_leaves.capacity() * size_of::<Option<NodeId>>()
+            + self.pixel_leaves.heap_bytes()
     }
 }
 
