@@ -10,7 +10,7 @@
 //! (`mesh::compact`), and the midpoint vertices and split edges no live node uses are freed for
 //! reuse; with nothing out of view left to collapse, the samples no current view shows are
 //! evicted. When the current views alone need more, refinement stops and the SMA says
-//! it is memory-bound (`Stats`, and one log line each way).
+//! it is memory-bound (`Stats`; the log warns the first time).
 
 use std::collections::HashSet;
 
@@ -57,6 +57,9 @@ impl MemoryAccount {
 pub struct MemoryBudget {
     budget: usize,
     bound: bool,
+    /// Times the SMA became memory-bound: near the budget it comes and goes as views change,
+    /// so only the first time is a warning and the others are counted at debug level.
+    times_bound: u64,
 }
 
 impl MemoryBudget {
@@ -64,6 +67,7 @@ impl MemoryBudget {
         MemoryBudget {
             budget: budget_bytes,
             bound: false,
+            times_bound: 0,
         }
     }
 
@@ -90,28 +94,35 @@ impl MemoryBudget {
         selections * SPLITS_PER_SELECTION
     }
 
-    /// Records whether the current views alone need more than the budget; logged once each way.
+    /// Records whether the current views alone need more than the budget: a warning the first
+    /// time, and each later change at debug level with the count (`Stats` says it every time).
     pub fn set_bound(&mut self, bound: bool, account: &MemoryAccount) {
         if bound == self.bound {
             return;
         }
         self.bound = bound;
+        self.times_bound += u64::from(bound);
         let mib = |bytes: usize| format!("{:.1}", bytes as f64 / f64::from(1 << 20));
-        if bound {
-            tracing::warn!(
-                accounted_mib = mib(account.total()),
+        let (accounted_mib, budget_mib) = (mib(account.total()), mib(self.budget));
+        match (bound, self.times_bound) {
+            (true, 1) => tracing::warn!(
+                accounted_mib,
                 mesh_mib = mib(account.mesh.total()),
                 cache_mib = mib(account.cache),
                 viewers_mib = mib(account.viewers),
-                budget_mib = mib(self.budget),
-                "memory-bound: the current views need more than --memory-mib, refinement stops"
-            );
-        } else {
-            tracing::info!(
-                accounted_mib = mib(account.total()),
-                budget_mib = mib(self.budget),
+                budget_mib,
+                "memory-bound: the current views need more than --memory-mib, refinement stops \
+                 (later changes are logged at debug level)"
+            ),
+            (true, times) => {
+                tracing::debug!(accounted_mib, budget_mib, times, "memory-bound again")
+            }
+            (false, times) => tracing::debug!(
+                accounted_mib,
+                budget_mib,
+                times,
                 "no longer memory-bound: refinement goes on"
-            );
+            ),
         }
     }
 
