@@ -7,9 +7,9 @@ use std::collections::HashMap;
 
 use glam::Vec3;
 use protocol::Side;
-use protocol::viewer_link::{DirectShare, Recolour, ShownTriangle, SmaToViewer, TriangleId};
+use protocol::viewer_link::{CornerShading, Recolour, ShownTriangle, SmaToViewer, TriangleId};
 
-use crate::cache::ShadingCache;
+use crate::cache::{LeafShading, ShadingCache};
 use crate::mesh::fast_hash::FastHash;
 use crate::mesh::{NodeId, SubdivisionMesh, VertexId, table_bytes};
 use crate::visible_set::shown_id;
@@ -31,10 +31,12 @@ pub struct ShownSet {
 }
 
 /// One shown triangle.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 struct Entry {
+    /// Its radiance with the albedo at each vertex, for the luminance image of `nld-is`.
     radiance: [[f32; 3]; 3],
-    direct_share: [DirectShare; 3],
+    /// What the viewer was last sent of it.
+    shading: CornerShading,
     /// Its corners when sent: the mesh reuses removed nodes' ids (`mesh::free_nodes`), so an id
     /// may come back as another triangle; vertices are never reused, so they tell.
     vertices: [VertexId; 3],
@@ -65,7 +67,7 @@ impl ShownSet {
         let mut removed = Vec::new();
         for &(node, side) in targets {
             let id = shown_id(node, side);
-            let colours = cache.leaf_colours_from(mesh, node, side, eye);
+            let colours = cache.leaf_shading_from(mesh, node, side, eye);
             let vertices = mesh.node(node).vertices;
             if self.shown.get(&id).is_some_and(|s| s.vertices != vertices) {
                 self.shown.remove(&id);
@@ -74,33 +76,31 @@ impl ShownSet {
             match (self.shown.get_mut(&id), colours) {
                 (Some(shown), colours) => {
                     shown.wanted_at = sync;
-                    if let Some((radiance, direct_share)) =
-                        colours.filter(|&c| c != (shown.radiance, shown.direct_share))
+                    if let Some(LeafShading { radiance, shading }) =
+                        colours.filter(|c| c.shading != shown.shading)
                     {
-                        (shown.radiance, shown.direct_share) = (radiance, direct_share);
-                        updates.push(Recolour {
-                            id,
-                            radiance,
-                            direct_share,
-                        });
+                        (shown.radiance, shown.shading) = (radiance, shading.clone());
+                        updates.push(Recolour { id, shading });
                     }
                 }
-                (None, Some((radiance, direct_share))) => {
+                (None, Some(LeafShading { radiance, shading })) => {
+                    let (material, texcoords) = cache.leaf_surface(mesh, node);
+                    inserts.push(ShownTriangle {
+                        id,
+                        positions: mesh.leaf_positions(node).map(|p| p.to_array()),
+                        material,
+                        texcoords,
+                        shading: shading.clone(),
+                    });
                     self.shown.insert(
                         id,
                         Entry {
                             radiance,
-                            direct_share,
+                            shading,
                             vertices,
                             wanted_at: sync,
                         },
                     );
-                    inserts.push(ShownTriangle {
-                        id,
-                        positions: mesh.leaf_positions(node).map(|p| p.to_array()),
-                        radiance,
-                        direct_share,
-                    });
                 }
                 (None, None) => self.unshown += 1,
             }
