@@ -1,7 +1,7 @@
 //! What a viewer needs to multiply the diffuse albedo in per pixel (DESIGN.md §5, "Parts, and
 //! textures"): each scene material's look ([`MaterialLook`]), the scene's textures
 //! ([`TextureInfo`] in `SceneInfo`, their images as [`TextureImage`], sent once before the first
-//! triangle that uses them), and a shown triangle's texture coordinates in 13 bytes
+//! triangle that uses them), and a shown triangle's texture coordinates in 14 bytes
 //! ([`Texcoords`]).
 
 use serde::{Deserialize, Serialize};
@@ -94,10 +94,38 @@ impl TextureImage {
 /// power that holds the triangle's span). A subdivided leaf spans little, so its steps are
 /// 2^-16 of the image; a base triangle repeating a texture twenty times has steps of 2^-11, half
 /// a texel of a 1024² image. Corners shared by two triangles of one range land on the same grid,
-/// so no seam opens between them. 13 raw bytes on the wire (postcard writes a `u16` as a
-/// varint, three bytes for most values).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+/// so no seam opens between them. On the wire a byte string of 13 bytes, 14 with its length
+/// (postcard writes a `u16` as a varint, three bytes for most values, and an array element by
+/// element, which decodes several times slower than one copy).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Texcoords(pub [u8; 13]);
+
+impl Serialize for Texcoords {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_bytes(&self.0)
+    }
+}
+
+impl<'de> Deserialize<'de> for Texcoords {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Bytes;
+        impl serde::de::Visitor<'_> for Bytes {
+            type Value = Texcoords;
+
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("13 bytes of texture coordinates")
+            }
+
+            fn visit_bytes<E: serde::de::Error>(self, bytes: &[u8]) -> Result<Texcoords, E> {
+                bytes
+                    .try_into()
+                    .map(Texcoords)
+                    .map_err(|_| E::invalid_length(bytes.len(), &self))
+            }
+        }
+        deserializer.deserialize_bytes(Bytes)
+    }
+}
 
 /// The widest span a triangle's coordinates may have: 2^15 periods of its texture.
 const MAX_RANGE: u8 = 15;

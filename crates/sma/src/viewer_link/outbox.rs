@@ -26,11 +26,11 @@ use tokio::sync::Notify;
 const MAX_TRIANGLES_PER_MESSAGE: usize = 100_000;
 
 /// Encoded sizes, at most, of what a change sends (postcard: a varint id, f32 triples, a byte of
-/// direct share per vertex, an optional view-dependent part, a material varint and 13 bytes of
+/// direct share per vertex, an optional view-dependent part, a material varint and 14 bytes of
 /// texture coordinates).
 const ID_BYTES: usize = 10;
 const SHADING_BYTES: usize = 2 * 9 * 4 + 3 + 1;
-const TRIANGLE_BYTES: usize = ID_BYTES + 9 * 4 + 3 + 13 + SHADING_BYTES;
+const TRIANGLE_BYTES: usize = ID_BYTES + 9 * 4 + 3 + 14 + SHADING_BYTES;
 const RECOLOUR_BYTES: usize = ID_BYTES + SHADING_BYTES;
 const NOTE_BYTES: usize = 256;
 /// A `ViewerTile`'s bytes besides its pixels', at most, and each pixel's (four halves).

@@ -186,7 +186,11 @@ mod tests {
         let one = texels(1, 1, |_, _| [200, 100, 50]);
         let two = texels(2, 1, |x, _| if x == 0 { [255, 0, 0] } else { [0, 0, 255] });
         let layers = Layers::build(&[one, two], 8);
-        assert!(layers.levels[1][0].iter().all(|t| *t == [200, 100, 50, 255]));
+        assert!(
+            layers.levels[1][0]
+                .iter()
+                .all(|t| *t == [200, 100, 50, 255])
+        );
         let top = &layers.levels[2][0];
         assert_eq!(top.len(), 64);
         // Each half mostly its texel's colour (interpolation blends them at the edges).
