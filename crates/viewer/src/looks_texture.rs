@@ -105,7 +105,12 @@ impl GpuLooks {
         if self.holds == Some(looks.generation()) {
             return false;
         }
-        let max_layers = gpu.device.limits().max_texture_array_layers;
+        // One layer kept free for the padding `create` may add.
+        let max_layers = gpu
+            .device
+            .limits()
+            .max_texture_array_layers
+            .saturating_sub(1);
         let (drawn, layer_of) = looks.drawn(max_layers);
         let max_side = MAX_LAYER_SIDE.min(gpu.device.limits().max_texture_dimension_2d);
         let side = layer_side(&drawn, max_side, TEXTURE_BUDGET_BYTES);
@@ -139,8 +144,12 @@ fn create(
 ) -> (wgpu::BindGroup, u64) {
     let side = layers.side;
     let count = layers.levels.len() as u32;
-    // An array view of one layer would be taken for a plain 2D texture by GL: keep two.
-    let array_layers = count.max(2);
+    // wgpu's GL backend guesses a texture's view dimension from its layers: one is a plain 2D
+    // texture, a multiple of six a cube (array). Pad with copies of the last layer to avoid both.
+    let mut array_layers = count.max(2);
+    if array_layers % 6 == 0 {
+        array_layers += 1;
+    }
     let array = gpu.device.create_texture(&wgpu::TextureDescriptor {
         label: Some("albedo textures"),
         size: wgpu::Extent3d {

@@ -190,3 +190,77 @@ fn textured_and_untextured_materials_draw_in_one_pass_with_their_albedos() {
         assert_near(linear_at(&drawn, pixel_of(x, y)), want, "flat kd");
     }
 }
+
+/// Five textures and white make six layers, which wgpu's GL backend would take for a cube map
+/// (drawing every albedo black): each quad shows its own texture's colour.
+#[test]
+fn five_textures_each_show_their_colour() {
+    let Some(gpu) = headless_or_skip("five_textures_each_show_their_colour")
+        .expect("a graphics adapter is required")
+    else {
+        return;
+    };
+    let colours: [[u8; 3]; 5] = [
+        [200, 30, 30],
+        [30, 200, 30],
+        [30, 30, 200],
+        [200, 200, 30],
+        [30, 200, 200],
+    ];
+    let scene = SceneInfo {
+        materials: (0..5)
+            .map(|index| MaterialLook {
+                kd: [1.0; 3],
+                texture: Some(MaterialTexture {
+                    index,
+                    times_kd: true,
+                    clamp: index == 4,
+                }),
+            })
+            .collect(),
+        texture_table: (0..5)
+            .map(|i| TextureInfo {
+                name: format!("{i}.png"),
+                width: 2,
+                height: 2,
+                bytes: 0,
+            })
+            .collect(),
+        ..info()
+    };
+    let mut looks = Looks::of(&scene);
+    for (index, colour) in colours.iter().enumerate() {
+        let image = image::RgbImage::from_pixel(2, 2, image::Rgb(*colour));
+        let mut png = Vec::new();
+        image
+            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .unwrap();
+        assert!(looks.accept(&TextureImage {
+            index: index as u32,
+            png,
+        }));
+    }
+    let triangles: Vec<ShownTriangle> = (0..5)
+        .flat_map(|m| {
+            let x0 = -2.0 + 0.8 * m as f32;
+            quad(10 * m as u64, x0, x0 + 0.6, m as u16)
+        })
+        .collect();
+    let drawn = render_offscreen_with_looks(
+        &gpu,
+        &triangles,
+        (&looks, &DirectImage::default()),
+        &front_camera(1, W, H),
+        &DrawSettings::default(),
+    )
+    .unwrap();
+    for (m, colour) in colours.iter().enumerate() {
+        let x = -2.0 + 0.8 * m as f32 + 0.3;
+        let texel = colour.map(|c| conventions::tone_map::srgb_decode(f32::from(c) / 255.0));
+        assert_near(
+            linear_at(&drawn, pixel_of(x, 0.0)),
+            texel.map(|c| c * ILLUMINATION),
+            &format!("texture {m}"),
+        );
+    }
+}
