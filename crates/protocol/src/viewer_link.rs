@@ -253,7 +253,8 @@ pub enum ViewerToSma {
 /// SMA -> viewer.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum SmaToViewer {
-    SceneInfo(SceneInfo),
+    /// Boxed: it is by far the largest message, and every other one would take its size.
+    SceneInfo(Box<SceneInfo>),
     Insert {
         triangles: Vec<ShownTriangle>,
     },

@@ -354,7 +354,7 @@ fn viewer_link_seeds() -> Vec<(String, Vec<u8>)> {
     let to_viewer = [
         (
             "scene-info",
-            SmaToViewer::SceneInfo(SceneInfo {
+            SmaToViewer::SceneInfo(Box::new(SceneInfo {
                 name: "cornell".into(),
                 fingerprint: [9; 32],
                 bounds: Bounds {
@@ -402,7 +402,7 @@ fn viewer_link_seeds() -> Vec<(String, Vec<u8>)> {
                     height: 1,
                     bytes: 70,
                 }],
-            }),
+            })),
         ),
         (
             "texture",

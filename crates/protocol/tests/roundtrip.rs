@@ -297,7 +297,7 @@ fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
                     materials,
                     texture_table,
                 )| {
-                    SmaToViewer::SceneInfo(SceneInfo {
+                    SmaToViewer::SceneInfo(Box::new(SceneInfo {
                         name,
                         fingerprint,
                         bounds: Bounds { min, max },
@@ -308,7 +308,7 @@ fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
                         textures,
                         materials,
                         texture_table,
-                    })
+                    }))
                 }
             ),
         (any::<u32>(), prop::collection::vec(any::<u8>(), 0..64))

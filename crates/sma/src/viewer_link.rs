@@ -167,15 +167,22 @@ pub async fn serve(
         return;
     }
     if writer
-        .send(&SmaToViewer::SceneInfo(config.scene_info))
+        .send(&SmaToViewer::SceneInfo(Box::new(config.scene_info)))
         .await
         .is_err()
     {
         return;
     }
+    // Before the outbox exists, so before any `Insert`; a texture is megabytes at most, so each
+    // is held to the frame timeout here as the writing task holds every later frame.
     for texture in config.textures.iter() {
-        if writer.send(texture).await.is_err() {
-            return;
+        match tokio::time::timeout(config.frame_timeout, writer.send(texture)).await {
+            Ok(Ok(())) => {}
+            Ok(Err(_)) => return,
+            Err(_) => {
+                tracing::warn!(viewer = id, %peer, "a viewer took no texture within the frame timeout");
+                return;
+            }
         }
     }
     reader.set_frame_timeout(config.frame_timeout);

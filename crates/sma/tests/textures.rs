@@ -49,9 +49,9 @@ fn textured_wall() -> Scene {
             albedo: AlbedoRule::KdTimesTexture,
         },
     };
-    let checker: Vec<[u8; 3]> = (0..16)
+    let checker: Vec<[u8; 3]> = (0..16u32)
         .map(|i| {
-            if (i % 4 + i / 4) % 2 == 0 {
+            if (i % 4 + i / 4).is_multiple_of(2) {
                 [230, 40, 20]
             } else {
                 [20, 60, 200]

@@ -98,7 +98,7 @@ impl Probe {
         )
         .await?;
         let scene = match reader.recv().await? {
-            SmaToViewer::SceneInfo(info) => info,
+            SmaToViewer::SceneInfo(info) => *info,
             other => bail!("expected SceneInfo first, got {other:?}"),
         };
         let writer = Arc::new(Mutex::new(writer));

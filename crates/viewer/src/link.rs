@@ -241,7 +241,7 @@ async fn connect(addr: &str) -> Result<Connected, ProtocolError> {
     // An SMA stalled halfway through a frame is lost like one gone (DESIGN.md §8).
     reader.set_frame_timeout(Liveness::default().frame_timeout);
     match reader.recv().await? {
-        SmaToViewer::SceneInfo(info) => Ok((reader, writer, info)),
+        SmaToViewer::SceneInfo(info) => Ok((reader, writer, *info)),
         SmaToViewer::Error { message } => Err(ProtocolError::Remote(message)),
         other => Err(ProtocolError::Malformed(format!(
             "expected SceneInfo first, got {}",
@@ -304,7 +304,7 @@ async fn session(
 /// them); should one, it is reported rather than trusted.
 fn other_event(msg: SmaToViewer) -> LinkEvent {
     match msg {
-        SmaToViewer::SceneInfo(info) => LinkEvent::Scene(info),
+        SmaToViewer::SceneInfo(info) => LinkEvent::Scene(*info),
         SmaToViewer::Refinement { criterion, paused } => {
             LinkEvent::Refinement { criterion, paused }
         }

@@ -147,7 +147,7 @@ fn create(
     // wgpu's GL backend guesses a texture's view dimension from its layers: one is a plain 2D
     // texture, a multiple of six a cube (array). Pad with copies of the last layer to avoid both.
     let mut array_layers = count.max(2);
-    if array_layers % 6 == 0 {
+    if array_layers.is_multiple_of(6) {
         array_layers += 1;
     }
     let array = gpu.device.create_texture(&wgpu::TextureDescriptor {

@@ -66,7 +66,10 @@ fn triangle(id: u64, shade: f32) -> ShownTriangle {
         id,
         positions: [[x, 0.0, 0.0], [x + 1.0, 0.0, 0.0], [x, 1.0, shade]],
         material: id as u16,
-        texcoords: Texcoords::encode([[x, shade], [x + shade, 0.5], [0.25, x]], id % 2 == 0),
+        texcoords: Texcoords::encode(
+            [[x, shade], [x + shade, 0.5], [0.25, x]],
+            id.is_multiple_of(2),
+        ),
         shading: shading(shade),
     }
 }

@@ -167,11 +167,13 @@ mod tests {
     /// not the codes' mean (128), which would darken every pattern seen from afar.
     #[test]
     fn mips_average_in_linear_light() {
-        let checker = texels(
-            4,
-            4,
-            |x, y| if (x + y) % 2 == 0 { [255; 3] } else { [0; 3] },
-        );
+        let checker = texels(4, 4, |x, y| {
+            if (x + y).is_multiple_of(2) {
+                [255; 3]
+            } else {
+                [0; 3]
+            }
+        });
         let layers = Layers::build(&[checker], 4);
         assert_eq!(layers.levels.len(), 2);
         let chain = &layers.levels[1];
@@ -202,11 +204,11 @@ mod tests {
 
     #[test]
     fn the_side_fits_the_largest_texture_and_the_budget() {
-        let big = texels(300, 200, |_, _| [1; 3]);
-        assert_eq!(layer_side(&[big.clone()], 1024, u64::MAX), 512);
-        assert_eq!(layer_side(&[big.clone()], 256, u64::MAX), 256);
+        let big = [texels(300, 200, |_, _| [1; 3])];
+        assert_eq!(layer_side(&big, 1024, u64::MAX), 512);
+        assert_eq!(layer_side(&big, 256, u64::MAX), 256);
         // Two layers of 512² with mips are about 2.8 MB: a 1 MB budget takes 256².
-        assert_eq!(layer_side(&[big], 1024, 1 << 20), 256);
+        assert_eq!(layer_side(&big, 1024, 1 << 20), 256);
         assert_eq!(chain_bytes(2), 4 * 4 + 4);
         assert_eq!(mip_levels(8), 4);
     }
