@@ -247,7 +247,7 @@ async fn a_viewer_that_stops_reading_is_cut_off_while_another_goes_on() {
     .await
     .unwrap();
     let scene = match reader.recv().await.unwrap() {
-        SmaToViewer::SceneInfo(scene) => scene,
+        SmaToViewer::SceneInfo(scene) => *scene,
         other => panic!("expected SceneInfo, got {other:?}"),
     };
     let stuck = tokio::spawn(async move {

@@ -146,6 +146,6 @@ async fn one_of_two_renderers_killed_loses_no_request_and_two_viewers_agree() {
         .collect();
     assert!(!common.is_empty());
     for id in common {
-        assert_eq!(one.table[&id].radiance, two.table[&id].radiance);
+        assert_eq!(one.table[&id].shading, two.table[&id].shading);
     }
 }

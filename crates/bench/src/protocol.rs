@@ -5,7 +5,10 @@ use std::time::Instant;
 
 use protocol::frame::{DEFAULT_MAX_FRAME, decode, encode};
 use protocol::split_tcp;
-use protocol::viewer_link::{DirectShare, Epoch, ShownTriangle, SmaToViewer, ViewerToSma};
+use protocol::texture::Texcoords;
+use protocol::viewer_link::{
+    CornerShading, DirectShare, Epoch, ShownTriangle, SmaToViewer, ViewerToSma,
+};
 
 use testkit::child::{start_server, strings};
 
@@ -17,11 +20,20 @@ fn insert_batch(first_id: u64) -> SmaToViewer {
     let triangles = (0..BATCH as u64)
         .map(|i| {
             let f = (first_id + i) as f32;
+            // A diffuse, textured triangle: no view-dependent part.
             ShownTriangle {
                 id: first_id + i,
                 positions: [[f, 0.5, -f], [f + 1.0, 2.0, 3.0], [0.25, f, 1.0]],
-                radiance: [[0.1, 0.2, 0.3], [f * 1e-3, 0.5, 0.6], [0.7, 0.8, 0.9]],
-                direct_share: [DirectShare(100), DirectShare(255), DirectShare(0)],
+                material: (i % 40) as u16,
+                texcoords: Texcoords::encode(
+                    [[f * 1e-3, 0.5], [f * 1e-3 + 0.01, 0.5], [f * 1e-3, 0.51]],
+                    false,
+                ),
+                shading: CornerShading {
+                    illumination: [[0.1, 0.2, 0.3], [f * 1e-3, 0.5, 0.6], [0.7, 0.8, 0.9]],
+                    direct_share: [DirectShare(100), DirectShare(255), DirectShare(0)],
+                    view_dependent: None,
+                },
             }
         })
         .collect();

@@ -11,12 +11,13 @@ use std::time::Instant;
 
 use protocol::direct_tile::{TilePixel, TileRect, ViewerTile};
 use protocol::types::Viewpoint;
-use protocol::viewer_link::{Camera, ShownTriangle};
+use protocol::viewer_link::{Camera, CornerShading, ShownTriangle};
 
 use viewer::direct_image::DirectImage;
 use viewer::direct_texture::GpuDirect;
 use viewer::draw::{DrawSettings, depth_range};
 use viewer::gpu::{Gpu, headless_or_skip};
+use viewer::looks_texture::GpuLooks;
 use viewer::offscreen::Offscreen;
 use viewer::table::TriangleTable;
 use viewer::update::TableOp;
@@ -219,7 +220,9 @@ fn frame_times(gpu: &Gpu, n: usize, frames: usize, tiles: bool) -> anyhow::Resul
         }
         direct.upload(gpu, &image);
     }
-    let layers = (&triangles, tiles.then_some(&direct));
+    // No materials: every albedo one, layer 0 white (the path a textured scene's pixels take).
+    let looks = GpuLooks::new(gpu);
+    let layers = (&triangles, tiles.then_some(&direct), &looks);
     offscreen.draw_frame(gpu, layers, &camera, depth, &settings)?; // warm-up
     (0..frames)
         .map(|_| {
@@ -256,8 +259,12 @@ fn wall(n: usize) -> Vec<ShownTriangle> {
                 out.push(ShownTriangle {
                     id,
                     positions,
-                    radiance: positions.map(radiance),
-                    direct_share: Default::default(),
+                    material: 0,
+                    texcoords: Default::default(),
+                    shading: CornerShading {
+                        illumination: positions.map(radiance),
+                        ..CornerShading::default()
+                    },
                 });
             }
         }
@@ -279,11 +286,16 @@ fn wall_camera() -> Camera {
 
 fn random_triangle(id: u64, rng: &mut XorShift) -> ShownTriangle {
     let mut p = || [rng.unit(), rng.unit(), rng.unit()];
+    let positions = [p(), p(), p()];
     ShownTriangle {
         id,
-        positions: [p(), p(), p()],
-        radiance: [p(), p(), p()],
-        direct_share: Default::default(),
+        positions,
+        material: 0,
+        texcoords: Default::default(),
+        shading: CornerShading {
+            illumination: [p(), p(), p()],
+            ..CornerShading::default()
+        },
     }
 }
 

@@ -10,7 +10,7 @@ use crate::types::SceneIdentity;
 /// "WKTH": walkthrough.
 pub const MAGIC: [u8; 4] = *b"WKTH";
 /// Bumped on any incompatible change of a message.
-pub const PROTOCOL_VERSION: u16 = 10;
+pub const PROTOCOL_VERSION: u16 = 11;
 
 /// Who is speaking.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]

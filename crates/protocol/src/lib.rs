@@ -12,13 +12,20 @@
 //! - [`connection`]: a typed message reader and writer over any byte stream;
 //! - [`error`]: every way a peer can go wrong, as a value, never a panic;
 //! - [`camera`]: the wire's camera in the system's camera convention;
-//! - [`direct_tile`]: a resting view's direct light per pixel, in tiles, on both links.
+//! - [`direct_tile`]: a resting view's direct light per pixel, in tiles, on both links;
+//! - [`texture`]: materials, textures and texture coordinates, for the albedo per pixel.
 //!
 //! ```
 //! use protocol::frame::{decode, encode};
 //! use protocol::viewer_link::{SmaToViewer, ShownTriangle};
 //! let msg = SmaToViewer::Insert {
-//!     triangles: vec![ShownTriangle { id: 7, positions: [[0.0; 3]; 3], radiance: [[1.0; 3]; 3], direct_share: Default::default() }],
+//!     triangles: vec![ShownTriangle {
+//!         id: 7,
+//!         positions: [[0.0; 3]; 3],
+//!         material: 0,
+//!         texcoords: Default::default(),
+//!         shading: Default::default(),
+//!     }],
 //! };
 //! let bytes = encode(&msg).unwrap();
 //! assert_eq!(decode::<SmaToViewer>(&bytes).unwrap(), msg);
@@ -33,6 +40,7 @@ pub mod frame;
 pub mod handshake;
 pub mod liveness;
 pub mod renderer_link;
+pub mod texture;
 pub mod types;
 mod variant_count;
 pub mod viewer_link;

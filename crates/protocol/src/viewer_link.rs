@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 use crate::direct_tile::ViewerTile;
 use crate::frame::WireMessage;
 use crate::renderer_link::Quality;
+use crate::texture::{MaterialLook, Texcoords, TextureImage, TextureInfo};
 
 use crate::types::{Bounds, Fingerprint, Rgb, Vec3f, Viewpoint};
 
@@ -18,29 +19,53 @@ pub type TriangleId = u64;
 pub struct ShownTriangle {
     pub id: TriangleId,
     pub positions: [Vec3f; 3],
-    /// Per vertex the displayed radiance, albedo × (direct + indirect) + view-dependent part.
-    pub radiance: [Rgb; 3],
-    /// Per vertex the displayed direct part's share of `radiance` ([`DirectShare`]): a viewer
-    /// that draws per-pixel direct light (`direct_tile`) subtracts it there.
+    /// Index into `SceneInfo::materials`: whose albedo (`kd`, texture) multiplies the
+    /// illumination, per pixel.
+    pub material: u16,
+    /// Per corner, the texture coordinates of the material's texture (zero without one).
+    pub texcoords: Texcoords,
+    pub shading: CornerShading,
+}
+
+/// What a shown triangle's corners are lit with (DESIGN.md §5, "Parts, and textures"): the
+/// viewer displays `albedo(pixel) × illumination + view_dependent`, each interpolated.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct CornerShading {
+    /// Per vertex the displayed diffuse illumination, direct + indirect, without the albedo.
+    pub illumination: [Rgb; 3],
+    /// Per vertex the direct part's share of `illumination` ([`DirectShare`]): a viewer that
+    /// draws per-pixel direct light (`direct_tile`) subtracts it there.
     pub direct_share: [DirectShare; 3],
+    /// Per vertex the view-dependent radiance (glossy and mirror lobes, emission), added as it
+    /// is; `None` where all three are zero, as for nearly every diffuse triangle.
+    pub view_dependent: Option<[Rgb; 3]>,
+}
+
+impl CornerShading {
+    /// Per vertex the radiance shown at a point of albedo `albedo[k]`.
+    pub fn radiance(&self, albedo: [Rgb; 3]) -> [Rgb; 3] {
+        std::array::from_fn(|k| {
+            let view_dependent = self.view_dependent.map_or([0.0; 3], |v| v[k]);
+            std::array::from_fn(|c| albedo[k][c] * self.illumination[k][c] + view_dependent[c])
+        })
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Recolour {
     pub id: TriangleId,
-    pub radiance: [Rgb; 3],
-    pub direct_share: [DirectShare; 3],
+    pub shading: CornerShading,
 }
 
-/// The share of a vertex's displayed radiance that is its displayed direct part (albedo × direct
-/// illumination), by luminance, in 255ths: one byte on the wire (DESIGN.md §3 step 8). The
-/// direct part is taken to have the radiance's colour; a viewer drawing a tile's per-pixel
-/// direct light in its place keeps `radiance × (1 − share)` of the vertex's.
+/// The share of a vertex's displayed illumination that is its direct part, by luminance, in
+/// 255ths: one byte on the wire (DESIGN.md §3 step 8). The direct part is taken to have the
+/// illumination's colour; a viewer drawing a tile's per-pixel direct light in its place keeps
+/// `illumination × (1 − share)` of the vertex's.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct DirectShare(pub u8);
 
 impl DirectShare {
-    /// `direct` of `total` (RGB radiance): 0 where the total is black, at most the whole.
+    /// `direct` of `total` (RGB): 0 where the total is black, at most the whole.
     pub fn of(direct: Rgb, total: Rgb) -> DirectShare {
         let (d, t) = (
             conventions::luminance(direct),
@@ -182,6 +207,11 @@ pub struct SceneInfo {
     /// Whether the scene's textures are on (DESIGN.md §5): part of the scene's identity, which
     /// the SMA and its renderers have agreed on at their handshake.
     pub textures: bool,
+    /// Each scene material's albedo, by the index a `ShownTriangle` names.
+    pub materials: Vec<MaterialLook>,
+    /// The textures the materials use (none with textures off), each sent next as a
+    /// `SmaToViewer::Texture`.
+    pub texture_table: Vec<TextureInfo>,
 }
 
 /// The scene's sky as the renderer lights with it: radiance over the upper hemisphere (+Y up,
@@ -223,7 +253,8 @@ pub enum ViewerToSma {
 /// SMA -> viewer.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum SmaToViewer {
-    SceneInfo(SceneInfo),
+    /// Boxed: it is by far the largest message, and every other one would take its size.
+    SceneInfo(Box<SceneInfo>),
     Insert {
         triangles: Vec<ShownTriangle>,
     },
@@ -258,6 +289,9 @@ pub enum SmaToViewer {
     /// pixel, which the viewer shows instead of the vertices' where it is the better estimate
     /// (`direct_tile`, DESIGN.md §3 step 8). Tiles of an older camera are stale.
     DirectTile(ViewerTile),
+    /// One texture of `SceneInfo::texture_table`, sent once per viewer right after `SceneInfo`
+    /// (before any `Insert`).
+    Texture(TextureImage),
 }
 
 impl WireMessage for ViewerToSma {}

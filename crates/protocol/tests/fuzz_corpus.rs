@@ -16,10 +16,11 @@ use protocol::frame::encode;
 use protocol::renderer_link::{
     FromRenderer, Quality, Radiance, SampleKey, ShadeBatch, ShadePoint, ToRenderer,
 };
+use protocol::texture::{MaterialLook, MaterialTexture, Texcoords, TextureImage, TextureInfo};
 use protocol::types::{Bounds, Viewpoint};
 use protocol::viewer_link::{
-    Camera, DirectShare, Epoch, MeshShape, Recolour, SceneInfo, ShownTriangle, SkyInfo, SmaMemory,
-    SmaToViewer, Stats, SunInfo, ViewerToSma,
+    Camera, CornerShading, DirectShare, Epoch, MeshShape, Recolour, SceneInfo, ShownTriangle,
+    SkyInfo, SmaMemory, SmaToViewer, Stats, SunInfo, ViewerToSma,
 };
 use protocol::{
     Hello, HelloReply, PROTOCOL_VERSION, PartEstimate, Role, SampleParts, SceneIdentity, Side,
@@ -316,6 +317,15 @@ fn camera() -> Camera {
     }
 }
 
+/// A PNG of one 8-bit RGB texel, (180, 120, 60).
+fn one_texel_png() -> Vec<u8> {
+    vec![
+        137, 80, 78, 71, 13, 10, 26, 10, 0, 0, 0, 13, 73, 72, 68, 82, 0, 0, 0, 1, 0, 0, 0, 1, 8, 2,
+        0, 0, 0, 144, 119, 83, 222, 0, 0, 0, 12, 73, 68, 65, 84, 120, 156, 99, 216, 82, 97, 3, 0,
+        3, 76, 1, 105, 212, 238, 220, 119, 0, 0, 0, 0, 73, 69, 78, 68, 174, 66, 96, 130,
+    ]
+}
+
 fn viewer_link_seeds() -> Vec<(String, Vec<u8>)> {
     let to_sma = [
         ("camera", ViewerToSma::Camera(camera())),
@@ -333,13 +343,18 @@ fn viewer_link_seeds() -> Vec<(String, Vec<u8>)> {
     let triangle = |id| ShownTriangle {
         id,
         positions: [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
-        radiance: [[0.5; 3], [1.0; 3], [0.0; 3]],
-        direct_share: [DirectShare(128), DirectShare(255), DirectShare(0)],
+        material: 1,
+        texcoords: Texcoords::encode([[0.0, 0.0], [2.5, 0.0], [0.0, 1.0]], false),
+        shading: CornerShading {
+            illumination: [[0.5; 3], [1.0; 3], [0.0; 3]],
+            direct_share: [DirectShare(128), DirectShare(255), DirectShare(0)],
+            view_dependent: (id == 1).then_some([[0.0; 3], [0.25; 3], [4.0, 0.0, 1.0]]),
+        },
     };
     let to_viewer = [
         (
             "scene-info",
-            SmaToViewer::SceneInfo(SceneInfo {
+            SmaToViewer::SceneInfo(Box::new(SceneInfo {
                 name: "cornell".into(),
                 fingerprint: [9; 32],
                 bounds: Bounds {
@@ -366,7 +381,34 @@ fn viewer_link_seeds() -> Vec<(String, Vec<u8>)> {
                     paths: 64,
                     bounces: Some(2),
                 },
-                textures: false,
+                textures: true,
+                materials: vec![
+                    MaterialLook {
+                        kd: [0.7, 0.5, 0.3],
+                        texture: None,
+                    },
+                    MaterialLook {
+                        kd: [0.8; 3],
+                        texture: Some(MaterialTexture {
+                            index: 0,
+                            times_kd: true,
+                            clamp: false,
+                        }),
+                    },
+                ],
+                texture_table: vec![TextureInfo {
+                    name: "textures/paving.png".into(),
+                    width: 1,
+                    height: 1,
+                    bytes: 70,
+                }],
+            })),
+        ),
+        (
+            "texture",
+            SmaToViewer::Texture(TextureImage {
+                index: 0,
+                png: one_texel_png(),
             }),
         ),
         (
@@ -386,8 +428,11 @@ fn viewer_link_seeds() -> Vec<(String, Vec<u8>)> {
             SmaToViewer::Update {
                 triangles: vec![Recolour {
                     id: 1,
-                    radiance: [[2.0; 3]; 3],
-                    direct_share: [DirectShare(7); 3],
+                    shading: CornerShading {
+                        illumination: [[2.0; 3]; 3],
+                        direct_share: [DirectShare(7); 3],
+                        view_dependent: Some([[0.5; 3]; 3]),
+                    },
                 }],
             },
         ),

@@ -5,6 +5,7 @@ use protocol::direct_tile::*;
 use protocol::frame::{decode, encode};
 use protocol::handshake::{Hello, HelloReply, Role};
 use protocol::renderer_link::*;
+use protocol::texture::*;
 use protocol::types::{Bounds, PartEstimate, SampleParts, SceneIdentity, Side, Viewpoint};
 use protocol::viewer_link::*;
 
@@ -56,19 +57,56 @@ fn point() -> impl Strategy<Value = ShadePoint> {
             },
         )
 }
+fn shading() -> impl Strategy<Value = CornerShading> {
+    (
+        [v3(), v3(), v3()],
+        any::<[u8; 3]>(),
+        prop::option::of([v3(), v3(), v3()]),
+    )
+        .prop_map(|(illumination, share, view_dependent)| CornerShading {
+            illumination,
+            direct_share: share.map(DirectShare),
+            view_dependent,
+        })
+}
 fn shown() -> impl Strategy<Value = ShownTriangle> {
     (
         any::<u64>(),
         [v3(), v3(), v3()],
-        [v3(), v3(), v3()],
-        any::<[u8; 3]>(),
+        any::<u16>(),
+        any::<[u8; 13]>(),
+        shading(),
     )
-        .prop_map(|(id, positions, radiance, share)| ShownTriangle {
-            id,
-            positions,
-            radiance,
-            direct_share: share.map(DirectShare),
-        })
+        .prop_map(
+            |(id, positions, material, texcoords, shading)| ShownTriangle {
+                id,
+                positions,
+                material,
+                texcoords: Texcoords(texcoords),
+                shading,
+            },
+        )
+}
+fn material() -> impl Strategy<Value = MaterialLook> {
+    let texture =
+        (any::<u32>(), any::<bool>(), any::<bool>()).prop_map(|(index, times_kd, clamp)| {
+            MaterialTexture {
+                index,
+                times_kd,
+                clamp,
+            }
+        });
+    (v3(), prop::option::of(texture)).prop_map(|(kd, texture)| MaterialLook { kd, texture })
+}
+fn texture_info() -> impl Strategy<Value = TextureInfo> {
+    ("[a-z./]{0,12}", any::<u32>(), any::<u32>(), any::<u64>()).prop_map(
+        |(name, width, height, bytes)| TextureInfo {
+            name,
+            width,
+            height,
+            bytes,
+        },
+    )
 }
 fn viewpoint() -> impl Strategy<Value = Viewpoint> {
     ("[A-Za-z0-9]{0,8}", v3(), v3(), v3(), 1f32..170.0).prop_map(
@@ -242,7 +280,9 @@ fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
             prop::collection::vec(viewpoint(), 0..4),
             prop::collection::vec("[a-z-]{1,8}", 0..4),
             sky(),
-            (1u32..1024, prop::option::of(0u32..8), any::<bool>())
+            (1u32..1024, prop::option::of(0u32..8), any::<bool>()),
+            prop::collection::vec(material(), 0..4),
+            prop::collection::vec(texture_info(), 0..3),
         )
             .prop_map(
                 |(
@@ -254,8 +294,10 @@ fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
                     criteria,
                     sky,
                     (paths, bounces, textures),
+                    materials,
+                    texture_table,
                 )| {
-                    SmaToViewer::SceneInfo(SceneInfo {
+                    SmaToViewer::SceneInfo(Box::new(SceneInfo {
                         name,
                         fingerprint,
                         bounds: Bounds { min, max },
@@ -264,25 +306,24 @@ fn to_viewer() -> impl Strategy<Value = SmaToViewer> {
                         sky,
                         quality: Quality { paths, bounces },
                         textures,
-                    })
+                        materials,
+                        texture_table,
+                    }))
                 }
             ),
+        (any::<u32>(), prop::collection::vec(any::<u8>(), 0..64))
+            .prop_map(|(index, png)| SmaToViewer::Texture(TextureImage { index, png })),
         prop::collection::vec(shown(), 0..40)
             .prop_map(|triangles| SmaToViewer::Insert { triangles }),
         prop::collection::vec(any::<u64>(), 0..100).prop_map(|ids| SmaToViewer::Remove { ids }),
-        prop::collection::vec((any::<u64>(), [v3(), v3(), v3()], any::<[u8; 3]>()), 0..40)
-            .prop_map(|v| {
-                SmaToViewer::Update {
-                    triangles: v
-                        .into_iter()
-                        .map(|(id, radiance, share)| Recolour {
-                            id,
-                            radiance,
-                            direct_share: share.map(DirectShare),
-                        })
-                        .collect(),
-                }
-            }),
+        prop::collection::vec((any::<u64>(), shading()), 0..40).prop_map(|v| {
+            SmaToViewer::Update {
+                triangles: v
+                    .into_iter()
+                    .map(|(id, shading)| Recolour { id, shading })
+                    .collect(),
+            }
+        }),
         finite().prop_map(|l_white| SmaToViewer::ToneMap { l_white }),
         any::<[u64; 8]>().prop_map(|c| SmaToViewer::Epoch(Epoch {
             camera_seq: c[0],
@@ -377,22 +418,28 @@ proptest! {
     }
 }
 
-/// Bulk data stays compact: a shown triangle is its id varint, 18 little-endian floats and a
-/// byte of direct share per vertex.
+/// Bulk data stays compact: a shown diffuse triangle is its id varint, 18 little-endian floats,
+/// a byte of direct share per vertex, a material varint, 13 bytes of texture coordinates with
+/// their length and one byte saying it has no view-dependent part.
 #[test]
 fn triangles_encode_compactly() {
     let triangles: Vec<ShownTriangle> = (0..1000)
         .map(|i| ShownTriangle {
             id: i,
             positions: [[1.0; 3]; 3],
-            radiance: [[0.5; 3]; 3],
-            direct_share: [DirectShare(100); 3],
+            material: 3,
+            texcoords: Texcoords::encode([[0.1, 0.2], [0.3, 0.2], [0.1, 0.4]], false),
+            shading: CornerShading {
+                illumination: [[0.5; 3]; 3],
+                direct_share: [DirectShare(100); 3],
+                view_dependent: None,
+            },
         })
         .collect();
     let bytes = encode(&SmaToViewer::Insert { triangles }).unwrap();
     let per_triangle = bytes.len() as f64 / 1000.0;
     assert!(
-        per_triangle <= 18.0 * 4.0 + 3.0 + 3.0,
+        per_triangle <= 18.0 * 4.0 + 3.0 + 3.0 + 1.0 + 14.0 + 1.0,
         "{per_triangle} bytes per triangle"
     );
 }

@@ -100,8 +100,8 @@ impl Texture {
     }
 
     /// This texture, box-filtered (in linear values) down to at most `cap` texels a side,
-    /// keeping its aspect ratio.
-    fn capped(self, cap: u32) -> Decoded {
+    /// keeping its aspect ratio (the SMA sends viewers textures so capped).
+    pub fn capped(self, cap: u32) -> Decoded {
         let longest = self.width.max(self.height);
         if longest <= cap {
             return Decoded {

@@ -5,9 +5,10 @@
 //! What is read back is the *shown* estimate: the sample with its indirect part as the
 //! object-space filter last left it (`indirect_filter`; the raw part until the filter has run),
 //! and its illumination multiplied by the albedo at its vertex (`albedo`,
-//! `sample::display_radiance`). Viewer inserts, the criteria, L_white and the stopping rule all
-//! read that one, so they judge what the person sees; the raw estimate, illumination, is what
-//! further paths merge with, what the filter smooths and what the cache file keeps.
+//! `sample::display_radiance`). The criteria, L_white and the stopping rule read that one, so
+//! they judge about what the person sees (a viewer multiplies the albedo in per pixel, and is
+//! sent the shown estimate's illumination: `leaf_shading`); the raw estimate, illumination, is
+//! what further paths merge with, what the filter smooths and what the cache file keeps.
 //!
 //! Storage is dense: a slot per (vertex, side) indexing a packed sample array, so the per-leaf
 //! lookups of NLD_OS are two array reads, not hashing. A sample is packed into 32 bytes: per part
@@ -22,7 +23,6 @@ use std::collections::HashMap;
 
 use glam::Vec3;
 use protocol::renderer_link::SampleKey;
-use protocol::viewer_link::DirectShare;
 use protocol::{PartEstimate, Side};
 
 use crate::mesh::fast_hash::FastHash;
@@ -303,13 +303,8 @@ impl ShadingCache {
 
     /// The estimate of a key as seen from `eye` (see [`Self::get_seen_from`]).
     pub fn estimate(&self, key: SampleKey, eye: Option<Vec3>) -> Option<Estimate> {
-        let slot = slot_index(key);
-        let p = self.packed(slot)?;
-        let nearest = eye
-            .filter(|_| p.view_dependent())
-            .and_then(|eye| self.nearest_eye(slot, eye));
-        let stored = nearest.map_or_else(|| p.estimate(), |v| v.estimate);
-        Some(self.displayed(slot, &stored))
+        self.stored_seen_from(key, eye)
+            .map(|(slot, stored)| self.displayed(slot, &stored))
     }
 
     /// A sample as the renderers answered it (no filter), and whether it is view-dependent: what
@@ -367,28 +362,9 @@ impl ShadingCache {
         })
     }
 
-    /// [`Self::leaf_radiance`] as seen from `eye`, with each vertex's direct share, as a viewer
-    /// is sent them: view-dependent vertices give the radiance of their kept eye nearest to it.
-    pub fn leaf_colours_from(
-        &self,
-        mesh: &SubdivisionMesh,
-        leaf: NodeId,
-        side: Side,
-        eye: Vec3,
-    ) -> Option<([[f32; 3]; 3], [DirectShare; 3])> {
-        let colours = self.leaf_radiance_with(mesh, leaf, side, |key| {
-            self.get_seen_from(key, Some(eye)).map(|s| {
-                let [r, g, b] = s.rgb();
-                [r, g, b, s.direct_share().fraction()]
-            })
-        })?;
-        let share = |[_, _, _, s]: [f32; 4]| DirectShare((s * 255.0).round() as u8);
-        Some((colours.map(|[r, g, b, _]| [r, g, b]), colours.map(share)))
-    }
-
     /// A leaf's vertices as `value_of` gives them, if all are cached (a failed vertex takes the
     /// mean of the others).
-    fn leaf_radiance_with<const N: usize>(
+    pub(super) fn leaf_radiance_with<const N: usize>(
         &self,
         mesh: &SubdivisionMesh,
         leaf: NodeId,
@@ -543,10 +519,12 @@ impl ShadingCache {
 pub const L_WHITE_OUTLIERS: f64 = 0.001;
 
 mod albedo;
+mod leaf_shading;
 mod leaving;
 mod packed;
 mod quantised;
 use albedo::VertexAlbedos;
+pub use leaf_shading::LeafShading;
 pub use packed::CachedSample;
 use packed::{PackedSample, sample_of, stamp};
 

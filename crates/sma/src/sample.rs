@@ -4,12 +4,12 @@
 //! paths (one count: the parts of a sample always come from the same paths), and the bounce
 //! depth they were traced at. Everything that reads or merges samples goes through here.
 //!
-//! - [`display_radiance`]: the one place where the illumination parts meet the albedo, turning
-//!   a stored estimate into the radiance a viewer is sent (the cache's readers get it so).
+//! - [`display_radiance`]: where the illumination parts meet the albedo at the sample's vertex,
+//!   turning a stored estimate into the radiance the SMA judges (the cache's readers get it so).
+//!   A viewer is sent the illumination itself and multiplies each pixel's albedo in
+//!   (`cache::leaf_shading`).
 //! - [`Estimate::rgb`]: the displayed radiance, the sum of the parts of such an estimate; every
-//!   reader of a sample's radiance (viewer inserts, criteria, L_white, the stopping rule) goes
-//!   through it; [`Estimate::direct_share`], the displayed direct part's share of it, sent
-//!   beside it to a viewer.
+//!   reader of a sample's radiance (criteria, L_white, the stopping rule) goes through it.
 //! - [`Estimate::accumulate`]: further paths at the same depth are added to the estimate, part by
 //!   part (the pairwise update of Chan et al. for the variance); paths at another depth never mix
 //!   with it.
@@ -19,7 +19,6 @@
 
 use conventions::luminance;
 use protocol::renderer_link::Quality;
-use protocol::viewer_link::DirectShare;
 use protocol::{PartEstimate, SampleParts};
 
 /// A bounce depth as stored: `Some(b)` up to 254 bounces, `None` (unbounded, ended by Russian
@@ -71,13 +70,6 @@ impl Estimate {
     /// radiance the person sees.
     pub fn rgb(&self) -> [f32; 3] {
         self.parts.radiance([1.0; 3])
-    }
-
-    /// The direct part's share of [`Self::rgb`], of an estimate the cache reads back
-    /// ([`display_radiance`]: its direct part is already albedo × direct illumination), as a
-    /// viewer that draws per-pixel direct light subtracts it (DESIGN.md §3 step 8).
-    pub fn direct_share(&self) -> DirectShare {
-        DirectShare::of(self.parts.direct.rgb, self.rgb())
     }
 
     /// The luminance variance of [`Self::rgb`], taking the parts as uncorrelated. Within a path
@@ -198,7 +190,7 @@ pub fn display(l: f32, l_white: f32) -> f32 {
     DisplayMap::new(l_white).display(l)
 }
 
-/// The estimate as a viewer is sent it (DESIGN.md §5, "Parts, and textures"): `albedo`, the
+/// The estimate as the SMA judges it (DESIGN.md §5, "Parts, and textures"): `albedo`, the
 /// diffuse albedo at the sample's point (a texel or `Kd`), multiplies the illumination parts,
 /// and their luminance variances scale by the square of the luminance ratio it makes (exact for
 /// a grey albedo); the view-dependent part stays as it is. The criteria, L_white and the
@@ -470,41 +462,6 @@ mod tests {
         let red = display_radiance(&e, [1.0, 0.0, 0.0]);
         assert_eq!(red.parts.direct.rgb[1], 0.0);
         assert!(red.parts.direct.luminance_variance < e.parts.direct.luminance_variance);
-    }
-
-    #[test]
-    fn the_direct_share_is_the_displayed_direct_parts() {
-        let e = Estimate {
-            parts: SampleParts {
-                direct: PartEstimate {
-                    rgb: [3.0; 3],
-                    luminance_variance: 0.0,
-                },
-                indirect: PartEstimate {
-                    rgb: [1.0; 3],
-                    luminance_variance: 0.0,
-                },
-                view_dependent: PartEstimate {
-                    rgb: [2.0; 3],
-                    luminance_variance: 0.0,
-                },
-            },
-            paths: 4,
-            depth: Depth::of(Some(2)),
-        };
-        // Albedo 0.5: direct 1.5 of 0.5 × (3 + 1) + 2 = 4.
-        let share = display_radiance(&e, [0.5; 3]).direct_share();
-        assert!(
-            (share.fraction() - 1.5 / 4.0).abs() <= 0.5 / 255.0,
-            "{share:?}"
-        );
-        let black = display_radiance(&e, [0.0; 3]).direct_share();
-        assert_eq!(black.0, 0, "no albedo, no direct part");
-        let none = Estimate {
-            parts: SampleParts::default(),
-            ..e
-        };
-        assert_eq!(none.direct_share().0, 0, "a black vertex has no share");
     }
 
     #[test]

@@ -17,7 +17,7 @@ use crate::mesh::SubdivisionMesh;
 use crate::pool::{self, PoolConfig, PoolEvent};
 use crate::schedule::{CacheFileSetup, Schedule};
 use crate::viewer_link::{
-    self, ViewerEvent, ViewerId, ViewerLinkConfig, scene_identity, scene_info,
+    self, SceneLooks, ViewerEvent, ViewerId, ViewerLinkConfig, scene_identity, scene_info,
 };
 use crate::visibility::Gpu;
 
@@ -99,8 +99,20 @@ pub async fn start(
         renderer_port: config.renderer_port,
     };
     let pool = pool::spawn(pool_config, pool_tx, joining, shutdown_rx.clone());
+    let looks = SceneLooks::of(&scene);
+    tracing::info!(
+        textures = looks.texture_table.len(),
+        bytes = looks.texture_table.iter().map(|t| t.bytes).sum::<u64>(),
+        "textures for viewers"
+    );
     let link = ViewerLinkConfig {
-        scene_info: scene_info(&scene, config.schedule.criterion, config.schedule.profile),
+        scene_info: scene_info(
+            &scene,
+            config.schedule.criterion,
+            config.schedule.profile,
+            &looks,
+        ),
+        textures: looks.images,
         scene: scene_identity(&scene),
         max_frame: config.max_frame,
         handshake_deadline: config.viewer_port.handshake_deadline,

@@ -16,8 +16,10 @@ use tokio::sync::{mpsc, oneshot, watch};
 use crate::config::Profile;
 use crate::criteria::CriterionKind;
 
+mod looks;
 mod outbox;
 
+pub use looks::SceneLooks;
 pub use outbox::Outbox;
 use outbox::Outgoing;
 
@@ -39,6 +41,8 @@ pub enum ViewerEvent {
 #[derive(Clone, Debug)]
 pub struct ViewerLinkConfig {
     pub scene_info: SceneInfo,
+    /// Each texture of `scene_info`'s table, sent right after it (`SceneLooks::images`).
+    pub textures: std::sync::Arc<[SmaToViewer]>,
     pub scene: SceneIdentity,
     pub max_frame: usize,
     /// A viewer that has not completed its handshake by then is closed (DESIGN.md §8).
@@ -163,11 +167,23 @@ pub async fn serve(
         return;
     }
     if writer
-        .send(&SmaToViewer::SceneInfo(config.scene_info))
+        .send(&SmaToViewer::SceneInfo(Box::new(config.scene_info)))
         .await
         .is_err()
     {
         return;
+    }
+    // Before the outbox exists, so before any `Insert`; a texture is megabytes at most, so each
+    // is held to the frame timeout here as the writing task holds every later frame.
+    for texture in config.textures.iter() {
+        match tokio::time::timeout(config.frame_timeout, writer.send(texture)).await {
+            Ok(Ok(())) => {}
+            Ok(Err(_)) => return,
+            Err(_) => {
+                tracing::warn!(viewer = id, %peer, "a viewer took no texture within the frame timeout");
+                return;
+            }
+        }
     }
     reader.set_frame_timeout(config.frame_timeout);
     tracing::info!(viewer = id, %peer, "viewer connected");
@@ -303,9 +319,14 @@ pub fn scene_identity(scene: &scene::Scene) -> SceneIdentity {
 }
 
 /// What a viewer learns of `scene` first (it has no scene of its own, DESIGN.md §2): its name,
-/// fingerprint, textures on or off, bounds, viewpoints, and the criteria `profile` offers, the
-/// one viewers start with first.
-pub fn scene_info(scene: &scene::Scene, active: CriterionKind, profile: Profile) -> SceneInfo {
+/// fingerprint, textures on or off, bounds, viewpoints, the criteria `profile` offers, the one
+/// viewers start with first, and its materials and textures (`looks`).
+pub fn scene_info(
+    scene: &scene::Scene,
+    active: CriterionKind,
+    profile: Profile,
+    looks: &SceneLooks,
+) -> SceneInfo {
     let (lo, hi) = scene.mesh.bounds();
     let criteria = std::iter::once(active)
         .chain(profile.criteria().into_iter().filter(|&k| k != active))
@@ -337,6 +358,8 @@ pub fn scene_info(scene: &scene::Scene, active: CriterionKind, profile: Profile)
             bounces: scene.settings.quality.bounces,
         },
         textures: scene.settings.textures.enabled,
+        materials: looks.materials.clone(),
+        texture_table: looks.texture_table.clone(),
     }
 }
 

@@ -194,7 +194,7 @@ async fn first_picture_then_refinement_stays_consistent_and_covers_the_visible_s
             .any(|(_, q, _)| *q == Quality::DIRECT)
     );
     for t in probe.table.values() {
-        for (p, rgb) in t.positions.iter().zip(t.radiance) {
+        for (p, rgb) in t.positions.iter().zip(probe.radiance(t)) {
             let lit: f32 = if p[0] > 0.3 { 1.0 } else { 0.1 };
             // The cache stores means within 1/511 of their largest channel (`cache::quantised`).
             let near = |want: f32| (rgb[0] - want).abs() <= want / 511.0;
@@ -251,7 +251,12 @@ async fn walking_around_a_wall_shows_its_other_side() {
             .values()
             .filter(|t| t.positions.iter().all(|p| p[2].abs() < 1e-6))
             .filter(|t| t.positions.iter().any(|p| p[1] > 1e-6))
-            .map(|t| (sma::visible_set::split_shown_id(t.id).1, t.radiance[0][0]))
+            .map(|t| {
+                (
+                    sma::visible_set::split_shown_id(t.id).1,
+                    probe.radiance(t)[0][0],
+                )
+            })
             .collect()
     };
     view_completely(&mut probe, "front").await;
@@ -343,7 +348,7 @@ async fn two_viewers_at_one_mirror_each_see_it_from_their_own_eye() {
             .collect();
         assert!(!mirror.is_empty(), "the mirror wall is in view");
         for t in mirror {
-            for (p, rgb) in t.positions.iter().zip(t.radiance) {
+            for (p, rgb) in t.positions.iter().zip(probe.radiance(t)) {
                 let p = Vec3::from(*p);
                 let want =
                     radiance_at(p, Side::Front, Quality::INTERACTIVE, Some(camera.eye_vec()));
@@ -887,7 +892,7 @@ async fn the_thesis_profile_refines_at_fixed_quality_to_its_stated_end() {
     let shown_max = probe
         .table
         .values()
-        .flat_map(|t| t.radiance.iter().map(|rgb| conventions::luminance(*rgb)))
+        .flat_map(|t| probe.radiance(t).map(conventions::luminance))
         .fold(0.0, f32::max);
     let l_white = probe.l_white.expect("a tone map");
     assert!(
@@ -976,7 +981,7 @@ async fn a_nan_point_is_asked_again_and_never_shown_black() {
     );
     assert!(!probe.table.is_empty());
     for t in probe.table.values() {
-        for rgb in t.radiance {
+        for rgb in probe.radiance(t) {
             assert!(
                 rgb.iter().all(|c| c.is_finite()) && rgb.iter().any(|&c| c > 0.0),
                 "a shown vertex is {rgb:?}"
@@ -1087,7 +1092,12 @@ async fn an_all_black_scene_is_shown_black_under_every_criterion_without_a_stall
         for name in ["front", "side"] {
             view_completely(&mut probe, name).await;
         }
-        assert!(probe.table.values().all(|t| t.radiance == [[0.0; 3]; 3]));
+        assert!(
+            probe
+                .table
+                .values()
+                .all(|t| probe.radiance(t) == [[0.0; 3]; 3])
+        );
         assert!(probe.conformity_problem().is_none());
     }
     assert_eq!(probe.l_white, None, "no white point of 0 is ever sent");

@@ -123,7 +123,7 @@ async fn serve(
             continue;
         }
         if writer
-            .send(&SmaToViewer::SceneInfo(scene.clone()))
+            .send(&SmaToViewer::SceneInfo(Box::new(scene.clone())))
             .await
             .is_err()
         {

@@ -17,10 +17,11 @@ use glam::Vec3;
 use protocol::connection::{TcpReader, TcpWriter, connect_handshake};
 use protocol::direct_tile::ViewerTile;
 use protocol::frame::DEFAULT_MAX_FRAME;
+use protocol::texture::TextureImage;
 use protocol::viewer_link::{
     Camera, Epoch, SceneInfo, ShownTriangle, SmaToViewer, Stats, TriangleId, ViewerToSma,
 };
-use protocol::{Hello, ProtocolError, Role, split_tcp};
+use protocol::{Hello, ProtocolError, Rgb, Role, split_tcp};
 use tokio::net::TcpStream;
 use tokio::sync::{Mutex, mpsc};
 use tokio::task::JoinHandle;
@@ -43,6 +44,8 @@ pub struct Probe {
     pub stats_seen: Vec<Stats>,
     /// Every direct-light tile, in order, with the number of epochs seen before it.
     pub tiles: Vec<(usize, ViewerTile)>,
+    /// Every texture of `scene.texture_table` received, by index (checked, not decoded).
+    pub textures: Vec<Option<TextureImage>>,
     /// Every camera sent, for the tiles' sizes.
     sent: Vec<Camera>,
     next_seq: u64,
@@ -95,7 +98,7 @@ impl Probe {
         )
         .await?;
         let scene = match reader.recv().await? {
-            SmaToViewer::SceneInfo(info) => info,
+            SmaToViewer::SceneInfo(info) => *info,
             other => bail!("expected SceneInfo first, got {other:?}"),
         };
         let writer = Arc::new(Mutex::new(writer));
@@ -112,7 +115,6 @@ impl Probe {
             reading,
             writer,
             answer_pings,
-            scene,
             table: HashMap::new(),
             l_white: None,
             epochs: Vec::new(),
@@ -120,9 +122,22 @@ impl Probe {
             stats: None,
             stats_seen: Vec::new(),
             tiles: Vec::new(),
+            textures: vec![None; scene.texture_table.len()],
+            scene,
             sent: Vec::new(),
             next_seq: 0,
         })
+    }
+
+    /// Per vertex the radiance a viewer shows of `t` with its material's flat `kd` as the albedo
+    /// (one for a material the scene does not list): what an untextured surface looks like.
+    pub fn radiance(&self, t: &ShownTriangle) -> [Rgb; 3] {
+        let kd = self
+            .scene
+            .materials
+            .get(usize::from(t.material))
+            .map_or([1.0; 3], |m| m.kd);
+        t.shading.radiance([kd; 3])
     }
 
     pub async fn send(&mut self, message: ViewerToSma) -> anyhow::Result<()> {
@@ -215,6 +230,20 @@ impl Probe {
         match message {
             SmaToViewer::Insert { triangles } => {
                 for t in triangles {
+                    let look = self.scene.materials.get(usize::from(t.material));
+                    let texture = look.and_then(|m| m.texture);
+                    if let Some(texture) = texture
+                        && self
+                            .textures
+                            .get(texture.index as usize)
+                            .is_none_or(Option::is_none)
+                    {
+                        bail!(
+                            "triangle {} inserted before its texture {}",
+                            t.id,
+                            texture.index
+                        );
+                    }
                     if self.table.insert(t.id, t.clone()).is_some() {
                         bail!("duplicate insert of triangle {}", t.id);
                     }
@@ -233,7 +262,7 @@ impl Probe {
                         .table
                         .get_mut(&r.id)
                         .with_context(|| format!("update of unknown {}", r.id))?;
-                    (t.radiance, t.direct_share) = (r.radiance, r.direct_share);
+                    t.shading = r.shading;
                 }
             }
             SmaToViewer::ToneMap { l_white } => self.l_white = Some(l_white),
@@ -263,6 +292,15 @@ impl Probe {
                     bail!("a tile its own check refuses: {reason}");
                 }
                 self.tiles.push((self.epochs.len(), tile));
+            }
+            SmaToViewer::Texture(image) => {
+                if let Err(reason) = image.check(self.textures.len()) {
+                    bail!("a texture its own check refuses: {reason}");
+                }
+                let index = image.index as usize;
+                if self.textures[index].replace(image).is_some() {
+                    bail!("texture {index} sent twice");
+                }
             }
             SmaToViewer::SceneInfo(_) | SmaToViewer::Ping { .. } => {}
             SmaToViewer::Error { message } => bail!("the SMA reported an error: {message}"),

@@ -2,7 +2,9 @@
 //! tiles (`protocol::direct_tile::ViewerTile`) while the camera this viewer last sent rests. A
 //! pixel of a tile is shown in place of the vertices' direct part once its estimate is good
 //! enough ([`PRESENT_RELATIVE_ERROR`]); the drawing pass (`draw.wgsl`) then shows
-//! `tile direct + interpolated radiance × (1 − interpolated direct share)`. Tiles of another
+//! `tile direct + albedo × interpolated illumination × (1 − interpolated direct share)` plus the
+//! interpolated view-dependent part; a tile's direct part is radiance, the renderer's albedo of
+//! that pixel's first hit times its direct illumination. Tiles of another
 //! camera are ignored; sending a new camera drops the old one's, and a picture drawn for a camera
 //! other than the tiles' (a move the camera sender has not sent yet) shows none of them.
 

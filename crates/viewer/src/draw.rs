@@ -1,7 +1,8 @@
-//! The drawing pass: Gouraud-interpolated vertex radiance, tone-mapped in the shader
-//! (`draw.wgsl`), with an optional wireframe overlay to see the refinement mesh, and where a
-//! resting camera's per-pixel direct tiles have arrived, their direct part in place of the
-//! vertices' (`direct_texture`).
+//! The drawing pass: Gouraud-interpolated vertex illumination times each pixel's albedo (the
+//! material's factor and texture, `looks_texture`) plus the view-dependent radiance, tone-mapped
+//! in the shader (`draw.wgsl`), with an optional wireframe overlay to see the refinement mesh,
+//! and where a resting camera's per-pixel direct tiles have arrived, their direct part in place
+//! of the vertices' (`direct_texture`).
 //! The same pass draws into a window surface and into offscreen targets.
 
 use bytemuck::{Pod, Zeroable};
@@ -10,6 +11,7 @@ use glam::Vec3;
 use protocol::viewer_link::{Camera, SkyInfo};
 
 use crate::direct_texture::{self, GpuDirect};
+use crate::looks_texture::{self, GpuLooks};
 use crate::table::{Extent, Vertex};
 use crate::vertex_buffer::GpuTriangles;
 
@@ -132,7 +134,11 @@ impl Drawer {
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("draw"),
-            bind_group_layouts: &[Some(&layout), Some(&direct_texture::layout(device))],
+            bind_group_layouts: &[
+                Some(&layout),
+                Some(&direct_texture::layout(device)),
+                Some(&looks_texture::layout(device)),
+            ],
             immediate_size: 0,
         });
         let sky = pipeline(device, &pipeline_layout, &shader, format, Pass::Sky);
@@ -150,8 +156,9 @@ impl Drawer {
     }
 
     /// Records one frame: the sky over the whole target, then every live triangle over it, with
-    /// the per-pixel direct light of `direct` where it holds tiles of this picture (the caller
-    /// passes it only for the camera its tiles are of: `DirectImage::shown_for`).
+    /// the albedo of `looks`, and the per-pixel direct light of `direct` where it holds tiles of
+    /// this picture (the caller passes it only for the camera its tiles are of:
+    /// `DirectImage::shown_for`).
     #[allow(clippy::too_many_arguments)]
     pub fn draw(
         &self,
@@ -160,7 +167,7 @@ impl Drawer {
         colour: &wgpu::TextureView,
         depth: &wgpu::TextureView,
         triangles: &GpuTriangles,
-        direct: Option<&GpuDirect>,
+        (direct, looks): (Option<&GpuDirect>, &GpuLooks),
         camera: &Camera,
         depth_range: (f32, f32),
         settings: &DrawSettings,
@@ -215,6 +222,7 @@ impl Drawer {
         });
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.set_bind_group(1, direct.bind_group(), &[]);
+        pass.set_bind_group(2, looks.bind_group(), &[]);
         pass.set_pipeline(&self.sky);
         pass.draw(0..3, 0..1);
         if triangles.count() > 0 {
@@ -245,7 +253,14 @@ fn pipeline(
     let vertex_layout = [Some(wgpu::VertexBufferLayout {
         array_stride: std::mem::size_of::<Vertex>() as u64,
         step_mode: wgpu::VertexStepMode::Vertex,
-        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32],
+        attributes: &wgpu::vertex_attr_array![
+            0 => Float32x3,
+            1 => Float32x3,
+            2 => Float32,
+            3 => Float32x3,
+            4 => Uint16x2,
+            5 => Uint32,
+        ],
     })];
     let (vertex_entry, fragment_entry) = if geometry {
         ("vs_main", "fs_main")

@@ -1,6 +1,8 @@
 // Gouraud drawing of the triangle table with tone mapping (DESIGN.md §2, §9; thesis §2.3, §4.1).
-// Vertex radiances are exact GI samples; the rasteriser interpolates them across each triangle and
-// every fragment is tone-mapped on its luminance, keeping its colour.
+// Vertex illumination is exact GI samples; the rasteriser interpolates it across each triangle,
+// every fragment multiplies it by its own albedo, the material's factor times its texture's texel
+// (DESIGN.md §5, "Parts, and textures"), adds the view-dependent radiance, and is tone-mapped on
+// its luminance, keeping its colour.
 
 struct Uniforms {
     view_proj: mat4x4<f32>,
@@ -27,20 +29,33 @@ struct Uniforms {
 @group(0) @binding(0) var<uniform> u: Uniforms;
 // Per pixel the direct part of a resting camera's tiles, alpha 1 where it is shown (direct_image.rs).
 @group(1) @binding(0) var direct_tiles: texture_2d<f32>;
+// Per material (looks_texture.rs): the factor the texel multiplies, and the texture array layer
+// (0: white), negated where the texture clamps.
+@group(2) @binding(0) var materials: texture_2d<f32>;
+@group(2) @binding(1) var albedo_maps: texture_2d_array<f32>;
+@group(2) @binding(2) var albedo_sampler: sampler;
+
+const MATERIALS_PER_ROW: u32 = 256u;
+const CLAMPS: u32 = 0x80000000u;
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
-    @location(0) radiance: vec3<f32>,
+    @location(0) illumination: vec3<f32>,
     // Barycentric coordinates, for the wireframe overlay: the vertex index within its triangle.
     @location(1) bary: vec3<f32>,
     // Clip z and w, for the depth each fragment writes itself: wgpu's GL backend remaps clip z to
     // GL's -1..1 before the fixed function divides by w, which loses the precision reversed Z
     // keeps far from the eye; a fragment's own z / w is the same on every backend.
     @location(2) zw: vec2<f32>,
-    // `radiance` less its direct part (albedo × direct illumination): interpolated on its own,
-    // as the product of an interpolated share and an interpolated sum is not the interpolated
-    // rest (across a shadow edge it would carry the lit side's direct light into the shadow).
+    // `illumination` less its direct part: interpolated on its own, as the product of an
+    // interpolated share and an interpolated sum is not the interpolated rest (across a shadow
+    // edge it would carry the lit side's direct light into the shadow).
     @location(3) rest: vec3<f32>,
+    @location(4) view_dependent: vec3<f32>,
+    @location(5) uv: vec2<f32>,
+    // The material's factor, and its layer with CLAMPS set where the texture clamps.
+    @location(6) factor: vec3<f32>,
+    @location(7) @interpolate(flat) layer: u32,
 };
 
 struct FragmentOut {
@@ -52,14 +67,29 @@ struct FragmentOut {
 fn vs_main(
     @builtin(vertex_index) index: u32,
     @location(0) position: vec3<f32>,
-    @location(1) radiance: vec3<f32>,
+    @location(1) illumination: vec3<f32>,
     @location(2) direct_share: f32,
+    @location(3) view_dependent: vec3<f32>,
+    @location(4) texcoord: vec2<u32>,
+    @location(5) surface: u32,
 ) -> VertexOut {
     var out: VertexOut;
     out.clip = u.view_proj * vec4<f32>(position, 1.0);
     out.zw = out.clip.zw;
-    out.radiance = radiance;
-    out.rest = radiance * (1.0 - direct_share);
+    out.illumination = illumination;
+    out.rest = illumination * (1.0 - direct_share);
+    out.view_dependent = view_dependent;
+    // protocol::texture::Texcoords: 16-bit steps over 0..2^range.
+    let range = min((surface >> 16u) & 0xffu, 15u);
+    out.uv = vec2<f32>(texcoord) * (exp2(f32(range)) / 65536.0);
+    let material = surface & 0xffffu;
+    let at = vec2<u32>(material % MATERIALS_PER_ROW, material / MATERIALS_PER_ROW);
+    var look = vec4<f32>(1.0, 1.0, 1.0, 0.0);
+    if at.y < textureDimensions(materials).y {
+        look = textureLoad(materials, at, 0);
+    }
+    out.factor = look.rgb;
+    out.layer = u32(abs(look.a) + 0.5) | select(0u, CLAMPS, look.a < 0.0);
     let k = index % 3u;
     out.bary = vec3<f32>(f32(k == 0u), f32(k == 1u), f32(k == 2u));
     return out;
@@ -133,24 +163,38 @@ fn fs_main(in: VertexOut) -> FragmentOut {
     return FragmentOut(in.zw.x / in.zw.y, shade(in));
 }
 
-// Where a tile's pixel is shown: its direct part plus the interpolated rest (indirect and
-// view-dependent), the vertices' radiance less their direct share (DESIGN.md §3 step 8).
-fn with_direct_tiles(in: VertexOut) -> vec3<f32> {
+// The albedo of this fragment: the material's factor times its texel, sampled trilinearly (OBJ's
+// v grows up the image, the texture's rows go down). A clamped texture holds its edge texels.
+fn albedo(in: VertexOut) -> vec3<f32> {
+    let layer = in.layer & ~CLAMPS;
+    let size = vec2<f32>(textureDimensions(albedo_maps));
+    let edge = 0.5 / size;
+    let clamped = clamp(in.uv, edge, vec2<f32>(1.0) - edge);
+    let uv = select(in.uv, clamped, (in.layer & CLAMPS) != 0u);
+    let texel = textureSample(albedo_maps, albedo_sampler, vec2<f32>(uv.x, 1.0 - uv.y), layer);
+    return in.factor * texel.rgb;
+}
+
+// Where a tile's pixel is shown: its direct part, radiance with the renderer's albedo of that
+// pixel, plus the interpolated rest (indirect illumination) times this albedo, and the
+// view-dependent part (DESIGN.md §3 step 8).
+fn radiance_of(in: VertexOut, albedo: vec3<f32>) -> vec3<f32> {
+    let whole = albedo * in.illumination + in.view_dependent;
     if u.tiles == 0u {
-        return in.radiance;
+        return whole;
     }
     let texel = textureLoad(direct_tiles, vec2<i32>(in.clip.xy), 0);
     if texel.a < 0.5 {
-        return in.radiance;
+        return whole;
     }
-    return texel.rgb + in.rest;
+    return texel.rgb + albedo * in.rest + in.view_dependent;
 }
 
 fn shade(in: VertexOut) -> vec4<f32> {
-    // Derivatives first, in uniform control flow.
+    // Derivatives (and the implicit ones of the texture's sample) first, in uniform control flow.
     let edge = min(in.bary.x, min(in.bary.y, in.bary.z));
     let edge_width = fwidth(edge);
-    let radiance = with_direct_tiles(in);
+    let radiance = radiance_of(in, albedo(in));
     if u.mode == 0u {
         return vec4<f32>(radiance, 1.0);
     }

@@ -289,7 +289,7 @@ impl Headless<'_> {
             ..Facts::of(&self.state, &self.config.connect)
         });
         let frame = Frame::capture(
-            (&self.state.table, &self.state.direct),
+            (&self.state.table, &self.state.direct, &self.state.looks),
             &walk.camera,
             settings,
             facts,

@@ -1,5 +1,6 @@
 //! The viewer (DESIGN.md §2, §8, §9; thesis §2.3, §4.1): a thin wgpu client that holds the SMA's
-//! visible triangles, draws them with Gouraud-interpolated vertex radiance and tone mapping, and
+//! visible triangles, draws them with Gouraud-interpolated vertex illumination times each pixel's
+//! albedo (textures included) and tone mapping, and
 //! sends the camera back. It has no scene of its own: it learns the scene from `SceneInfo`.
 //!
 //! - [`table`]: triangle table, O(1) insert/remove/recolour; [`vertex_buffer`]: its GPU copy,
@@ -7,6 +8,8 @@
 //! - [`update`]: changes held back until the `Epoch` that closes them;
 //! - [`direct_image`]: the resting camera's per-pixel direct tiles; [`direct_texture`]: their GPU
 //!   copy, which the drawing pass shows in place of the vertices' direct part;
+//! - [`looks`]: the scene's materials and decoded textures, each pixel's albedo; [`looks_texture`]:
+//!   their GPU copy, a material table and a mipmapped texture array;
 //! - [`link`]: the SMA connection with reconnect and backoff; [`view_state`] follows its events;
 //! - [`draw`] (with `draw.wgsl`): the pass with tone mapping (`conventions::tone_map`, held to
 //!   the shader by a test); [`offscreen`]: the same pass into textures, read back;
@@ -30,6 +33,8 @@ pub mod draw;
 pub mod gpu;
 pub(crate) mod headless;
 pub mod link;
+pub mod looks;
+pub mod looks_texture;
 pub mod offscreen;
 pub(crate) mod overlay;
 pub mod panel;
@@ -46,4 +51,6 @@ pub mod window;
 
 pub use conventions::ToneMap;
 pub use draw::DrawSettings;
-pub use offscreen::{Snapshot, render_offscreen_with, render_offscreen_with_direct};
+pub use offscreen::{
+    Snapshot, render_offscreen_with, render_offscreen_with_direct, render_offscreen_with_looks,
+};

@@ -15,6 +15,7 @@ use protocol::connection::{TcpReader, TcpWriter, connect_handshake};
 use protocol::direct_tile::ViewerTile;
 use protocol::frame::DEFAULT_MAX_FRAME;
 use protocol::liveness::Liveness;
+use protocol::texture::TextureImage;
 use protocol::viewer_link::{SceneInfo, SmaToViewer, Stats, ViewerToSma};
 use protocol::{Hello, ProtocolError, Role, split_tcp};
 use tokio::sync::mpsc;
@@ -38,6 +39,8 @@ pub enum LinkEvent {
     /// Per-pixel direct light of a resting camera (not part of an update: a tile is drawn as it
     /// comes, for the camera it names).
     DirectTile(ViewerTile),
+    /// One of the scene's textures (`SceneInfo::texture_table`), before any triangle uses it.
+    Texture(TextureImage),
     /// The SMA reported an error; the session goes on.
     RemoteError(String),
     /// The session ended; reconnecting.
@@ -238,7 +241,7 @@ async fn connect(addr: &str) -> Result<Connected, ProtocolError> {
     // An SMA stalled halfway through a frame is lost like one gone (DESIGN.md §8).
     reader.set_frame_timeout(Liveness::default().frame_timeout);
     match reader.recv().await? {
-        SmaToViewer::SceneInfo(info) => Ok((reader, writer, info)),
+        SmaToViewer::SceneInfo(info) => Ok((reader, writer, *info)),
         SmaToViewer::Error { message } => Err(ProtocolError::Remote(message)),
         other => Err(ProtocolError::Malformed(format!(
             "expected SceneInfo first, got {}",
@@ -301,11 +304,12 @@ async fn session(
 /// them); should one, it is reported rather than trusted.
 fn other_event(msg: SmaToViewer) -> LinkEvent {
     match msg {
-        SmaToViewer::SceneInfo(info) => LinkEvent::Scene(info),
+        SmaToViewer::SceneInfo(info) => LinkEvent::Scene(*info),
         SmaToViewer::Refinement { criterion, paused } => {
             LinkEvent::Refinement { criterion, paused }
         }
         SmaToViewer::Stats(stats) => LinkEvent::Stats(stats),
+        SmaToViewer::Texture(image) => LinkEvent::Texture(image),
         SmaToViewer::Error { message } => LinkEvent::RemoteError(message),
         other => LinkEvent::RemoteError(format!("unexpected {} outside an update", kind(&other))),
     }
@@ -335,6 +339,7 @@ fn kind(msg: &SmaToViewer) -> &'static str {
         SmaToViewer::Error { .. } => "Error",
         SmaToViewer::Ping { .. } => "Ping",
         SmaToViewer::DirectTile(_) => "DirectTile",
+        SmaToViewer::Texture(_) => "Texture",
     }
 }
 

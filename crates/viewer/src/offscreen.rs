@@ -8,6 +8,8 @@ use crate::direct_image::DirectImage;
 use crate::direct_texture::GpuDirect;
 use crate::draw::{DrawSettings, Drawer, Output, depth_range, depth_texture, texture_2d};
 use crate::gpu::Gpu;
+use crate::looks::Looks;
+use crate::looks_texture::GpuLooks;
 use crate::table::TriangleTable;
 use crate::update::TableOp;
 use crate::vertex_buffer::GpuTriangles;
@@ -21,8 +23,9 @@ const LINEAR_FORMATS: [wgpu::TextureFormat; 2] = [
     wgpu::TextureFormat::Rgba16Float,
 ];
 
-/// What a picture draws: the triangles, and the direct tiles of its camera if any.
-pub type Layers<'a> = (&'a GpuTriangles, Option<&'a GpuDirect>);
+/// What a picture draws: the triangles, the direct tiles of its camera if any, and the scene's
+/// materials and textures.
+pub type Layers<'a> = (&'a GpuTriangles, Option<&'a GpuDirect>, &'a GpuLooks);
 
 /// Drawing recorded over the display image, given as a target view and its size in pixels.
 pub type PaintOver<'a> = dyn FnMut(&mut wgpu::CommandEncoder, (&wgpu::TextureView, [u32; 2])) + 'a;
@@ -156,7 +159,7 @@ impl Offscreen {
         &self,
         gpu: &Gpu,
         targets: &[&Target],
-        (triangles, direct): Layers,
+        (triangles, direct, looks): Layers,
         camera: &Camera,
         depth: (f32, f32),
         settings: &DrawSettings,
@@ -174,7 +177,7 @@ impl Offscreen {
                 &target.view,
                 &self.depth,
                 triangles,
-                direct,
+                (direct, looks),
                 &camera,
                 depth,
                 settings,
@@ -276,6 +279,24 @@ pub fn render_offscreen_with_direct(
     camera: &Camera,
     settings: &DrawSettings,
 ) -> anyhow::Result<Snapshot> {
+    render_offscreen_with_looks(
+        gpu,
+        triangles,
+        (&Looks::default(), direct),
+        camera,
+        settings,
+    )
+}
+
+/// [`render_offscreen_with_direct`], with the materials and textures of `looks` (without, every
+/// triangle's albedo is one).
+pub fn render_offscreen_with_looks(
+    gpu: &Gpu,
+    triangles: &[ShownTriangle],
+    (looks, direct): (&Looks, &DirectImage),
+    camera: &Camera,
+    settings: &DrawSettings,
+) -> anyhow::Result<Snapshot> {
     let mut table = TriangleTable::new();
     table.apply(&[TableOp::Insert(triangles.to_vec())]);
     let mut gpu_triangles = GpuTriangles::new(gpu);
@@ -286,9 +307,11 @@ pub fn render_offscreen_with_direct(
     if direct.shown_for(camera) {
         gpu_direct.upload(gpu, direct);
     }
+    let mut gpu_looks = GpuLooks::new(gpu);
+    gpu_looks.sync(gpu, looks);
     offscreen.snapshot(
         gpu,
-        (&gpu_triangles, Some(&gpu_direct)),
+        (&gpu_triangles, Some(&gpu_direct), &gpu_looks),
         camera,
         depth,
         settings,

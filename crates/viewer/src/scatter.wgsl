@@ -1,5 +1,5 @@
 // Scatters changed triangles into the vertex buffer (vertex_buffer.rs): removals and recolours hit
-// random slots, and one dispatch over a packed list of (slot, 21 floats) is far cheaper than a
+// random slots, and one dispatch over a packed list of (slot, 36 words) is far cheaper than a
 // buffer write per slot.
 
 struct Params {
@@ -8,9 +8,10 @@ struct Params {
     row: u32,
 };
 
-// Words of one triangle: 3 vertices × (position, radiance, direct share), as `table::Vertex`.
-const TRIANGLE_WORDS: u32 = 21u;
-const WORDS: u32 = 22u; // slot + the triangle
+// Words of one triangle: 3 vertices × (position, illumination, direct share, view-dependent
+// radiance, texture coordinates, surface), 12 words each, as `table::Vertex`.
+const TRIANGLE_WORDS: u32 = 36u;
+const WORDS: u32 = 37u; // slot + the triangle
 
 @group(0) @binding(0) var<storage, read> patches: array<u32>;
 @group(0) @binding(1) var<storage, read_write> vertices: array<u32>;

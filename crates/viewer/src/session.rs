@@ -77,6 +77,8 @@ mod tests {
                 bounces: Some(2),
             },
             textures: false,
+            materials: vec![],
+            texture_table: vec![],
         }
     }
 

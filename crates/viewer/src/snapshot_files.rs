@@ -439,7 +439,7 @@ mod tests {
         let table = crate::table::TriangleTable::new();
         for index in 0..6 {
             let frame = Frame::capture(
-                (&table, &Default::default()),
+                (&table, &Default::default(), &Default::default()),
                 &camera,
                 Default::default(),
                 None,

@@ -11,6 +11,8 @@
 //! created there and so inherit its lowest scheduling priority (`snapshot_files`). The image is
 //! the one the viewer would have drawn at the instant, whenever it is drawn.
 
+use std::sync::Arc;
+
 use anyhow::Context;
 use protocol::viewer_link::Camera;
 
@@ -18,6 +20,8 @@ use crate::direct_image::DirectImage;
 use crate::direct_texture::GpuDirect;
 use crate::draw::{DrawSettings, depth_range};
 use crate::gpu::Gpu;
+use crate::looks::Looks;
+use crate::looks_texture::GpuLooks;
 use crate::offscreen::{DISPLAY_FORMAT, Offscreen, Snapshot};
 use crate::overlay::{PanelPainter, fixed_screen};
 use crate::panel::Facts;
@@ -35,12 +39,14 @@ pub struct Frame {
     pub facts: Option<Facts>,
     /// The direct tiles of the camera, if a picture of it shows some.
     pub direct: Option<DirectImage>,
+    /// The scene's materials and textures (shared: they change only when a texture arrives).
+    pub looks: Arc<Looks>,
 }
 
 impl Frame {
     /// The copy of `table` and the rest of what the viewer would draw now.
     pub fn capture(
-        (table, direct): (&TriangleTable, &DirectImage),
+        (table, direct, looks): (&TriangleTable, &DirectImage, &Arc<Looks>),
         camera: &Camera,
         settings: DrawSettings,
         facts: Option<Facts>,
@@ -52,6 +58,7 @@ impl Frame {
             settings,
             facts,
             direct: direct.copy_for(camera),
+            looks: Arc::clone(looks),
         }
     }
 
@@ -79,6 +86,7 @@ pub struct SnapshotPainter {
     offscreen: Offscreen,
     triangles: GpuTriangles,
     direct: GpuDirect,
+    looks: GpuLooks,
     panel: Option<PanelPainter>,
 }
 
@@ -93,6 +101,7 @@ impl SnapshotPainter {
             offscreen: Offscreen::new(&gpu, canvas.width, canvas.height),
             triangles: GpuTriangles::new(&gpu),
             direct: GpuDirect::new(&gpu.device),
+            looks: GpuLooks::new(&gpu),
             panel,
             gpu,
         })
@@ -111,6 +120,7 @@ impl SnapshotPainter {
             self.direct.upload(&self.gpu, image);
             &self.direct
         });
+        self.looks.sync(&self.gpu, &frame.looks);
         let depth = depth_range(&frame.camera, frame.extent);
         let gpu = (&self.gpu.device, &self.gpu.queue);
         let panel = &mut self.panel;
@@ -122,7 +132,7 @@ impl SnapshotPainter {
         };
         self.offscreen.snapshot_painted(
             &self.gpu,
-            (&self.triangles, direct),
+            (&self.triangles, direct, &self.looks),
             &frame.camera,
             depth,
             &frame.settings,

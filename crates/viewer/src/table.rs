@@ -1,5 +1,5 @@
-//! The viewer's triangle table, `triangle id -> 3 positions + 3 radiances` (DESIGN.md §2, thesis
-//! §2.3): triangles stay available for drawing until the SMA orders their removal.
+//! The viewer's triangle table, `triangle id -> 3 positions + what lights them` (DESIGN.md §2,
+//! thesis §2.3): triangles stay available for drawing until the SMA orders their removal.
 //!
 //! The table is the CPU copy of the GPU vertex buffer, kept dense: slot `i` holds vertices
 //! `3i..3i+3`, slots `0..len` are live and everything from `len` up to the buffer's capacity is free.
@@ -15,18 +15,33 @@ use std::ops::Range;
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
-use protocol::viewer_link::{DirectShare, Recolour, ShownTriangle, TriangleId};
+use protocol::texture::Texcoords;
+use protocol::viewer_link::{CornerShading, DirectShare, Recolour, ShownTriangle, TriangleId};
 
 use crate::update::TableOp;
 
-/// One vertex as the GPU reads it: position, then linear RGB radiance, then the share of it that
-/// is the direct part (0..1), which a per-pixel direct tile replaces (`direct_image`).
+/// One vertex as the GPU reads it (DESIGN.md §5, "Parts, and textures"): position, the linear
+/// RGB illumination the albedo multiplies, the share of it that is direct (0..1), which a
+/// per-pixel direct tile replaces (`direct_image`), the view-dependent radiance added on top, and
+/// the texture coordinates as the wire quantises them (`protocol::texture::Texcoords`): 16-bit
+/// steps, with the triangle's material (low 16 bits of `surface`) and the steps' range (the 8
+/// bits above), which `draw.wgsl` decodes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct Vertex {
     pub position: [f32; 3],
-    pub radiance: [f32; 3],
+    pub illumination: [f32; 3],
     pub direct_share: f32,
+    pub view_dependent: [f32; 3],
+    pub texcoord: [u16; 2],
+    pub surface: u32,
+}
+
+impl Vertex {
+    /// The triangle's material, as `SceneInfo::materials` indexes it.
+    pub fn material(&self) -> u16 {
+        self.surface as u16
+    }
 }
 
 /// Bytes of one triangle in the vertex buffer.
@@ -108,13 +123,29 @@ impl TriangleTable {
     /// The triangle held under `id`, as it would be drawn.
     pub fn get(&self, id: TriangleId) -> Option<ShownTriangle> {
         let slot = *self.slot_of.get(&id)? as usize;
-        let v = &self.vertices[3 * slot..3 * slot + 3];
+        let v: [Vertex; 3] = std::array::from_fn(|k| self.vertices[3 * slot + k]);
+        let mut texcoords = [0u8; 13];
+        texcoords[0] = (v[0].surface >> 16) as u8;
+        for (k, vertex) in v.iter().enumerate() {
+            for (a, q) in vertex.texcoord.iter().enumerate() {
+                texcoords[1 + 4 * k + 2 * a..3 + 4 * k + 2 * a].copy_from_slice(&q.to_le_bytes());
+            }
+        }
+        let view_dependent = v.map(|v| v.view_dependent);
         Some(ShownTriangle {
             id,
-            positions: [v[0].position, v[1].position, v[2].position],
-            radiance: [v[0].radiance, v[1].radiance, v[2].radiance],
-            direct_share: [v[0], v[1], v[2]]
-                .map(|v| DirectShare((v.direct_share * 255.0).round() as u8)),
+            positions: v.map(|v| v.position),
+            material: v[0].material(),
+            texcoords: Texcoords(texcoords),
+            shading: CornerShading {
+                illumination: v.map(|v| v.illumination),
+                direct_share: v.map(|v| DirectShare((v.direct_share * 255.0).round() as u8)),
+                view_dependent: view_dependent
+                    .iter()
+                    .flatten()
+                    .any(|&c| c != 0.0)
+                    .then_some(view_dependent),
+            },
         })
     }
 
@@ -186,12 +217,20 @@ impl TriangleTable {
             }
         };
         let base = 3 * slot as usize;
+        let range = u32::from(t.texcoords.0[0]);
         for k in 0..3 {
-            self.vertices[base + k] = Vertex {
-                position: t.positions[k],
-                radiance: sanitize(t.radiance[k]),
-                direct_share: t.direct_share[k].fraction(),
+            let q = |a: usize| {
+                let i = 1 + 4 * k + 2 * a;
+                u16::from_le_bytes([t.texcoords.0[i], t.texcoords.0[i + 1]])
             };
+            let vertex = &mut self.vertices[base + k];
+            *vertex = Vertex {
+                position: t.positions[k],
+                texcoord: [q(0), q(1)],
+                surface: u32::from(t.material) | range << 16,
+                ..Vertex::default()
+            };
+            shade(vertex, &t.shading, k);
         }
         self.grow_extent(&t.positions);
         self.dirty.push(slot);
@@ -222,9 +261,7 @@ impl TriangleTable {
         };
         let base = 3 * slot as usize;
         for k in 0..3 {
-            let vertex = &mut self.vertices[base + k];
-            vertex.radiance = sanitize(r.radiance[k]);
-            vertex.direct_share = r.direct_share[k].fraction();
+            shade(&mut self.vertices[base + k], &r.shading, k);
         }
         self.dirty.push(slot);
         true
@@ -267,7 +304,14 @@ impl TriangleTable {
     }
 }
 
-/// Radiance the shader can tone-map: non-finite or negative values become 0 (never trust the wire).
+/// Corner `k` of `shading` into `vertex`.
+fn shade(vertex: &mut Vertex, shading: &CornerShading, k: usize) {
+    vertex.illumination = sanitize(shading.illumination[k]);
+    vertex.direct_share = shading.direct_share[k].fraction();
+    vertex.view_dependent = shading.view_dependent.map_or([0.0; 3], |v| sanitize(v[k]));
+}
+
+/// Values the shader can tone-map: non-finite or negative ones become 0 (never trust the wire).
 fn sanitize(rgb: [f32; 3]) -> [f32; 3] {
     rgb.map(|c| if c.is_finite() && c > 0.0 { c } else { 0.0 })
 }
@@ -280,8 +324,13 @@ mod tests {
         ShownTriangle {
             id,
             positions: [[x, 0.0, 0.0], [x + 1.0, 0.0, 0.0], [x, 1.0, 0.0]],
-            radiance: [[x; 3]; 3],
-            direct_share: Default::default(),
+            material: 2,
+            texcoords: Texcoords::encode([[x, 0.5], [x + 0.25, 0.5], [x, 0.75]], false),
+            shading: CornerShading {
+                illumination: [[x; 3]; 3],
+                direct_share: [DirectShare(9); 3],
+                view_dependent: (x > 1.0).then_some([[0.5, 0.0, x]; 3]),
+            },
         }
     }
 
@@ -304,8 +353,7 @@ mod tests {
         t.clear_dirty();
         let recolour = |id| Recolour {
             id,
-            radiance: [[1.0; 3]; 3],
-            direct_share: Default::default(),
+            shading: CornerShading::default(),
         };
         t.apply(&[TableOp::Recolour(vec![
             recolour(2),
@@ -325,10 +373,13 @@ mod tests {
         let mut t = TriangleTable::new();
         let mut nan_pos = tri(1, 0.0);
         nan_pos.positions[0][1] = f32::NAN;
-        let mut bad_radiance = tri(2, 0.0);
-        bad_radiance.radiance[1] = [f32::INFINITY, -3.0, 2.0];
-        let c = t.apply(&[TableOp::Insert(vec![nan_pos, bad_radiance])]);
+        let mut bad_light = tri(2, 0.0);
+        bad_light.shading.illumination[1] = [f32::INFINITY, -3.0, 2.0];
+        bad_light.shading.view_dependent = Some([[f32::NAN, 1.0, -1.0]; 3]);
+        let c = t.apply(&[TableOp::Insert(vec![nan_pos, bad_light])]);
         assert_eq!((c.inserted, c.ignored), (1, 1));
-        assert_eq!(t.get(2).unwrap().radiance[1], [0.0, 0.0, 2.0]);
+        let shading = t.get(2).unwrap().shading;
+        assert_eq!(shading.illumination[1], [0.0, 0.0, 2.0]);
+        assert_eq!(shading.view_dependent, Some([[0.0, 1.0, 0.0]; 3]));
     }
 }

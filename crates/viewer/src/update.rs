@@ -78,8 +78,9 @@ mod tests {
         let t = ShownTriangle {
             id: 5,
             positions: [[0.0; 3]; 3],
-            radiance: [[1.0; 3]; 3],
-            direct_share: Default::default(),
+            material: 0,
+            texcoords: Default::default(),
+            shading: Default::default(),
         };
         assert_eq!(
             s.stage(SmaToViewer::Insert {

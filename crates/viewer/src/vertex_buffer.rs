@@ -385,7 +385,8 @@ fn patch_buffer(device: &wgpu::Device, patches: usize) -> wgpu::Buffer {
 
 #[cfg(test)]
 mod tests {
-    use protocol::viewer_link::{Recolour, ShownTriangle};
+    use protocol::texture::Texcoords;
+    use protocol::viewer_link::{CornerShading, DirectShare, Recolour, ShownTriangle};
 
     use super::*;
     use crate::gpu::headless_or_skip;
@@ -396,8 +397,13 @@ mod tests {
         ShownTriangle {
             id,
             positions: [[v, 1.0, 2.0], [3.0, v, 4.0], [5.0, 6.0, v]],
-            radiance: [[v * 0.5; 3], [1.0, v, 2.0], [v, 0.25, 0.125]],
-            direct_share: Default::default(),
+            material: id as u16,
+            texcoords: Texcoords::encode([[v, 0.0], [v + 0.5, 0.0], [v, 0.5]], false),
+            shading: CornerShading {
+                illumination: [[v * 0.5; 3], [1.0, v, 2.0], [v, 0.25, 0.125]],
+                direct_share: [DirectShare(id as u8); 3],
+                view_dependent: Some([[v; 3]; 3]),
+            },
         }
     }
 
@@ -451,8 +457,10 @@ mod tests {
                         let id = *held.get(next(held.len().max(1) as u64) as usize)?;
                         Some(Recolour {
                             id,
-                            radiance: [[next(100) as f32; 3]; 3],
-                            direct_share: Default::default(),
+                            shading: CornerShading {
+                                illumination: [[next(100) as f32; 3]; 3],
+                                ..CornerShading::default()
+                            },
                         })
                     })
                     .collect();

@@ -3,8 +3,11 @@
 
 use protocol::viewer_link::{Epoch, SceneInfo, SkyInfo, Stats};
 
+use std::sync::Arc;
+
 use crate::direct_image::DirectImage;
 use crate::link::LinkEvent;
+use crate::looks::Looks;
 use crate::table::TriangleTable;
 
 /// What the system is doing for this viewer, as the panel and the progress line say it.
@@ -40,7 +43,7 @@ pub enum Reaction {
     Resend,
     /// An epoch closed an update; the table changed.
     Drawn(Epoch),
-    /// A direct tile of the current camera arrived: the picture changed.
+    /// A direct tile of the current camera, or a texture, arrived: the picture changed.
     Tile,
 }
 
@@ -49,6 +52,8 @@ pub struct ViewState {
     pub table: TriangleTable,
     /// The per-pixel direct tiles of the camera last sent (the front end follows its cameras).
     pub direct: DirectImage,
+    /// The scene's materials and textures (shared with snapshots copied meanwhile).
+    pub looks: Arc<Looks>,
     /// The SMA's L_white (thesis §2.3); 1 until it sends one.
     pub l_white: f32,
     pub epoch: Option<Epoch>,
@@ -69,6 +74,7 @@ impl Default for ViewState {
             scene: None,
             table: TriangleTable::new(),
             direct: DirectImage::default(),
+            looks: Arc::default(),
             l_white: 1.0,
             epoch: None,
             interval_inserted: 0,
@@ -108,6 +114,7 @@ impl ViewState {
                 self.epoch = None;
                 self.stats_seen = false;
                 self.refinement = info.criteria.first().map(|c| (c.clone(), false));
+                self.looks = Arc::new(Looks::of(&info));
                 self.scene = Some(info);
                 self.connected = true;
                 return Reaction::Resend;
@@ -134,6 +141,11 @@ impl ViewState {
                 self.interval_removed += update.epoch.removed;
                 self.epoch = Some(update.epoch);
                 return Reaction::Drawn(update.epoch);
+            }
+            LinkEvent::Texture(image) => {
+                if Arc::make_mut(&mut self.looks).accept(&image) {
+                    return Reaction::Tile;
+                }
             }
             LinkEvent::DirectTile(tile) => {
                 if self.direct.accept(&tile) {
@@ -204,6 +216,8 @@ mod tests {
                 bounces: None,
             },
             textures: false,
+            materials: vec![],
+            texture_table: vec![],
         }
     }
 
@@ -233,5 +247,41 @@ mod tests {
         assert_eq!(state.activity(), Activity::Converged);
         state.handle(LinkEvent::Disconnected("gone".into()));
         assert_eq!(state.activity(), Activity::Connecting);
+    }
+
+    /// A session's textures reach its looks; a new session starts from its own scene's.
+    #[test]
+    fn textures_reach_the_looks_and_a_new_session_forgets_them() {
+        let textured = SceneInfo {
+            materials: vec![protocol::texture::MaterialLook {
+                kd: [0.5; 3],
+                texture: Some(protocol::texture::MaterialTexture {
+                    index: 0,
+                    times_kd: true,
+                    clamp: false,
+                }),
+            }],
+            texture_table: vec![protocol::texture::TextureInfo {
+                name: "t.png".into(),
+                width: 1,
+                height: 1,
+                bytes: 0,
+            }],
+            ..scene()
+        };
+        let mut png = Vec::new();
+        image::RgbImage::from_pixel(1, 1, image::Rgb([9, 8, 7]))
+            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .unwrap();
+        let texture =
+            |png: Vec<u8>| LinkEvent::Texture(protocol::texture::TextureImage { index: 0, png });
+        let mut state = ViewState::default();
+        state.handle(LinkEvent::Connected(textured.clone()));
+        assert_eq!(state.handle(texture(b"junk".to_vec())), Reaction::Nothing);
+        assert_eq!(state.looks.drawn(8).0.len(), 0);
+        assert_eq!(state.handle(texture(png)), Reaction::Tile);
+        assert_eq!(state.looks.drawn(8).0.len(), 1);
+        state.handle(LinkEvent::Connected(textured));
+        assert_eq!(state.looks.drawn(8).0.len(), 0);
     }
 }

@@ -26,6 +26,7 @@ use crate::direct_texture::GpuDirect;
 use crate::draw::{DrawSettings, Drawer, Output, depth_range, depth_texture};
 use crate::gpu::Gpu;
 use crate::link::{EventQueue, Link, event_queue};
+use crate::looks_texture::GpuLooks;
 use crate::overlay::Overlay;
 use crate::panel::{Action, Facts};
 use crate::progress::ProgressPrinter;
@@ -79,6 +80,8 @@ struct Display {
     triangles: GpuTriangles,
     /// The per-pixel direct tiles of the resting camera (`ViewState::direct`).
     direct: GpuDirect,
+    /// The scene's materials and textures (`ViewState::looks`).
+    looks: GpuLooks,
     drawer: Drawer,
     depth: wgpu::TextureView,
     config: wgpu::SurfaceConfiguration,
@@ -118,6 +121,7 @@ impl Display {
             overlay: Overlay::new(window.clone(), &gpu.device, config.format),
             triangles: GpuTriangles::new(&gpu),
             direct: GpuDirect::new(&gpu.device),
+            looks: GpuLooks::new(&gpu),
             drawer: Drawer::new(&gpu.device, config.format, Output::Display),
             depth: depth_texture(&gpu.device, config.width, config.height),
             config,
@@ -380,6 +384,7 @@ impl App {
         let upload = d.triangles.sync(&d.gpu, &mut self.state.table);
         tracing::trace!(?upload, "frame upload");
         d.direct.sync(&d.gpu, &mut self.state.direct);
+        d.looks.sync(&d.gpu, &self.state.looks);
         let texture = match d.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t)
             | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
@@ -406,7 +411,10 @@ impl App {
             &view,
             &d.depth,
             &d.triangles,
-            self.state.direct.shown_for(&camera).then_some(&d.direct),
+            (
+                self.state.direct.shown_for(&camera).then_some(&d.direct),
+                &d.looks,
+            ),
             &camera,
             depth,
             &self.settings,

@@ -9,7 +9,10 @@ use std::sync::mpsc;
 
 use common::{Seen, StandIn, scene};
 use proptest::prelude::*;
-use protocol::viewer_link::{Epoch, Recolour, ShownTriangle, SmaToViewer, Stats, ViewerToSma};
+use protocol::texture::Texcoords;
+use protocol::viewer_link::{
+    CornerShading, DirectShare, Epoch, Recolour, ShownTriangle, SmaToViewer, Stats, ViewerToSma,
+};
 use testkit::fake_sma::WAIT;
 use viewer::link::{Link, LinkEvent};
 use viewer::view_state::{Reaction, ViewState};
@@ -62,8 +65,20 @@ fn triangle(id: u64, shade: f32) -> ShownTriangle {
     ShownTriangle {
         id,
         positions: [[x, 0.0, 0.0], [x + 1.0, 0.0, 0.0], [x, 1.0, shade]],
-        radiance: [[shade, 1.0, 2.0], [0.5, shade, 0.25], [1.0, 1.0, shade]],
-        direct_share: Default::default(),
+        material: id as u16,
+        texcoords: Texcoords::encode(
+            [[x, shade], [x + shade, 0.5], [0.25, x]],
+            id.is_multiple_of(2),
+        ),
+        shading: shading(shade),
+    }
+}
+
+fn shading(shade: f32) -> CornerShading {
+    CornerShading {
+        illumination: [[shade, 1.0, 2.0], [0.5, shade, 0.25], [1.0, 1.0, shade]],
+        direct_share: [DirectShare((shade * 30.0) as u8); 3],
+        view_dependent: (shade > 4.0).then_some([[shade; 3], [0.0; 3], [1.0, 0.0, 0.5]]),
     }
 }
 
@@ -104,13 +119,12 @@ fn send_and_model(op: &Op, model: &mut HashMap<u64, ShownTriangle>) -> SmaToView
                 .iter()
                 .map(|&(id, s)| Recolour {
                     id,
-                    radiance: triangle(id, s).radiance,
-                    direct_share: Default::default(),
+                    shading: shading(s),
                 })
                 .collect();
             for r in &triangles {
                 if let Some(t) = model.get_mut(&r.id) {
-                    t.radiance = r.radiance;
+                    t.shading = r.shading.clone();
                 }
             }
             SmaToViewer::Update { triangles }

@@ -389,7 +389,7 @@ fn a_scene_far_from_the_origin_draws_the_centred_picture() {
 fn half_direct_triangles() -> Vec<ShownTriangle> {
     let mut triangles = known_triangles();
     for t in &mut triangles {
-        t.direct_share = [DirectShare(128); 3];
+        t.shading.direct_share = [DirectShare(128); 3];
     }
     triangles
 }
@@ -564,8 +564,9 @@ fn headless_binary_draws_the_direct_tiles_of_its_camera_only() {
 fn ramp_rest_is_interpolated_per_vertex(gpu: &Gpu, settings: &DrawSettings, camera: &Camera) {
     let mut triangles = known_triangles();
     for t in triangles.iter_mut().filter(|t| t.id == 20 || t.id == 21) {
-        t.direct_share = t
-            .radiance
+        t.shading.direct_share = t
+            .shading
+            .illumination
             .map(|r| DirectShare(if r[0] < 1.0 { 255 } else { 0 }));
     }
     let mut direct = DirectImage::default();

@@ -1,14 +1,17 @@
 //! The diffuse albedo at each vertex of the subdivision mesh (DESIGN.md §5, "Parts, and
 //! textures"): the texel of its material's texture at the vertex's object-space point, or the
-//! material's `Kd`. The renderers answer illumination; this is what multiplies it before a
-//! viewer is sent the vertex's radiance (`sample::display_radiance`), looked up once per vertex
-//! as the mesh grows.
+//! material's `Kd`. The renderers answer illumination; this is what multiplies it into the
+//! radiance the SMA's criteria, L_white and stopping rule judge (`sample::display_radiance`),
+//! looked up once per vertex as the mesh grows. A viewer multiplies its own albedo in per pixel:
+//! it is sent each shown leaf's material and corner texture coordinates (`leaf_surface`).
 
 use std::sync::Arc;
 
+use protocol::texture::Texcoords;
 use scene::Scene;
+use scene::texture::Wrap;
 
-use crate::mesh::{SubdivisionMesh, VertexId};
+use crate::mesh::{NodeId, SubdivisionMesh, VertexId};
 
 /// An albedo channel is stored in 16 bits over 0..2 (a physical albedo is at most 1; an MTL
 /// that states more still fits): steps of 2^-15, far below a display step.
@@ -80,6 +83,29 @@ impl VertexAlbedos {
         self.albedos
             .get(vertex as usize)
             .map_or([1.0; 3], |a| a.map(|c| f32::from(c) / STEPS_PER_UNIT))
+    }
+
+    /// The material of leaf `leaf`'s scene triangle and its corners' texture coordinates, the
+    /// map's scale and offset applied (MTL `-s`, `-o`); none for a material without a texture.
+    pub(super) fn leaf_surface(&self, mesh: &SubdivisionMesh, leaf: NodeId) -> (u16, Texcoords) {
+        let Some(scene) = &self.scene else {
+            return (0, Texcoords::default());
+        };
+        let (t, bary) = mesh.leaf_in_scene_triangle(leaf);
+        let Some(triangle) = scene.mesh.triangles.get(t as usize) else {
+            return (0, Texcoords::default());
+        };
+        let material = u16::try_from(triangle.material).unwrap_or(u16::MAX);
+        let texcoords = match &scene.materials[triangle.material as usize].diffuse_map {
+            None => Texcoords::default(),
+            Some(map) => Texcoords::encode(
+                bary.map(|b| {
+                    (scene.texcoord_at(t as usize, b) * map.scale + map.offset).to_array()
+                }),
+                map.wrap == Wrap::Clamp,
+            ),
+        };
+        (material, texcoords)
     }
 
     pub(super) fn bytes(&self) -> usize {

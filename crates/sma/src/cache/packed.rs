@@ -40,11 +40,6 @@ impl CachedSample {
     pub fn rgb(&self) -> [f32; 3] {
         self.estimate().rgb()
     }
-
-    /// The displayed direct part's share of [`Self::rgb`] (`Estimate::direct_share`).
-    pub fn direct_share(&self) -> protocol::viewer_link::DirectShare {
-        self.estimate().direct_share()
-    }
 }
 
 /// `last_seen` as stored. The scheduler passes its count of visibility passes (frames), not a

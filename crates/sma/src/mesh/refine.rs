@@ -27,7 +27,7 @@ fn green_children(v: [VertexId; 3], s: usize, m: VertexId) -> [[VertexId; 3]; 2]
 /// (|e1|²|e2|² - (e1·e2)²) of the textbook form cancels to nothing in f32 for a needle (a sine of
 /// its smallest angle below ~3e-4), placing its midpoints at a corner; a cross product keeps
 /// the sine itself, and f64 keeps it to needles of sine 1e-7, the thinnest the scene keeps.
-fn barycentric(t: [Vec3; 3], p: Vec3) -> [f32; 2] {
+pub(super) fn barycentric(t: [Vec3; 3], p: Vec3) -> [f32; 2] {
     let [a, b, c] = t.map(Vec3::as_dvec3);
     let (e1, e2, d) = (b - a, c - a, p.as_dvec3() - a);
     let n = e1.cross(e2);

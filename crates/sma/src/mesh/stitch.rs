@@ -47,6 +47,22 @@ impl SubdivisionMesh {
         };
         (scene, corners)
     }
+
+    /// The scene triangle leaf `id` lies in, and its corners' barycentric weights there
+    /// (vertices 1 and 2): where its texture coordinates are read (DESIGN.md §5). A corner
+    /// shaded on another scene triangle (shared with it) is placed by its position.
+    pub fn leaf_in_scene_triangle(&self, id: NodeId) -> (u32, [[f32; 2]; 3]) {
+        let (scene, corners) = self.scene_triangle_of(self.base_of(id));
+        let bary = self.node(id).vertices.map(|v| {
+            let vertex = self.vertex(v);
+            if vertex.base_triangle == scene {
+                vertex.bary
+            } else {
+                super::refine::barycentric(corners, vertex.position)
+            }
+        });
+        (scene, bary)
+    }
 }
 
 /// The base triangles of `mesh`, as vertex ids: its triangles, each cut where corners of other

@@ -8,9 +8,9 @@ use std::hash::Hasher;
 
 use glam::Vec3;
 use protocol::Side;
-use protocol::viewer_link::{DirectShare, Recolour, ShownTriangle, SmaToViewer, TriangleId};
+use protocol::viewer_link::{CornerShading, Recolour, ShownTriangle, SmaToViewer, TriangleId};
 
-use crate::cache::ShadingCache;
+use crate::cache::{LeafShading, ShadingCache};
 use crate::mesh::fast_hash::{FastHash, IdHasher};
 use crate::mesh::{NodeId, SubdivisionMesh, VertexId, table_bytes};
 use crate::visible_set::shown_id;
@@ -40,11 +40,12 @@ pub struct ShownSet {
 /// One shown triangle.
 #[derive(Clone, Copy, Debug)]
 struct Entry {
-    /// A hash of the colours last sent (radiance and direct share at each corner): a sync sends
-    /// an `Update` when the cache's differ; two colours alike in their 64-bit hash are taken as
-    /// one.
+    /// A hash of the shading last sent (illumination, direct share and view-dependent part at
+    /// each corner): a sync sends an `Update` when the cache's differs; two alike in their
+    /// 64-bit hash are taken as one.
     sent: [u32; 2],
-    /// The luminance of the radiance last sent, per corner: what `nld-is` reads.
+    /// The luminance of the radiance last sent (with the albedo at each vertex), per corner:
+    /// what `nld-is` reads.
     luminance: [f32; 3],
     /// Its corners when sent: the mesh reuses removed nodes' ids (`mesh::free_nodes`), so an id
     /// may come back as another triangle; a shown triangle's vertices are never reused
@@ -58,14 +59,23 @@ struct Entry {
 /// whole and a 64-bit key).
 const _: () = assert!(size_of::<(u32, Entry)>() == 40);
 
-/// What [`Entry::sent`] holds of a triangle's colours.
-fn colours_hash(radiance: &[[f32; 3]; 3], direct_share: &[DirectShare; 3]) -> [u32; 2] {
+/// What [`Entry::sent`] holds of a triangle's shading.
+fn shading_hash(shading: &CornerShading) -> [u32; 2] {
     let mut hasher = IdHasher::default();
-    for c in radiance.as_flattened() {
+    for c in shading.illumination.as_flattened() {
         hasher.write_u32(c.to_bits());
     }
-    for d in direct_share {
+    for d in &shading.direct_share {
         hasher.write_u8(d.0);
+    }
+    match &shading.view_dependent {
+        None => hasher.write_u8(0),
+        Some(v) => {
+            hasher.write_u8(1);
+            for c in v.as_flattened() {
+                hasher.write_u32(c.to_bits());
+            }
+        }
     }
     let h = hasher.finish();
     [h as u32, (h >> 32) as u32]
@@ -96,7 +106,7 @@ impl ShownSet {
         for &(node, side) in targets {
             let id = shown_id(node, side);
             let key = id as u32;
-            let colours = cache.leaf_colours_from(mesh, node, side, eye);
+            let colours = cache.leaf_shading_from(mesh, node, side, eye);
             let vertices = mesh.node(node).vertices;
             if self.shown.get(&key).is_some_and(|s| s.vertices != vertices) {
                 self.shown.remove(&key);
@@ -105,41 +115,37 @@ impl ShownSet {
             match (self.shown.get_mut(&key), colours) {
                 (Some(shown), colours) => {
                     shown.wanted_at = sync;
-                    let changed = colours.map(|(radiance, direct_share)| {
-                        (
-                            radiance,
-                            direct_share,
-                            colours_hash(&radiance, &direct_share),
-                        )
+                    let changed = colours.map(|c| {
+                        let sent = shading_hash(&c.shading);
+                        (c, sent)
                     });
-                    if let Some((radiance, direct_share, sent)) =
-                        changed.filter(|&(.., sent)| sent != shown.sent)
+                    if let Some((LeafShading { radiance, shading }, sent)) =
+                        changed.filter(|&(_, sent)| sent != shown.sent)
                     {
                         shown.sent = sent;
                         shown.luminance = radiance.map(conventions::luminance);
-                        updates.push(Recolour {
-                            id,
-                            radiance,
-                            direct_share,
-                        });
+                        updates.push(Recolour { id, shading });
                     }
                 }
-                (None, Some((radiance, direct_share))) => {
+                (None, Some(LeafShading { radiance, shading })) => {
+                    let (material, texcoords) = cache.leaf_surface(mesh, node);
+                    let sent = shading_hash(&shading);
+                    inserts.push(ShownTriangle {
+                        id,
+                        positions: mesh.leaf_positions(node).map(|p| p.to_array()),
+                        material,
+                        texcoords,
+                        shading,
+                    });
                     self.shown.insert(
                         key,
                         Entry {
-                            sent: colours_hash(&radiance, &direct_share),
+                            sent,
                             luminance: radiance.map(conventions::luminance),
                             vertices,
                             wanted_at: sync,
                         },
                     );
-                    inserts.push(ShownTriangle {
-                        id,
-                        positions: mesh.leaf_positions(node).map(|p| p.to_array()),
-                        radiance,
-                        direct_share,
-                    });
                 }
                 (None, None) => self.unshown += 1,
             }

@@ -17,9 +17,8 @@ use std::time::Instant;
 
 use indexmap::IndexMap;
 use protocol::direct_tile::ViewerTile;
-use protocol::types::Rgb;
 use protocol::viewer_link::{
-    DirectShare, Epoch, Recolour, ShownTriangle, SmaToViewer, Stats, TriangleId,
+    CornerShading, Epoch, Recolour, ShownTriangle, SmaToViewer, Stats, TriangleId,
 };
 use tokio::sync::Notify;
 
@@ -27,10 +26,12 @@ use tokio::sync::Notify;
 const MAX_TRIANGLES_PER_MESSAGE: usize = 100_000;
 
 /// Encoded sizes, at most, of what a change sends (postcard: a varint id, f32 triples, a byte of
-/// direct share per vertex).
+/// direct share per vertex, an optional view-dependent part, a material varint and 14 bytes of
+/// texture coordinates).
 const ID_BYTES: usize = 10;
-const TRIANGLE_BYTES: usize = ID_BYTES + 2 * 9 * 4 + 3;
-const RECOLOUR_BYTES: usize = ID_BYTES + 9 * 4 + 3;
+const SHADING_BYTES: usize = 2 * 9 * 4 + 3 + 1;
+const TRIANGLE_BYTES: usize = ID_BYTES + 9 * 4 + 3 + 14 + SHADING_BYTES;
+const RECOLOUR_BYTES: usize = ID_BYTES + SHADING_BYTES;
 const NOTE_BYTES: usize = 256;
 /// A `ViewerTile`'s bytes besides its pixels', at most, and each pixel's (four halves).
 const TILE_BYTES: usize = 48;
@@ -44,8 +45,8 @@ enum Change {
     /// The viewer holds an older triangle under this id: remove it, then insert this one.
     Replace(ShownTriangle),
     Remove,
-    /// Radiance and direct share per vertex.
-    Update([Rgb; 3], [DirectShare; 3]),
+    /// What the corners are lit with.
+    Update(CornerShading),
 }
 
 impl Change {
@@ -62,12 +63,12 @@ impl Change {
     fn then(self, next: Change) -> Option<Change> {
         use Change::*;
         Some(match (self, next) {
-            (Insert(mut t), Update(r, d)) => {
-                (t.radiance, t.direct_share) = (r, d);
+            (Insert(mut t), Update(shading)) => {
+                t.shading = shading;
                 Insert(t)
             }
-            (Replace(mut t), Update(r, d)) => {
-                (t.radiance, t.direct_share) = (r, d);
+            (Replace(mut t), Update(shading)) => {
+                t.shading = shading;
                 Replace(t)
             }
             (Insert(_), Remove) => return None,
@@ -77,7 +78,7 @@ impl Change {
             (Insert(_), Replace(t)) => Insert(t),
             // Nothing shown under the id to update.
             (Remove, Update(..)) => Remove,
-            (Update(..), Update(r, d)) => Update(r, d),
+            (Update(..), Update(shading)) => Update(shading),
         })
     }
 }
@@ -124,11 +125,7 @@ impl Changes {
                     inserts.push(t);
                 }
                 Change::Remove => removed.push(id),
-                Change::Update(radiance, direct_share) => updates.push(Recolour {
-                    id,
-                    radiance,
-                    direct_share,
-                }),
+                Change::Update(shading) => updates.push(Recolour { id, shading }),
             }
         }
         if !removed.is_empty() {
@@ -189,8 +186,7 @@ impl Pending {
             }
             SmaToViewer::Update { triangles } => {
                 for t in triangles {
-                    self.open
-                        .fold(t.id, Change::Update(t.radiance, t.direct_share));
+                    self.open.fold(t.id, Change::Update(t.shading));
                 }
             }
             SmaToViewer::ToneMap { l_white } => self.open.tone_map = Some(l_white),

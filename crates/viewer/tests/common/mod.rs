@@ -3,7 +3,8 @@
 
 use protocol::renderer_link::Quality;
 use protocol::types::{Bounds, Viewpoint};
-use protocol::viewer_link::{SceneInfo, ShownTriangle, SkyInfo, SunInfo};
+use protocol::viewer_link::{CornerShading, SceneInfo, ShownTriangle, SkyInfo, SunInfo};
+#[allow(unused_imports)] // as above: not every test binary starts a stand-in
 pub use testkit::fake_sma::{Seen, StandIn};
 
 /// A scene with two viewpoints looking at the origin from +Z.
@@ -30,6 +31,27 @@ pub fn scene() -> SceneInfo {
             bounces: Some(2),
         },
         textures: false,
+        materials: vec![],
+        texture_table: vec![],
+    }
+}
+
+/// A triangle lit by `illumination` per corner, of material 0: with no materials listed, an
+/// albedo of one, so it shows that radiance.
+pub fn lit_triangle(
+    id: u64,
+    positions: [[f32; 3]; 3],
+    illumination: [[f32; 3]; 3],
+) -> ShownTriangle {
+    ShownTriangle {
+        id,
+        positions,
+        material: 0,
+        texcoords: Default::default(),
+        shading: CornerShading {
+            illumination,
+            ..CornerShading::default()
+        },
     }
 }
 
@@ -50,27 +72,16 @@ pub fn known_triangles() -> Vec<ShownTriangle> {
     let quad = |id: u64, x0: f32, x1: f32, z: f32, left: [f32; 3], right: [f32; 3]| {
         let (a, b, c, d) = ([x0, -0.6, z], [x1, -0.6, z], [x1, 0.6, z], [x0, 0.6, z]);
         vec![
-            ShownTriangle {
-                id,
-                positions: [a, b, c],
-                radiance: [left, right, right],
-                direct_share: Default::default(),
-            },
-            ShownTriangle {
-                id: id + 1,
-                positions: [a, c, d],
-                radiance: [left, right, left],
-                direct_share: Default::default(),
-            },
+            lit_triangle(id, [a, b, c], [left, right, right]),
+            lit_triangle(id + 1, [a, c, d], [left, right, left]),
         ]
     };
     // The occluder comes first, so only the depth test can keep it in front.
-    let mut t = vec![ShownTriangle {
-        id: 30,
-        positions: [[-1.3, 0.1, 0.5], [-0.9, 0.1, 0.5], [-1.1, 0.5, 0.5]],
-        radiance: [[0.1, 0.9, 0.1]; 3],
-        direct_share: Default::default(),
-    }];
+    let mut t = vec![lit_triangle(
+        30,
+        [[-1.3, 0.1, 0.5], [-0.9, 0.1, 0.5], [-1.1, 0.5, 0.5]],
+        [[0.1, 0.9, 0.1]; 3],
+    )];
     t.extend(quad(10, -1.4, -0.2, 0.0, [2.0, 0.8, 0.3], [2.0, 0.8, 0.3]));
     t.extend(quad(20, 0.2, 1.4, 0.0, [0.2, 0.2, 0.2], [4.0, 4.0, 4.0]));
     t

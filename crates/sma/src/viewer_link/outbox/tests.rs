@@ -8,8 +8,16 @@ fn triangle(id: TriangleId, value: f32) -> ShownTriangle {
     ShownTriangle {
         id,
         positions: [[value, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-        radiance: [[value; 3]; 3],
-        direct_share: Default::default(),
+        material: 0,
+        texcoords: Default::default(),
+        shading: lit(value),
+    }
+}
+
+fn lit(value: f32) -> CornerShading {
+    CornerShading {
+        illumination: [[value; 3]; 3],
+        ..CornerShading::default()
     }
 }
 
@@ -53,7 +61,7 @@ impl Table {
             SmaToViewer::Update { triangles } => {
                 for r in triangles {
                     let t = self.triangles.get_mut(&r.id).expect("update of a shown id");
-                    t.radiance = r.radiance;
+                    t.shading = r.shading.clone();
                 }
             }
             SmaToViewer::Epoch(e) => {
@@ -76,8 +84,7 @@ fn stream(steps: &[(u8, u8, f32, bool)]) -> Vec<(SmaToViewer, bool)> {
             (0, true) => SmaToViewer::Update {
                 triangles: vec![Recolour {
                     id,
-                    radiance: [[value; 3]; 3],
-                    direct_share: Default::default(),
+                    shading: lit(value),
                 }],
             },
             (1, true) => {
@@ -139,8 +146,7 @@ fn a_viewer_that_does_not_read_holds_at_most_the_latest_state_of_each_triangle()
             triangles: (0..100)
                 .map(|id| Recolour {
                     id,
-                    radiance: [[step as f32; 3]; 3],
-                    direct_share: Default::default(),
+                    shading: lit(step as f32),
                 })
                 .collect(),
         });
@@ -161,7 +167,11 @@ fn a_viewer_that_does_not_read_holds_at_most_the_latest_state_of_each_triangle()
     let SmaToViewer::Insert { triangles } = &messages[0] else {
         panic!("insert first, got {:?}", messages[0]);
     };
-    assert!(triangles.iter().all(|t| t.radiance == [[999.0; 3]; 3]));
+    assert!(
+        triangles
+            .iter()
+            .all(|t| t.shading.illumination == [[999.0; 3]; 3])
+    );
 }
 
 #[test]
