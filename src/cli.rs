@@ -67,7 +67,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 #[derive(Args, Debug, Clone)]
 pub struct LaunchArgs {
     /// Scene: a TOML file or a built-in name.
-    #[arg(long, default_value = "bracara")]
+    #[arg(long, default_value = "bracara-textured")]
     pub scene: String,
     /// Viewpoint to start at (default: the scene's first).
     #[arg(long)]
