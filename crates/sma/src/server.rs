@@ -100,7 +100,7 @@ pub async fn start(
     };
     let pool = pool::spawn(pool_config, pool_tx, joining, shutdown_rx.clone());
     let looks = SceneLooks::of(&scene);
-    tracing::info!(
+    tracing::debug!(
         textures = looks.texture_table.len(),
         bytes = looks.texture_table.iter().map(|t| t.bytes).sum::<u64>(),
         "textures for viewers"

@@ -122,7 +122,7 @@ impl GpuLooks {
             &looks.material_texels(&layer_of),
         );
         if !drawn.is_empty() {
-            tracing::info!(
+            tracing::debug!(
                 textures = drawn.len(),
                 side,
                 mib = format!("{:.1}", bytes as f64 / f64::from(1 << 20)),

@@ -61,6 +61,9 @@ pub struct Facts {
     pub renderers: u32,
     /// The SMA's own memory by part, as its latest `Stats` said.
     pub sma_memory: SmaMemory,
+    /// Bytes the scene's textures and material table take on this viewer's GPU, where the
+    /// front end knows them (the window's own).
+    pub texture_bytes: Option<u64>,
     pub viewpoints: Vec<String>,
     pub criteria: Vec<String>,
     pub criterion: Option<String>,
@@ -94,6 +97,7 @@ impl Facts {
             fps: 0.0,
             renderers: state.stats.renderers,
             sma_memory: state.stats.memory,
+            texture_bytes: None,
             viewpoints: scene.map_or(Vec::new(), |s| {
                 s.viewpoints.iter().map(|v| v.name.clone()).collect()
             }),
@@ -179,6 +183,12 @@ fn status(ui: &mut egui::Ui, facts: &Facts) {
         row("renderers", facts.renderers.to_string());
         for (name, value) in memory_rows(&facts.sma_memory) {
             row(name, value);
+        }
+        if let Some(bytes) = facts.texture_bytes {
+            row(
+                "textures on GPU",
+                format!("{:.1} MiB", bytes as f64 / f64::from(1 << 20)),
+            );
         }
     });
 }

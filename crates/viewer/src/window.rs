@@ -425,6 +425,7 @@ impl App {
                 paused: self.paused,
                 tone_map: self.settings.tone_map,
                 wireframe: self.settings.wireframe,
+                texture_bytes: Some(d.looks.bytes()),
                 ..Facts::of(&self.state, &self.config.connect)
             };
             let gpu = (&d.gpu.device, &d.gpu.queue);
