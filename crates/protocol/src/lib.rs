@@ -39,6 +39,7 @@ mod error;
 pub mod frame;
 pub mod handshake;
 pub mod liveness;
+mod preallocated;
 pub mod renderer_link;
 pub mod texture;
 pub mod types;

@@ -256,6 +256,7 @@ pub enum SmaToViewer {
     /// Boxed: it is by far the largest message, and every other one would take its size.
     SceneInfo(Box<SceneInfo>),
     Insert {
+        #[serde(with = "crate::preallocated")]
         triangles: Vec<ShownTriangle>,
     },
     Remove {
@@ -263,6 +264,7 @@ pub enum SmaToViewer {
     },
     /// Better radiance for triangles the viewer already shows (not counted in Δins/Δrem).
     Update {
+        #[serde(with = "crate::preallocated")]
         triangles: Vec<Recolour>,
     },
     ToneMap {

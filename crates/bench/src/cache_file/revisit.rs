@@ -287,6 +287,26 @@ async fn visit(
     })
 }
 
+/// One row of the section's table: run, visit and moment, then the epoch's counts and the
+/// picture's FLIP where it was judged.
+fn moment_row(
+    md: &mut String,
+    [run, visit, moment]: [&str; 3],
+    time_s: f64,
+    e: &Epoch,
+    flip: Option<f64>,
+) -> std::fmt::Result {
+    let flip = flip.map_or(String::new(), |f| format!("{f:.4}"));
+    writeln!(
+        md,
+        "| {run} | {visit} | {moment} | {time_s:.1} | {} | {:.1} M | {} / {} | {flip} |",
+        e.samples,
+        e.paths as f64 / 1e6,
+        e.shown,
+        e.visible_leaves,
+    )
+}
+
 fn section(
     config: &RevisitConfig,
     runs: &[(Visit, Visit)],
@@ -334,30 +354,28 @@ fn section(
                 ("first complete picture", &visit.complete),
                 (end, &visit.end),
             ] {
-                writeln!(
-                    md,
-                    "| {} | {label} | {what} | {:.1} | {} | {:.1} M | {} / {} | {:.4} |",
-                    k + 1,
+                moment_row(
+                    &mut md,
+                    [&(k + 1).to_string(), label, what],
                     m.time_s,
-                    m.epoch.samples,
-                    m.epoch.paths as f64 / 1e6,
-                    m.epoch.shown,
-                    m.epoch.visible_leaves,
-                    m.flip,
+                    &m.epoch,
+                    Some(m.flip),
                 )?;
             }
         }
     }
     for (k, (_, again)) in runs.iter().enumerate() {
         if let Some((time_s, e)) = again.as_many {
-            writeln!(
-                md,
-                "| {} | again | as many triangles shown as the first visit's last picture | {time_s:.1} | {} | {:.1} M | {} / {} | |",
-                k + 1,
-                e.samples,
-                e.paths as f64 / 1e6,
-                e.shown,
-                e.visible_leaves,
+            moment_row(
+                &mut md,
+                [
+                    &(k + 1).to_string(),
+                    "again",
+                    "as many triangles shown as the first visit's last picture",
+                ],
+                time_s,
+                &e,
+                None,
             )?;
         }
     }
@@ -373,14 +391,13 @@ fn section(
             ("first complete picture", back.complete_s, back.complete),
             (end, back.end_s, back.end),
         ] {
-            writeln!(
-                md,
-                "| {} | again, back from `{away}` (counted from the return) | {what} | {time_s:.1} | {} | {:.1} M | {} / {} | |",
-                k + 1,
-                e.samples,
-                e.paths as f64 / 1e6,
-                e.shown,
-                e.visible_leaves,
+            let visit = format!("again, back from `{away}` (counted from the return)");
+            moment_row(
+                &mut md,
+                [&(k + 1).to_string(), &visit, what],
+                time_s,
+                &e,
+                None,
             )?;
         }
     }
