@@ -1,27 +1,25 @@
 //! The per-pixel direct light of the resting camera (DESIGN.md §3 step 8): the SMA sends it in
 //! tiles (`protocol::direct_tile::ViewerTile`) while the camera this viewer last sent rests. A
-//! pixel of a tile is shown in place of the vertices' direct part once its estimate is good
-//! enough ([`PRESENT_RELATIVE_ERROR`]); the drawing pass (`draw.wgsl`) then shows
+//! pixel of a tile keeps its direct part and that part's standard error; the drawing pass
+//! (`draw.wgsl`, `tile_weight`) shows it in place of the vertices' direct part where it is
+//! precise, or where the two differ by more than the tile's noise explains, and then shows
 //! `tile direct + albedo × interpolated illumination × (1 − interpolated direct share)` plus the
 //! interpolated view-dependent part; a tile's direct part is radiance, the renderer's albedo of
 //! that pixel's first hit times its direct illumination. Tiles of another
 //! camera are ignored; sending a new camera drops the old one's, and a picture drawn for a camera
 //! other than the tiles' (a move the camera sender has not sent yet) shows none of them.
 
-use conventions::luminance;
 use protocol::direct_tile::ViewerTile;
 use protocol::viewer_link::Camera;
 
 use crate::camera_sender::same_view;
 
-/// A tile's pixel stands in for the vertices' direct part once its standard error is at most
-/// this fraction of its luminance. The vertices' own error is not on the wire; a tenth of a
-/// pixel's value is where tone-mapped noise stops showing as grain at a glance, and a pixel in
-/// full sun or full shadow (no variance) is shown from its first pass.
-pub const PRESENT_RELATIVE_ERROR: f32 = 0.1;
-
-/// One texel per pixel: the direct part's RGB and 1 where it is shown (0: the vertices' instead).
+/// One texel per pixel: the direct part's RGB and the standard error of its luminance
+/// ([`NO_TILE`] where no tile has covered the pixel yet).
 pub type DirectTexel = [f32; 4];
+
+/// The standard error of a pixel no tile has covered: `draw.wgsl` shows the vertices' there.
+pub const NO_TILE: f32 = -1.0;
 
 /// The direct tiles of the camera this viewer last sent, per pixel (rows from the top).
 #[derive(Clone, Debug, Default)]
@@ -70,7 +68,7 @@ impl DirectImage {
             return false;
         }
         if self.texels.is_empty() {
-            self.texels = vec![[0.0; 4]; width as usize * height as usize];
+            self.texels = vec![[0.0, 0.0, 0.0, NO_TILE]; width as usize * height as usize];
         }
         let rect = tile.rect;
         for (i, pixel) in tile.pixels.iter().enumerate() {
@@ -78,10 +76,8 @@ impl DirectImage {
                 rect.x as usize + i % rect.width as usize,
                 rect.y as usize + i / rect.width as usize,
             );
-            let rgb = pixel.rgb.map(|h| h.decode());
-            let shown = pixel.standard_error.decode() <= PRESENT_RELATIVE_ERROR * luminance(rgb);
-            self.texels[y * width as usize + x] =
-                [rgb[0], rgb[1], rgb[2], f32::from(u8::from(shown))];
+            let [r, g, b] = pixel.rgb.map(|h| h.decode());
+            self.texels[y * width as usize + x] = [r, g, b, pixel.standard_error.decode()];
         }
         self.tiles += 1;
         self.dirty.push(rect);
@@ -175,10 +171,10 @@ mod tests {
             "a moved camera shows no tiles"
         );
         let texels = image.texels();
-        assert_eq!(texels[8 + 2], [1.0, 2.0, 3.0, 1.0]);
-        assert_eq!(texels[2 * 8 + 3], [1.0, 2.0, 3.0, 1.0]);
-        assert_eq!(texels[0], [0.0; 4]);
-        assert_eq!(texels[8 + 4], [0.0; 4]);
+        assert_eq!(texels[8 + 2], [1.0, 2.0, 3.0, 0.0]);
+        assert_eq!(texels[2 * 8 + 3], [1.0, 2.0, 3.0, 0.0]);
+        assert_eq!(texels[0], [0.0, 0.0, 0.0, NO_TILE]);
+        assert_eq!(texels[8 + 4], [0.0, 0.0, 0.0, NO_TILE]);
         assert_eq!(image.take_dirty(), vec![tile(1, 0.0).rect]);
         assert!(image.take_dirty().is_empty());
         // A new camera drops the old one's tiles.
@@ -188,12 +184,11 @@ mod tests {
     }
 
     #[test]
-    fn noisy_pixels_are_kept_but_not_shown_and_malformed_tiles_are_refused() {
+    fn pixels_keep_their_standard_error_and_malformed_tiles_are_refused() {
         let mut image = DirectImage::default();
         image.follow(&camera(3, 0.0));
-        // Luminance of (1, 2, 3) is about 1.93: an error of 1 is far above a tenth of it.
-        assert!(image.accept(&tile(3, 1.0)));
-        assert_eq!(image.texels()[8 + 2][3], 0.0);
+        assert!(image.accept(&tile(3, 0.75)));
+        assert_eq!(image.texels()[8 + 2][3], 0.75);
         let mut outside = tile(3, 0.0);
         outside.rect.x = 7;
         assert!(!image.accept(&outside));

@@ -27,7 +27,8 @@ struct Uniforms {
 };
 
 @group(0) @binding(0) var<uniform> u: Uniforms;
-// Per pixel the direct part of a resting camera's tiles, alpha 1 where it is shown (direct_image.rs).
+// Per pixel the direct part of a resting camera's tiles, alpha the standard error of its
+// luminance, negative where no tile has covered the pixel (direct_image.rs).
 @group(1) @binding(0) var direct_tiles: texture_2d<f32>;
 // Per material (looks_texture.rs): the factor the texel multiplies, and the texture array layer
 // (0: white), negated where the texture clamps.
@@ -175,19 +176,46 @@ fn albedo(in: VertexOut) -> vec3<f32> {
     return in.factor * texel.rgb;
 }
 
-// Where a tile's pixel is shown: its direct part, radiance with the renderer's albedo of that
-// pixel, plus the interpolated rest (indirect illumination) times this albedo, and the
-// view-dependent part (DESIGN.md §3 step 8).
+// A tile's pixel stands in for the vertices' direct part (DESIGN.md §3 step 8) where it is the
+// better estimate. Two tests, both by the tile's own standard error `sigma` of its luminance:
+// - quiet: `sigma` is a small fraction of the whole pixel's luminance, below what tone-mapped
+//   noise shows; a pixel in full sun or full shadow (no variance) passes from its first pass;
+// - biased: the vertices' interpolated direct part differs from the tile by more than the tile's
+//   noise explains, as at a shadow edge the mesh does not resolve, so the interpolation is wrong
+//   there whatever its own noise (the criteria's noise test, DESIGN.md §6, per pixel).
+// Elsewhere the smooth vertex picture is kept: a few paths' per-pixel noise would show as grain
+// where the interpolated estimate is already right. Both tests ramp over a range, so a pixel
+// crosses over without a seam as passes accumulate.
+const TILE_PRECISE_FROM: f32 = 0.04;
+const TILE_PRECISE_AT: f32 = 0.02;
+const TILE_BIASED_FROM: f32 = 2.5;
+const TILE_BIASED_AT: f32 = 4.0;
+
+fn tile_weight(tile: vec3<f32>, sigma: f32, vertices: vec3<f32>, whole: vec3<f32>) -> f32 {
+    if sigma < 0.0 {
+        return 0.0;
+    }
+    let relative = sigma / max(dot(whole, REC709), 1e-6);
+    let quiet = 1.0 - smoothstep(TILE_PRECISE_AT, TILE_PRECISE_FROM, relative);
+    let apart = abs(dot(tile - vertices, REC709)) / max(sigma, 1e-6);
+    let biased = smoothstep(TILE_BIASED_FROM, TILE_BIASED_AT, apart);
+    return max(quiet, biased);
+}
+
+// The radiance of this fragment: albedo × interpolated illumination + view-dependent part, or
+// where a tile's pixel stands in (`tile_weight`), its direct part (radiance with the renderer's
+// albedo of that pixel) plus the interpolated rest (indirect illumination) times this albedo and
+// the view-dependent part.
 fn radiance_of(in: VertexOut, albedo: vec3<f32>) -> vec3<f32> {
     let whole = albedo * in.illumination + in.view_dependent;
     if u.tiles == 0u {
         return whole;
     }
     let texel = textureLoad(direct_tiles, vec2<i32>(in.clip.xy), 0);
-    if texel.a < 0.5 {
-        return whole;
-    }
-    return texel.rgb + albedo * in.rest + in.view_dependent;
+    let rest = albedo * in.rest + in.view_dependent;
+    let tiled = texel.rgb + rest;
+    let weight = tile_weight(texel.rgb, texel.a, whole - rest, tiled);
+    return mix(whole, tiled, weight);
 }
 
 fn shade(in: VertexOut) -> vec4<f32> {

@@ -14,7 +14,11 @@ pub const MATERIALS_PER_ROW: u32 = 256;
 const TEXTURE_BUDGET_BYTES: u64 = 256 << 20;
 /// The most a layer's side may be (the SMA sends at most this; `MAX_SENT_TEXTURE_SIDE`).
 const MAX_LAYER_SIDE: u32 = protocol::texture::MAX_SENT_TEXTURE_SIDE;
-/// Anisotropy asked for where the adapter filters anisotropically.
+/// Anisotropy asked for where a hardware adapter filters anisotropically. A software rasteriser
+/// (Mesa's llvmpipe and lavapipe) pays for every extra tap in CPU time: there 16× took a frame of
+/// 100 k textured triangles from 1.18× to 1.56× the untextured frame (docs/bench/textures.md),
+/// so it filters trilinearly, as a walkthrough on a CPU needs its frame rate more than oblique
+/// floors need their sharpness.
 const ANISOTROPY: u16 = 16;
 
 /// The layout of bind group 2: material table, texture array, sampler.
@@ -67,11 +71,12 @@ pub struct GpuLooks {
 impl GpuLooks {
     /// No materials (every triangle's factor one, layer 0 white) until [`Self::sync`].
     pub fn new(gpu: &Gpu) -> GpuLooks {
-        let anisotropic = gpu
-            .adapter
-            .get_downlevel_capabilities()
-            .flags
-            .contains(wgpu::DownlevelFlags::ANISOTROPIC_FILTERING);
+        let anisotropic = gpu.adapter.get_info().device_type != wgpu::DeviceType::Cpu
+            && gpu
+                .adapter
+                .get_downlevel_capabilities()
+                .flags
+                .contains(wgpu::DownlevelFlags::ANISOTROPIC_FILTERING);
         let sampler = gpu.device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("albedo"),
             address_mode_u: wgpu::AddressMode::Repeat,

@@ -7,6 +7,8 @@ use protocol::viewer_link::{CornerShading, SceneInfo, ShownTriangle, SkyInfo, Su
 #[allow(unused_imports)] // as above: not every test binary starts a stand-in
 pub use testkit::fake_sma::{Seen, StandIn};
 
+pub mod drawing;
+
 /// A scene with two viewpoints looking at the origin from +Z.
 pub fn scene() -> SceneInfo {
     let vp = |name: &str, eye: [f32; 3]| Viewpoint {
