@@ -70,7 +70,7 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
             arrival: arrival::measure(wire::SCENE, plan.runs, temp.path()),
         },
         SceneArrival {
-            label: "Sponza, textures on",
+            label: "Sponza (textures on)",
             judged: true,
             arrival: sponza
                 .and_then(|toml| arrival::measure(&toml.to_string_lossy(), plan.runs, temp.path())),
@@ -270,7 +270,7 @@ fn write_frame_cost(
     writeln!(
         md,
         "### The viewer's frame\n\nA wall of {FRAME_TRIANGLES} triangles filling a {WIDTH}×{HEIGHT} \
-         view, untextured, and textured with the {} textured materials of {label} in bands (each \
+         view, untextured, and textured with the {} textured materials of {label}, in bands (each \
          texture minified about 4:1, so its mips are read), {} rounds of {} frames each, \
          alternating. Adapter: {}.\n",
         materials.len(),

@@ -9,7 +9,7 @@ fn quick_textures_section_reports_its_rows() {
         "| textured diffuse (material, 16-bit coordinates) |",
         "| untextured material (material, zero coordinates) |",
         "| bracara-textured |",
-        "| Sponza, textures on |",
+        "| Sponza (textures on) |",
     ] {
         assert!(md.contains(row), "{row} missing:\n{md}");
     }

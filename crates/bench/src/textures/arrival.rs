@@ -127,6 +127,28 @@ mod tests {
         assert_eq!(table["viewpoint"][0]["fov_y_deg"].as_float(), Some(60.0));
     }
 
+    /// The copy is written where asked and names an OBJ that is there; an OBJ that is not
+    /// there is said to be absent, and no copy is written.
+    #[test]
+    fn sponza_s_copy_is_written_only_where_its_obj_is_there() {
+        let dir = tempfile::tempdir().unwrap();
+        let (scenes, copies) = (dir.path().join("scenes"), dir.path().join("copies"));
+        std::fs::create_dir_all(&scenes).unwrap();
+        std::fs::create_dir_all(&copies).unwrap();
+        let toml = scenes.join("s.toml");
+        std::fs::write(&toml, "obj = \"../models/s.obj\"\n").unwrap();
+        let absent = sponza_textured(&toml, &copies).unwrap_err();
+        assert!(format!("{absent:#}").contains("absent"), "{absent:#}");
+        assert!(!copies.join("sponza-textured.toml").exists());
+        std::fs::create_dir_all(dir.path().join("models")).unwrap();
+        std::fs::write(dir.path().join("models/s.obj"), "v 0 0 0\n").unwrap();
+        let copy = sponza_textured(&toml, &copies).unwrap();
+        let table: toml::Table = toml::from_str(&std::fs::read_to_string(copy).unwrap()).unwrap();
+        let obj = Path::new(table["obj"].as_str().unwrap());
+        assert!(obj.is_absolute() && obj.is_file(), "{obj:?}");
+        assert_eq!(table["textures"]["enabled"].as_bool(), Some(true));
+    }
+
     /// A scene file without a `[textures]` table gets one; one without `obj` is refused.
     #[test]
     fn a_missing_textures_table_is_added_and_a_missing_obj_refused() {
