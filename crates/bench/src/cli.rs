@@ -38,6 +38,9 @@ fn run_bench(cmd: BenchCommand) -> anyhow::Result<()> {
         BenchCommand::CacheFile { quick, out } => {
             crate::report::write(&out, quick, &["cache-file".to_string()])
         }
+        BenchCommand::Textures { quick, out } => {
+            crate::report::write(&out, quick, &["textures".to_string()])
+        }
         BenchCommand::CacheFileRevisit(args) => crate::cache_file::revisit::run(&args.config()),
         BenchCommand::CacheFileCrashChild { file, first_view } => {
             crate::cache_file::crash_child(&file, first_view)
@@ -60,7 +63,7 @@ pub enum BenchCommand {
         #[arg(long, default_value = "BENCHMARKS.md")]
         out: PathBuf,
         /// Only the sections whose name contains one of these (protocol, scene, renderer, sma-core,
-        /// sma-service, cache-file, viewer, convergence).
+        /// sma-service, cache-file, viewer, textures, farm).
         #[arg(long, value_delimiter = ',')]
         only: Vec<String>,
     },
@@ -68,6 +71,16 @@ pub enum BenchCommand {
     /// pause (docs/bench/cache-file.md, then BENCHMARKS.md); `report --only cache-file`.
     CacheFile {
         /// A quarter of the leaves, one run.
+        #[arg(long)]
+        quick: bool,
+        #[arg(long, default_value = "BENCHMARKS.md")]
+        out: PathBuf,
+    },
+    /// Diffuse textures end to end: bytes per textured triangle on the wire, Sponza's textures
+    /// reaching a viewer from a real SMA, the viewer's texture memory, a textured frame against
+    /// an untextured one (docs/bench/textures.md, then BENCHMARKS.md); `report --only textures`.
+    Textures {
+        /// Fewer runs (a smoke run).
         #[arg(long)]
         quick: bool,
         #[arg(long, default_value = "BENCHMARKS.md")]

@@ -3,7 +3,7 @@
 //! BENCHMARKS.md in one command, one section per part:
 //!
 //! - [`protocol`], [`scene`], [`renderer`], [`sma_core`], [`sma_service`], [`cache_file`],
-//!   [`viewer`], [`farm`]: the sections of `bench report` (internals through each crate's `bench` feature; the farm's
+//!   [`viewer`], [`textures`], [`farm`]: the sections of `bench report` (internals through each crate's `bench` feature; the farm's
 //!   faults and uneven hosts with real processes);
 //! - [`convergence`], [`accuracy`] and [`cost`]: the end-to-end measurements of DESIGN.md §10,
 //!   with [`metrics`], [`plots`] and [`strips`]; [`reproduction`]: the thesis's findings beside
@@ -36,5 +36,6 @@ pub mod sma_core;
 pub mod sma_service;
 pub mod stats;
 pub mod strips;
+pub mod textures;
 pub mod viewer;
 pub mod walk;

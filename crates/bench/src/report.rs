@@ -14,6 +14,7 @@ const SECTIONS: &[Section] = &[
     ("sma-service", super::sma_service::section),
     ("cache-file", super::cache_file::section),
     ("viewer", super::viewer::section),
+    ("textures", super::textures::section),
     ("farm", super::farm::section),
 ];
 

@@ -13,7 +13,7 @@ use scene::{VisibilityEstimator, load};
 use super::stats::median_seconds;
 
 /// The Sponza scene file, wherever the benchmark is started from.
-const SPONZA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/sponza.toml");
+pub(crate) const SPONZA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/sponza.toml");
 const TARGET_SECONDS: f64 = 0.5;
 
 pub fn section(quick: bool) -> anyhow::Result<String> {

@@ -10,6 +10,7 @@ use std::fmt::Write as _;
 use std::time::Instant;
 
 use protocol::direct_tile::{TilePixel, TileRect, ViewerTile};
+use protocol::texture::Texcoords;
 use protocol::types::Viewpoint;
 use protocol::viewer_link::{Camera, CornerShading, ShownTriangle};
 
@@ -17,6 +18,7 @@ use viewer::direct_image::DirectImage;
 use viewer::direct_texture::GpuDirect;
 use viewer::draw::{DrawSettings, depth_range};
 use viewer::gpu::{Gpu, headless_or_skip};
+use viewer::looks::Looks;
 use viewer::looks_texture::GpuLooks;
 use viewer::offscreen::Offscreen;
 use viewer::table::TriangleTable;
@@ -25,8 +27,26 @@ use viewer::vertex_buffer::GpuTriangles;
 
 use super::stats::median;
 
-const WIDTH: u32 = 1024;
-const HEIGHT: u32 = 768;
+pub(crate) const WIDTH: u32 = 1024;
+pub(crate) const HEIGHT: u32 = 768;
+
+/// Times each texture repeats across the 4×3 wall, horizontally and vertically: a layer of 1024
+/// texels lands on 256 pixels, minified 4:1 as a wall seen across a courtyard is.
+const WALL_REPEATS: [f32; 2] = [4.0, 3.0];
+
+/// What the wall's triangles are drawn with.
+#[derive(Clone, Copy)]
+pub(crate) enum Surface<'a> {
+    /// No materials: every albedo one, layer 0 white (the path an untextured scene's pixels
+    /// take).
+    White,
+    /// `looks`, its textured `materials` in vertical bands across the wall, each texture
+    /// repeating [`WALL_REPEATS`] times over the wall.
+    Textured {
+        looks: &'a Looks,
+        materials: &'a [u16],
+    },
+}
 
 struct Plan {
     table_size: usize,
@@ -81,14 +101,14 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
         row(&mut out, &label, &with_upload, "M tri/s")?;
         let mut tile_ratio = None;
         for &n in plan.frame_sizes {
-            let times = frame_times(gpu, n, plan.frames, false)?;
+            let times = frame_times(gpu, n, plan.frames, false, Surface::White)?;
             row(
                 &mut out,
                 &format!("frame time, {n} triangles, {WIDTH}×{HEIGHT}"),
                 &times,
                 "ms",
             )?;
-            let with_tiles = frame_times(gpu, n, plan.frames, true)?;
+            let with_tiles = frame_times(gpu, n, plan.frames, true, Surface::White)?;
             row(
                 &mut out,
                 &format!("frame time, {n} triangles, direct tiles over the view"),
@@ -130,7 +150,7 @@ fn batch_words(plan: &Plan) -> String {
     )
 }
 
-fn row(out: &mut String, label: &str, values: &[f64], unit: &str) -> std::fmt::Result {
+pub(crate) fn row(out: &mut String, label: &str, values: &[f64], unit: &str) -> std::fmt::Result {
     let min = values.iter().copied().fold(f64::INFINITY, f64::min);
     let max = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     writeln!(
@@ -192,11 +212,21 @@ fn apply_rates(plan: &Plan, gpu: Option<&Gpu>) -> anyhow::Result<Vec<f64>> {
     Ok(rates)
 }
 
-/// Milliseconds per frame (draw + wait) for a wall of `n` triangles filling the view, with direct
-/// tiles over the whole view (every pixel shown from its tile) if `tiles`.
-fn frame_times(gpu: &Gpu, n: usize, frames: usize, tiles: bool) -> anyhow::Result<Vec<f64>> {
+/// Milliseconds per frame (draw + wait) for a wall of `n` triangles filling the view, drawn with
+/// `surface`, with direct tiles over the whole view (every pixel shown from its tile) if `tiles`.
+pub(crate) fn frame_times(
+    gpu: &Gpu,
+    n: usize,
+    frames: usize,
+    tiles: bool,
+    surface: Surface,
+) -> anyhow::Result<Vec<f64>> {
+    let materials = match surface {
+        Surface::White => &[][..],
+        Surface::Textured { materials, .. } => materials,
+    };
     let mut table = TriangleTable::new();
-    table.apply(&[TableOp::Insert(wall(n))]);
+    table.apply(&[TableOp::Insert(wall(n, materials))]);
     let mut triangles = GpuTriangles::new(gpu);
     triangles.sync(gpu, &mut table);
     let camera = wall_camera();
@@ -220,8 +250,10 @@ fn frame_times(gpu: &Gpu, n: usize, frames: usize, tiles: bool) -> anyhow::Resul
         }
         direct.upload(gpu, &image);
     }
-    // No materials: every albedo one, layer 0 white (the path a textured scene's pixels take).
-    let looks = GpuLooks::new(gpu);
+    let mut looks = GpuLooks::new(gpu);
+    if let Surface::Textured { looks: held, .. } = surface {
+        looks.sync(gpu, held);
+    }
     let layers = (&triangles, tiles.then_some(&direct), &looks);
     offscreen.draw_frame(gpu, layers, &camera, depth, &settings)?; // warm-up
     (0..frames)
@@ -233,8 +265,10 @@ fn frame_times(gpu: &Gpu, n: usize, frames: usize, tiles: bool) -> anyhow::Resul
         .collect()
 }
 
-/// A 4×3 wall at z = 0 cut into `n` triangles (rounded to a grid), radiance varying across it.
-fn wall(n: usize) -> Vec<ShownTriangle> {
+/// A 4×3 wall at z = 0 cut into `n` triangles (rounded to a grid), radiance varying across it;
+/// with `materials`, each of them on a vertical band of it, its texture coordinates running
+/// [`WALL_REPEATS`] periods across the wall (material 0 and no coordinates without).
+fn wall(n: usize, materials: &[u16]) -> Vec<ShownTriangle> {
     let cols = ((n as f64 / 2.0 * 4.0 / 3.0).sqrt().ceil() as usize).max(1);
     let rows = (n / 2).div_ceil(cols).max(1);
     let point = |i: usize, j: usize| {
@@ -245,6 +279,12 @@ fn wall(n: usize) -> Vec<ShownTriangle> {
         ]
     };
     let radiance = |p: [f32; 3]| [0.5 + 0.25 * p[0], 0.6, 0.4 + 0.2 * p[1]];
+    let uv = |p: [f32; 3]| {
+        [
+            (p[0] + 2.0) / 4.0 * WALL_REPEATS[0],
+            (1.5 - p[1]) / 3.0 * WALL_REPEATS[1],
+        ]
+    };
     let mut out = Vec::with_capacity(2 * cols * rows);
     for j in 0..rows {
         for i in 0..cols {
@@ -256,11 +296,18 @@ fn wall(n: usize) -> Vec<ShownTriangle> {
             ];
             for (k, positions) in [[a, b, c], [a, c, d]].into_iter().enumerate() {
                 let id = (2 * (j * cols + i) + k) as u64;
+                let (material, texcoords) = match materials {
+                    [] => (0, Texcoords::default()),
+                    _ => (
+                        materials[i * materials.len() / cols],
+                        Texcoords::encode(positions.map(uv), false),
+                    ),
+                };
                 out.push(ShownTriangle {
                     id,
                     positions,
-                    material: 0,
-                    texcoords: Default::default(),
+                    material,
+                    texcoords,
                     shading: CornerShading {
                         illumination: positions.map(radiance),
                         ..CornerShading::default()
@@ -325,9 +372,36 @@ mod tests {
 
     #[test]
     fn the_wall_has_about_n_triangles_with_unique_ids() {
-        let w = wall(1000);
+        let w = wall(1000, &[]);
         assert!((1000..1100).contains(&w.len()), "{}", w.len());
         let ids: std::collections::HashSet<u64> = w.iter().map(|t| t.id).collect();
         assert_eq!(ids.len(), w.len());
+        assert!(w.iter().all(|t| t.material == 0));
+    }
+
+    /// Textured, every material has a band, from left to right, and the coordinates run
+    /// `WALL_REPEATS` periods across the wall.
+    #[test]
+    fn a_textured_wall_has_every_material_in_bands_and_repeats_its_textures() {
+        let w = wall(1000, &[3, 5, 9]);
+        let materials: std::collections::BTreeSet<u16> = w.iter().map(|t| t.material).collect();
+        assert_eq!(materials, [3, 5, 9].into());
+        let (left, right) = (&w[0], &w[w.len() - 1]);
+        assert!(left.material == 3 && right.material == 9);
+        for t in [left, right] {
+            for (p, uv) in t.positions.iter().zip(t.texcoords.decode()) {
+                let want = [
+                    (p[0] + 2.0) / 4.0 * WALL_REPEATS[0],
+                    (1.5 - p[1]) / 3.0 * WALL_REPEATS[1],
+                ];
+                for a in 0..2 {
+                    let off = want[a] - uv[a];
+                    assert!(
+                        (off - off.round()).abs() < 1e-3,
+                        "{p:?}: {uv:?}, want {want:?}"
+                    );
+                }
+            }
+        }
     }
 }

@@ -348,6 +348,19 @@ impl Probe {
         .with_context(|| format!("tiles not as awaited within {timeout:?}"))?
     }
 
+    /// Messages until every texture of the scene's table has arrived, within `timeout`.
+    pub async fn until_textures(&mut self, timeout: Duration) -> anyhow::Result<()> {
+        tokio::time::timeout(timeout, async {
+            while self.textures.iter().any(Option::is_none) {
+                let message = self.read().await?;
+                self.apply(message)?;
+            }
+            Ok(())
+        })
+        .await
+        .with_context(|| format!("textures not all sent within {timeout:?}"))?
+    }
+
     /// The first epoch answering camera `seq` with nothing outstanding.
     pub async fn complete(&mut self, seq: u64, timeout: Duration) -> anyhow::Result<Epoch> {
         self.until(timeout, |e| e.camera_seq == seq && e.outstanding == 0)
