@@ -3,8 +3,9 @@
 //! pixel a pass, one pass at a time, and every pass's answer merged into the tile's per-pixel
 //! estimate by sample counts (Chan et al.'s pairwise update, as a vertex's paths merge). Each
 //! merged tile goes to the viewer as a [`ViewerTile`]: per pixel the mean RGB and the standard
-//! error of the mean's luminance, `sqrt(s² / n)` with `s²` the samples' luminance variance and
-//! `n` the samples. A new camera drops everything of the old one.
+//! error of the mean's luminance, `sqrt(s² / n)` with `n` the samples and `s²` the largest
+//! luminance variance of the samples of the pixel and its eight neighbours ([`pooled_variances`]).
+//! A new camera drops everything of the old one.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -59,11 +60,33 @@ impl Tile {
         };
         let map = DisplayMap::new(l_white);
         let n = self.samples as f32;
-        self.pixels.iter().all(|p| {
+        let variances = pooled_variances(&self.pixels, self.rect);
+        self.pixels.iter().zip(variances).all(|(p, variance)| {
             let (_, slope) = map.display_and_slope(conventions::luminance(p.rgb));
-            slope * (p.luminance_variance / n).sqrt() < target.display_error
+            slope * (variance / n).sqrt() < target.display_error
         })
     }
+}
+
+/// Per pixel of a tile, the largest luminance variance of its samples and of its eight
+/// neighbours' (within the tile). A variance estimated from a few samples per pixel is itself
+/// noisy: four samples of a half-occluded sky or a penumbra all agree often enough that a pixel
+/// would claim no error at all, and the viewer would show its grain as exact (`draw.wgsl`,
+/// `tile_weight`). A pixel's estimator varies about as its neighbours' do, so their largest
+/// variance bounds it from 9 × n samples instead of n; where the whole neighbourhood is in full
+/// sun or full shadow it is still zero.
+fn pooled_variances(pixels: &[PartEstimate], rect: TileRect) -> Vec<f32> {
+    let (width, height) = (rect.width as usize, rect.height as usize);
+    let own = |x: usize, y: usize| pixels[y * width + x].luminance_variance;
+    (0..height)
+        .flat_map(|y| (0..width).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let xs = x.saturating_sub(1)..=(x + 1).min(width - 1);
+            let ys = y.saturating_sub(1)..=(y + 1).min(height - 1);
+            ys.flat_map(|ny| xs.clone().map(move |nx| own(nx, ny)))
+                .fold(0.0, f32::max)
+        })
+        .collect()
 }
 
 /// One viewer's tiles, of its current camera only.
@@ -188,12 +211,13 @@ impl DirectTiles {
         tile.samples += answer.samples_per_pixel;
         tile.passes += 1;
         let n = tile.samples as f32;
+        let variances = pooled_variances(&tile.pixels, tile.rect);
         Ok(ViewerTile {
             camera_seq: answer.camera_seq,
             rect: tile.rect,
             samples: tile.samples,
-            pixels: (tile.pixels.iter())
-                .map(|p| TilePixel::new(p.rgb, (p.luminance_variance / n).sqrt()))
+            pixels: (tile.pixels.iter().zip(variances))
+                .map(|(p, variance)| TilePixel::new(p.rgb, (variance / n).sqrt()))
                 .collect(),
         })
     }
@@ -306,5 +330,34 @@ mod tests {
         tiles.camera_moved();
         assert_eq!(tiles.take_withdrawn(), ids(&new));
         assert!(tiles.answered(&answer(&new[0], 1.0)).is_err());
+    }
+
+    #[test]
+    fn a_pixel_whose_few_samples_agree_takes_its_neighbours_variance() {
+        let rect = TileRect {
+            x: 0,
+            y: 0,
+            width: 4,
+            height: 3,
+        };
+        let mut pixels = vec![
+            PartEstimate {
+                rgb: [1.0; 3],
+                luminance_variance: 0.0,
+            };
+            12
+        ];
+        pixels[4].luminance_variance = 0.5; // (0, 1)
+        pixels[7].luminance_variance = 0.25; // (3, 1)
+        let pooled = pooled_variances(&pixels, rect);
+        #[rustfmt::skip]
+        let want = [
+            0.5, 0.5, 0.25, 0.25,
+            0.5, 0.5, 0.25, 0.25,
+            0.5, 0.5, 0.25, 0.25,
+        ];
+        assert_eq!(pooled, want);
+        let quiet = vec![pixels[0]; 12];
+        assert!(pooled_variances(&quiet, rect).iter().all(|&v| v == 0.0));
     }
 }

@@ -186,10 +186,10 @@ fn albedo(in: VertexOut) -> vec3<f32> {
 // Elsewhere the smooth vertex picture is kept: a few paths' per-pixel noise would show as grain
 // where the interpolated estimate is already right. Both tests ramp over a range, so a pixel
 // crosses over without a seam as passes accumulate.
-const TILE_PRECISE_FROM: f32 = 0.04;
-const TILE_PRECISE_AT: f32 = 0.02;
-const TILE_BIASED_FROM: f32 = 2.5;
-const TILE_BIASED_AT: f32 = 4.0;
+const TILE_PRECISE_FROM: f32 = 0.03;
+const TILE_PRECISE_AT: f32 = 0.015;
+const TILE_BIASED_FROM: f32 = 5.0;
+const TILE_BIASED_AT: f32 = 8.0;
 
 fn tile_weight(tile: vec3<f32>, sigma: f32, vertices: vec3<f32>, whole: vec3<f32>) -> f32 {
     if sigma < 0.0 {

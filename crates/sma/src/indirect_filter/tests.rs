@@ -281,3 +281,48 @@ fn off_leaves_every_sample_as_answered() {
         assert!((shown_indirect(&cache, v) - v as f32 * 0.01).abs() < 1e-3);
     }
 }
+
+/// Indirect light carried by rare bright paths: of each vertex's 8 paths, each finds a bright
+/// patch (8) with probability 1/8, else nothing, so many vertices saw none and estimate 0 with
+/// no variance at all. Weighting by the estimated variances would trust those most and darken
+/// the patch; pooled by paths, the filtered picture keeps the unfiltered mean.
+#[test]
+fn rare_bright_paths_are_not_weighed_down() {
+    let mesh = SubdivisionMesh::new(&grid_mesh(N), MeshParams::default());
+    let paths = 8u32;
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(5);
+    let hits: Vec<Vec<f32>> = (0..mesh.vertex_count())
+        .map(|_| {
+            (0..paths)
+                .map(|_| {
+                    if rng.random::<f32>() < 0.125 {
+                        8.0
+                    } else {
+                        0.0
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    assert!(hits.iter().any(|h| h.iter().all(|&v| v == 0.0)));
+    let mut cache = shade(&mesh, |v, _| {
+        let (mean, variance) = mean_and_variance(&hits[v as usize]);
+        let mean_error = (variance / f64::from(paths)).sqrt() as f32;
+        sample(0.0, mean as f32, mean_error, paths)
+    });
+    let vertices = 0..mesh.vertex_count() as u32;
+    let before: Vec<f32> = vertices
+        .clone()
+        .map(|v| shown_indirect(&cache, v))
+        .collect();
+    let run = filter(settings(), &mesh, &mut cache);
+    assert!(run.borrowed > mesh.vertex_count() / 2, "{run:?}");
+    let after: Vec<f32> = vertices.map(|v| shown_indirect(&cache, v)).collect();
+    let (mean_before, _) = mean_and_variance(&before);
+    let (mean_after, _) = mean_and_variance(&after);
+    assert!((mean_before - 1.0).abs() < 0.25, "{mean_before}");
+    assert!(
+        (mean_after - mean_before).abs() < 0.1,
+        "unfiltered {mean_before}, filtered {mean_after}"
+    );
+}
