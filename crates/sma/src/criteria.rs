@@ -13,8 +13,11 @@ mod rnd;
 #[cfg(any(test, feature = "testing"))]
 pub mod synthetic;
 
+use std::collections::HashSet;
+
 use crate::cache::ShadingCache;
-use crate::mesh::{NodeId, SubdivisionMesh};
+use crate::mesh::fast_hash::FastHash;
+use crate::mesh::{NodeId, SubdivisionMesh, set_bytes};
 use crate::sample::{DisplayMap, Displayed, Estimate};
 use crate::visible_set::VisibleSet;
 
@@ -378,6 +381,64 @@ fn leaf_display_error(input: &CriterionInput, leaf: NodeId, side: protocol::Side
                 .sum::<f32>()
                 / 3.0
         })
+}
+
+/// The leaves a criterion has returned since its last reset: each is offered once per camera,
+/// since one the schedule declined to split (too small, too short) would be declined again.
+///
+/// Its ids are the mesh's, which a recycle renames (`SubdivisionMesh::recycle_removed`: removed
+/// blocks are reused by later splits, live ones moved down): after one, an id offered before may
+/// name another leaf, which the criterion would then never judge, and a view would reach its
+/// stated end (DESIGN.md §5) with leaves its criterion never looked at, which a fresh criterion
+/// (the same view after a look elsewhere, or restored from the cache file) splits at once. So
+/// the set is forgotten at each recycle (`follow`): a declined leaf is offered once more, and
+/// declined again. How many were returned since the reset is kept across recycles, for the
+/// criteria whose budget counts them.
+#[derive(Debug, Default)]
+pub(crate) struct Offered {
+    leaves: HashSet<NodeId, FastHash>,
+    /// The mesh's recycles when `leaves` was last valid.
+    recycles: u64,
+    returned: usize,
+}
+
+impl Offered {
+    /// Forgets the leaves when `mesh` has recycled since the last call.
+    pub(crate) fn follow(&mut self, mesh: &SubdivisionMesh) {
+        if mesh.recycles() != self.recycles {
+            self.recycles = mesh.recycles();
+            // A new set, not a cleared one: its capacity goes back to the memory budget.
+            self.leaves = HashSet::default();
+        }
+    }
+
+    pub(crate) fn contains(&self, leaf: NodeId) -> bool {
+        self.leaves.contains(&leaf)
+    }
+
+    /// Notes `leaf` as returned; false when it was already.
+    pub(crate) fn insert(&mut self, leaf: NodeId) -> bool {
+        let new = self.leaves.insert(leaf);
+        self.returned += usize::from(new);
+        new
+    }
+
+    /// Leaves returned since the reset, recycles or not.
+    pub(crate) fn returned(&self) -> usize {
+        self.returned
+    }
+
+    /// Start over (a new camera).
+    pub(crate) fn reset(&mut self) {
+        *self = Offered {
+            recycles: self.recycles,
+            ..Offered::default()
+        };
+    }
+
+    pub(crate) fn heap_bytes(&self) -> usize {
+        set_bytes(&self.leaves)
+    }
 }
 
 #[cfg(test)]

@@ -17,6 +17,7 @@ use protocol::viewer_link::{Camera, Epoch, ShownTriangle};
 use testkit::child::{Process, start_renderer, start_sma, strings};
 use testkit::ground_truth::GroundTruth;
 use testkit::probe::Probe;
+use viewer::looks::Looks;
 
 use crate::convergence::{GROUND_TRUTH_SEED, INTERACTIVE_BOUNCES};
 use crate::metrics::{LinearImage, Reference};
@@ -138,6 +139,9 @@ struct Visit {
     file_bytes: u64,
     /// The SMA's log lines about its cache file.
     file_log: Vec<String>,
+    /// The scene's materials and textures as the probe received them: a picture multiplies
+    /// the albedo into the illumination the SMA sends, as a viewer does (DESIGN.md §5).
+    looks: Looks,
 }
 
 pub fn run(config: &RevisitConfig) -> anyhow::Result<()> {
@@ -179,7 +183,7 @@ pub fn run(config: &RevisitConfig) -> anyhow::Result<()> {
         let camera = first.camera.clone();
         for visit in [&mut first, &mut again] {
             for moment in [&mut visit.complete, &mut visit.end] {
-                moment.flip = flip(&gpu, &reference, &camera, moment)?;
+                moment.flip = flip(&gpu, &reference, &camera, &visit.looks, moment)?;
             }
         }
         runs.push((first, again));
@@ -198,11 +202,17 @@ fn flip(
     gpu: &viewer::gpu::Gpu,
     reference: &Reference,
     camera: &Camera,
+    looks: &Looks,
     moment: &mut Moment,
 ) -> anyhow::Result<f64> {
     let triangles = std::mem::take(&mut moment.triangles);
-    let snapshot =
-        viewer::render_offscreen_with(gpu, &triangles, camera, &viewer::DrawSettings::default())?;
+    let snapshot = viewer::render_offscreen_with_looks(
+        gpu,
+        &triangles,
+        (looks, &viewer::direct_image::DirectImage::default()),
+        camera,
+        &viewer::DrawSettings::default(),
+    )?;
     let image = LinearImage {
         width: snapshot.width,
         height: snapshot.height,
@@ -266,6 +276,10 @@ async fn visit(
         (Some(away), Some(_)) => Some(away_and_back(&mut probe, config, away).await?),
         _ => None,
     };
+    let mut looks = Looks::of(&probe.scene);
+    for texture in probe.textures.iter().flatten() {
+        looks.accept(texture);
+    }
     drop(probe);
     let status = sma.process.interrupt_and_wait(Duration::from_secs(120))?;
     anyhow::ensure!(status.success(), "the SMA's clean stop failed ({status})");
@@ -284,6 +298,7 @@ async fn visit(
         back,
         file_bytes: std::fs::metadata(file).map(|m| m.len()).unwrap_or(0),
         file_log,
+        looks,
     })
 }
 

@@ -475,3 +475,106 @@ fn a_record_that_does_not_decode_is_left_out_and_the_others_load() {
     assert!(file.restored().bases > 0);
     assert!(!cache.is_empty());
 }
+
+/// A view that had converged comes back converged (DESIGN.md §5, persistence): restored into
+/// an SMA that judges radiance, each vertex's albedo times its illumination ("Parts, and
+/// textures"), a subtree of uniform light on a coloured wall, whose samples had settled and
+/// which the criterion left alone before the save, is left alone after the load too: the
+/// restored midpoints are judged with their material's albedo, like the corners beside them,
+/// not split again on arrival.
+#[test]
+fn a_restored_converged_subtree_is_not_split_again_on_arrival() {
+    use std::sync::Arc;
+
+    use crate::criteria::{Criterion, CriterionInput, CriterionSettings, NldPx};
+    use crate::mesh::NodeId;
+    use crate::visible_set::{VisibleLeaf, VisibleSet};
+
+    let scene = Arc::new(scene::load("cornell").expect("built-in"));
+    // As the schedule makes them: every vertex of the base mesh has its albedo from the start.
+    let sma = || {
+        let mesh = SubdivisionMesh::new(&scene.mesh, MeshParams::default());
+        let mut cache = ShadingCache::new(1 << 30).with_albedos_of(Arc::clone(&scene));
+        cache.cover_albedos(&mesh);
+        (mesh, cache)
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let config = config(&dir);
+    let (mut mesh, mut cache) = sma();
+    let mut file = CacheFile::open(&config.path, config.save_every, &key(), &mesh).unwrap();
+    let coloured = (0..mesh.base_count() as NodeId)
+        .find(|&t| scene.material_of(t as usize).kd.max_element() < 0.9)
+        .expect("a wall of albedo below 0.9");
+    // Two levels of splits, their greens across the neighbours.
+    mesh.refine(&[coloured], &|_| false);
+    let children = mesh.leaves_of_base(coloured);
+    mesh.refine(&children[..1], &|_| false);
+    // Answers cover the new vertices' albedos before their samples arrive.
+    cache.cover_albedos(&mesh);
+    let leaves: Vec<NodeId> = mesh.leaves().collect();
+    for &leaf in &leaves {
+        for vertex in mesh.node(leaf).vertices {
+            let key = SampleKey {
+                vertex,
+                side: Side::Front,
+            };
+            let settled = CachedSample {
+                parts: SampleParts::direct_only([0.6; 3], 0.0),
+                quality: Quality {
+                    paths: 64,
+                    bounces: Some(2),
+                },
+                view_dependent: false,
+                eye: None,
+                last_seen: 0,
+            };
+            cache.insert(key, settled);
+        }
+    }
+    // The coloured base's leaves on a large image: small, none large by §4.3.5.
+    let view = |mesh: &SubdivisionMesh| VisibleSet {
+        leaves: mesh
+            .leaves_of_base(coloured)
+            .into_iter()
+            .map(|leaf| VisibleLeaf {
+                leaf,
+                side: Side::Front,
+                pixels: 40,
+            })
+            .collect(),
+        width: 1024,
+        height: 768,
+    };
+    let selected = |mesh: &SubdivisionMesh, cache: &ShadingCache| {
+        let visible = view(mesh);
+        assert!(visible.leaves.len() >= 7, "the subtree is visible");
+        let input = CriterionInput {
+            mesh,
+            cache,
+            visible: &visible,
+            l_white: cache.l_white(mesh, &visible),
+            image: None,
+        };
+        NldPx::new(&CriterionSettings::default()).select(&input, 64)
+    };
+    assert_eq!(
+        selected(&mesh, &cache),
+        Vec::new(),
+        "converged before the save"
+    );
+
+    let saved_leaves = mesh.leaves_of_base(coloured).len();
+    file.samples_changed(0..mesh.vertex_count() as u32);
+    file.close(&mut mesh, &cache);
+
+    let (mut mesh, mut cache) = sma();
+    let mut file = CacheFile::open(&config.path, config.save_every, &key(), &mesh).unwrap();
+    file.load([coloured], &mut mesh, &mut cache);
+    assert_eq!(file.restored().unmatched_vertices, 0);
+    assert_eq!(mesh.leaves_of_base(coloured).len(), saved_leaves);
+    assert_eq!(
+        selected(&mesh, &cache),
+        Vec::new(),
+        "converged after the load"
+    );
+}

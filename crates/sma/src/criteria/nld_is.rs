@@ -15,14 +15,14 @@
 //! ends the work for the camera, as §4.3.3 ends it; the leaf minimum is then the thesis's 6
 //! pixels (`CriterionSettings::nld_is_min_leaf_pixels`).
 
-use std::collections::{HashMap, HashSet, VecDeque};
+use std::collections::{HashMap, VecDeque};
 
 use super::{
-    Criterion, CriterionInput, CriterionKind, CriterionSettings, LuminanceImage, Metric, Passes,
-    leaf_display_error, nld_mm,
+    Criterion, CriterionInput, CriterionKind, CriterionSettings, LuminanceImage, Metric, Offered,
+    Passes, leaf_display_error, nld_mm,
 };
+use crate::mesh::NodeId;
 use crate::mesh::fast_hash::FastHash;
-use crate::mesh::{NodeId, set_bytes};
 use crate::nld::{nld_metric, noise_aware_nld};
 use crate::sample::display;
 
@@ -106,7 +106,7 @@ pub struct NldIs {
     in_pass: bool,
     /// The pass under way has selected something.
     found: bool,
-    selected: HashSet<NodeId, FastHash>,
+    selected: Offered,
 }
 
 impl NldIs {
@@ -131,7 +131,7 @@ impl NldIs {
             pass_due: true,
             in_pass: false,
             found: false,
-            selected: HashSet::default(),
+            selected: Offered::default(),
         }
     }
 }
@@ -156,6 +156,7 @@ impl Criterion for NldIs {
         if image.width == 0 || image.height == 0 {
             return Vec::new();
         }
+        self.selected.follow(input.mesh);
         let pixels: HashMap<NodeId, u32, FastHash> = input
             .visible
             .leaves
@@ -178,7 +179,7 @@ impl Criterion for NldIs {
         let mut out = Vec::new();
         // One new pass per call at most: the next one should see the image refined meanwhile.
         let mut may_start = true;
-        while out.len() < max && self.selected.len() < budget {
+        while out.len() < max && self.selected.returned() < budget {
             if self.queue.is_empty() {
                 if !may_start || !self.start_pass(image) {
                     break;
@@ -223,11 +224,11 @@ impl Criterion for NldIs {
         self.pass_due = true;
         self.in_pass = false;
         self.found = false;
-        self.selected = HashSet::default();
+        self.selected.reset();
     }
 
     fn heap_bytes(&self) -> usize {
-        set_bytes(&self.selected) + self.queue.capacity() * size_of::<Quad>()
+        self.selected.heap_bytes() + self.queue.capacity() * size_of::<Quad>()
     }
 }
 

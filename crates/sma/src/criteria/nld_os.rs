@@ -13,14 +13,11 @@
 //! With eq. 4.4 in place of eq. 4.6 (`Metric::MaxMin`, floor `s_min` as eq. 4.6's) it is NLD_MM
 //! (`super::nld_mm`).
 
-use std::collections::HashSet;
-
 use super::{
-    Criterion, CriterionInput, CriterionKind, CriterionSettings, Metric, is_large,
+    Criterion, CriterionInput, CriterionKind, CriterionSettings, Metric, Offered, is_large,
     leaf_nld_and_floor,
 };
-use crate::mesh::fast_hash::FastHash;
-use crate::mesh::{NodeId, set_bytes};
+use crate::mesh::NodeId;
 
 pub struct NldOs {
     settings: CriterionSettings,
@@ -30,7 +27,7 @@ pub struct NldOs {
     found_in_pass: bool,
     waiting_in_pass: bool,
     /// Leaves returned since `reset`.
-    offered: HashSet<NodeId, FastHash>,
+    offered: Offered,
 }
 
 /// What the end of a pass over the visible set leads to.
@@ -50,7 +47,7 @@ impl NldOs {
             cursor: 0,
             found_in_pass: false,
             waiting_in_pass: false,
-            offered: HashSet::default(),
+            offered: Offered::default(),
         }
     }
 
@@ -101,6 +98,7 @@ impl Criterion for NldOs {
 
     fn select(&mut self, input: &CriterionInput, max: usize) -> Vec<NodeId> {
         let leaves = &input.visible.leaves;
+        self.offered.follow(input.mesh);
         let mut out = Vec::new();
         // Two pass ends per call at most: one pass over everything, whatever the levels.
         let mut pass_ends = 0;
@@ -117,7 +115,7 @@ impl Criterion for NldOs {
                 self.waiting_in_pass = true;
                 continue;
             }
-            if v.pixels < self.settings.min_leaf_pixels || self.offered.contains(&v.leaf) {
+            if v.pixels < self.settings.min_leaf_pixels || self.offered.contains(v.leaf) {
                 continue;
             }
             let wanted = if is_large(
@@ -150,7 +148,7 @@ impl Criterion for NldOs {
     }
 
     fn heap_bytes(&self) -> usize {
-        set_bytes(&self.offered)
+        self.offered.heap_bytes()
     }
 }
 

@@ -27,26 +27,23 @@
 //! large-triangle fraction (0.005) closes part of the gap early (0.0087, 0.0044) but ends worse
 //! (0.0034: the disc is found later); NLD_PX needs no such trade.
 
-use std::collections::HashSet;
-
 use super::{
-    Criterion, CriterionInput, CriterionKind, CriterionSettings, Metric, is_large,
+    Criterion, CriterionInput, CriterionKind, CriterionSettings, Metric, Offered, is_large,
     leaf_nld_and_floor,
 };
-use crate::mesh::fast_hash::FastHash;
-use crate::mesh::{NodeId, set_bytes};
+use crate::mesh::NodeId;
 
 pub struct NldPx {
     settings: CriterionSettings,
     /// Leaves already returned; one still a leaf was declined by the caller.
-    offered: HashSet<NodeId, FastHash>,
+    offered: Offered,
 }
 
 impl NldPx {
     pub fn new(settings: &CriterionSettings) -> Self {
         NldPx {
             settings: *settings,
-            offered: HashSet::default(),
+            offered: Offered::default(),
         }
     }
 }
@@ -62,6 +59,7 @@ impl Criterion for NldPx {
 
     fn select(&mut self, input: &CriterionInput, max: usize) -> Vec<NodeId> {
         let s = &self.settings;
+        self.offered.follow(input.mesh);
         let mut ranked: Vec<(f32, NodeId)> = input
             .visible
             .leaves
@@ -69,7 +67,7 @@ impl Criterion for NldPx {
             .filter(|v| {
                 v.pixels >= s.min_leaf_pixels
                     && input.mesh.is_leaf(v.leaf)
-                    && !self.offered.contains(&v.leaf)
+                    && !self.offered.contains(v.leaf)
             })
             .filter_map(|v| {
                 let (nld, floor) =
@@ -85,17 +83,18 @@ impl Criterion for NldPx {
         }
         ranked.sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
         let out: Vec<NodeId> = ranked.into_iter().take(max).map(|(_, leaf)| leaf).collect();
-        self.offered.extend(&out);
+        for &leaf in &out {
+            self.offered.insert(leaf);
+        }
         out
     }
 
     fn reset(&mut self) {
-        // A new set, not a cleared one: what a camera offered is given back to the memory budget.
-        self.offered = HashSet::default();
+        self.offered.reset();
     }
 
     fn heap_bytes(&self) -> usize {
-        set_bytes(&self.offered)
+        self.offered.heap_bytes()
     }
 }
 
@@ -210,5 +209,39 @@ mod tests {
         assert!(first.iter().all(|l| !second.contains(l)));
         px.reset();
         assert_eq!(px.select(&edge.input(), 4), first);
+    }
+
+    /// A recycle renames the mesh's nodes (`SubdivisionMesh::recycle_removed`): the leaves
+    /// offered before it are judged again after it, every candidate once more, none skipped
+    /// because its new id is one offered before (`criteria::Offered`).
+    #[test]
+    fn a_recycle_of_the_mesh_s_nodes_has_every_candidate_judged_again() {
+        let mut edge = Synthetic::new(6, 96, Shading::ShadowEdge);
+        let settings = CriterionSettings {
+            large_triangle_fraction: 1.0,
+            ..Default::default()
+        };
+        // Greens made, then removed by the red split of their parent: retired nodes.
+        let first = NldPx::new(&settings).select(&edge.input(), 1);
+        edge.refine_and_shade(&first);
+        let green = edge
+            .mesh
+            .leaves()
+            .find(|&l| edge.mesh.node(l).kind() == crate::mesh::NodeKind::Green)
+            .expect("the split greened a neighbour");
+        edge.refine_and_shade(&[green]);
+        // Every candidate offered and declined (not split).
+        let mut px = NldPx::new(&settings);
+        let candidates = px.select(&edge.input(), usize::MAX);
+        assert!(candidates.len() > 4);
+        assert!(px.select(&edge.input(), usize::MAX).is_empty());
+        assert!(edge.mesh.recycle_removed(), "removed nodes to recycle");
+        edge.refine_and_shade(&[]);
+        let again = px.select(&edge.input(), usize::MAX);
+        assert_eq!(
+            again.len(),
+            candidates.len(),
+            "every candidate judged again"
+        );
     }
 }

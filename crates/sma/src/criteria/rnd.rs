@@ -8,14 +8,11 @@
 //! refined meanwhile), one that offered nothing ends the criterion's work for the camera. With
 //! `Passes::One` (the thesis profile) the first pass ends it, as §4.3.1 does.
 
-use std::collections::HashSet;
-
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
-use super::{Criterion, CriterionInput, CriterionKind, CriterionSettings, Passes};
-use crate::mesh::fast_hash::FastHash;
-use crate::mesh::{NodeId, set_bytes};
+use super::{Criterion, CriterionInput, CriterionKind, CriterionSettings, Offered, Passes};
+use crate::mesh::NodeId;
 
 pub struct Rnd {
     seed: u64,
@@ -27,7 +24,7 @@ pub struct Rnd {
     picks: u64,
     /// The pass under way offered a leaf.
     found: bool,
-    offered: HashSet<NodeId, FastHash>,
+    offered: Offered,
 }
 
 impl Rnd {
@@ -40,7 +37,7 @@ impl Rnd {
             passes: settings.passes,
             picks: 0,
             found: false,
-            offered: HashSet::default(),
+            offered: Offered::default(),
         }
     }
 }
@@ -56,6 +53,7 @@ impl Criterion for Rnd {
 
     fn select(&mut self, input: &CriterionInput, max: usize) -> Vec<NodeId> {
         let visible = input.visible;
+        self.offered.follow(input.mesh);
         let cumulative: Vec<u64> = visible
             .leaves
             .iter()
@@ -97,16 +95,18 @@ impl Criterion for Rnd {
         self.rng = Pcg64Mcg::seed_from_u64(self.seed);
         self.picks = 0;
         self.found = false;
-        self.offered = HashSet::default();
+        self.offered.reset();
     }
 
     fn heap_bytes(&self) -> usize {
-        set_bytes(&self.offered)
+        self.offered.heap_bytes()
     }
 }
 
 #[cfg(test)]
 mod tests {
+    use std::collections::HashSet;
+
     use super::*;
     use crate::criteria::synthetic::{Shading, Synthetic};
 
