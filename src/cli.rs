@@ -81,7 +81,7 @@ pub struct LaunchArgs {
     #[arg(long, default_value_t = Profile::Today, value_parser = profile_parser())]
     pub profile: Profile,
     /// The SMA's object-space filter of the indirect light (on|off), passed on as
-    /// `--indirect-filter` [default: off].
+    /// `--indirect-filter` [default: on, off under `--profile thesis`].
     #[arg(long, value_parser = on_off())]
     pub indirect_filter: Option<bool>,
     /// Number of renderer processes; the cores are shared among them.

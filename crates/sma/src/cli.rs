@@ -260,9 +260,9 @@ pub struct Cli {
     #[arg(long, value_parser = on_off)]
     pub merge_uniform: Option<bool>,
     /// Filter each sample's indirect part over its mesh neighbours in object space (on|off)
-    /// [default: off].
-    // Off until measured to help: `walkthrough-bench convergence --sma-flags=--indirect-filter,on`
-    // against runs without it, FLIP at 5 s on Sponza S1–S3 (it was worse on all three).
+    /// [default: on, off under `--profile thesis`].
+    // Measured by `walkthrough-bench convergence --sma-flags=--indirect-filter,off` against
+    // runs with it: FLIP at 5 s on Sponza S1–S3 (`IndirectFilterSettings::default`).
     #[arg(long, value_parser = on_off)]
     pub indirect_filter: Option<bool>,
     /// The indirect filter's radius at 64 paths, as a fraction of the scene's bounding-box

@@ -172,13 +172,13 @@ fn work_while_walking_is_on_today_off_under_the_thesis_and_a_flag_sets_it() {
 }
 
 #[test]
-fn the_indirect_filter_is_off_by_default_and_under_the_thesis_profile_and_on_by_flag() {
+fn the_indirect_filter_is_on_by_default_off_under_the_thesis_profile_and_by_flag() {
     let parsed = |args: &[&str]| {
         let mut all = vec!["sma", "--renderer", "r:1"];
         all.extend_from_slice(args);
         Cli::try_parse_from(all).map(|cli| cli.config().unwrap().schedule.indirect_filter.enabled)
     };
-    assert!(!parsed(&[]).unwrap());
+    assert!(parsed(&[]).unwrap());
     assert!(!parsed(&["--indirect-filter", "off"]).unwrap());
     assert!(parsed(&["--indirect-filter", "on"]).unwrap());
     assert!(parsed(&["--indirect-filter", "maybe"]).is_err());
