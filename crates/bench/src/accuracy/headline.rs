@@ -6,6 +6,8 @@
 
 use std::fmt::Write as _;
 
+mod verdicts;
+
 use super::ViewResult;
 use super::per_pixel::time_to_level;
 use crate::convergence::BEST_NOISE_AWARE;
@@ -46,6 +48,12 @@ pub(crate) fn table(results: &[&ViewResult]) -> Option<String> {
          how many times faster the system is (below 1×: slower). \"–\": not reached within the \
          run or the renders measured.\n",
     );
+    let figures: Vec<verdicts::ViewFigures> = results
+        .iter()
+        .filter(|v| !v.per_pixel.is_empty())
+        .map(|v| verdicts::ViewFigures::of(v))
+        .collect();
+    md.push_str(&verdicts::lines(&figures));
     Some(md)
 }
 
