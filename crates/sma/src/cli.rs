@@ -292,7 +292,7 @@ pub struct Cli {
     #[arg(long, default_value_t = defaults().schedule.display_error)]
     pub display_error: f32,
     /// While a viewer's camera rests, ask the renderers for its direct light per pixel and
-    /// forward it in tiles (on|off) [default: off, until the viewer shows them].
+    /// forward it in tiles (on|off) [default: on, off under `--profile thesis`].
     #[arg(long, value_parser = on_off)]
     pub per_pixel_direct: Option<bool>,
     /// The lights the per-pixel tiles trace (sun|sun-sky|all): only `all` replaces the
@@ -394,6 +394,9 @@ impl Cli {
         if let Some(on) = self.indirect_filter {
             config.schedule.indirect_filter.enabled = on;
         }
+        if let Some(on) = self.per_pixel_direct {
+            config.schedule.direct_tiles.enabled = on;
+        }
         Ok(config)
     }
 
@@ -494,9 +497,8 @@ impl Cli {
             bounces: self.bounces,
             display_error: self.display_error,
             direct_tiles: DirectTileSettings {
-                enabled: (self.per_pixel_direct)
-                    .unwrap_or(defaults().schedule.direct_tiles.enabled),
                 lights: self.per_pixel_lights,
+                ..defaults().schedule.direct_tiles
             },
         }
     }
