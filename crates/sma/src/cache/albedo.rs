@@ -132,13 +132,20 @@ fn mean_albedos_around(
     vertices: &mut [VertexId],
 ) -> Vec<Vec3> {
     vertices.sort_unstable();
+    // A bit per vertex passes over most leaves' corners without a search: a refinement step
+    // adds a few hundred vertices to a mesh of up to millions of leaves.
+    let mut wanted = vec![0u64; mesh.vertex_count().div_ceil(64)];
+    for &v in vertices.iter() {
+        wanted[v as usize / 64] |= 1 << (v % 64);
+    }
+    let is_wanted = |v: VertexId| wanted[v as usize / 64] & (1 << (v % 64)) != 0;
     let mut sums = vec![(Vec3::ZERO, 0.0f32); vertices.len()];
     for leaf in mesh.leaves() {
         let corners = mesh.node(leaf).vertices;
-        let mut at = corners.map(|v| vertices.binary_search(&v).ok());
-        if at.iter().all(Option::is_none) {
+        if !corners.iter().any(|&v| is_wanted(v)) {
             continue;
         }
+        let mut at = corners.map(|v| vertices.binary_search(&v).ok());
         let [a, b, c] = mesh.leaf_positions(leaf);
         let area = 0.5 * (b - a).cross(c - a).length();
         if area.is_nan() || area <= 0.0 {
