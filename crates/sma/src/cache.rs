@@ -4,8 +4,8 @@
 //!
 //! What is read back is the *shown* estimate: the sample with its indirect part as the
 //! object-space filter last left it (`indirect_filter`; the raw part until the filter has run),
-//! and its illumination multiplied by the albedo at its vertex (`albedo`,
-//! `sample::display_radiance`). The criteria, L_white and the stopping rule read that one, so
+//! and its illumination multiplied by the mean albedo over the leaves around its vertex
+//! (`albedo`, `sample::display_radiance`). The criteria, L_white and the stopping rule read that one, so
 //! they judge about what the person sees (a viewer multiplies the albedo in per pixel, and is
 //! sent the shown estimate's illumination: `leaf_shading`); the raw estimate, illumination, is
 //! what further paths merge with, what the filter smooths and what the cache file keeps.
@@ -84,7 +84,7 @@ pub struct ShadingCache {
     failed: std::collections::HashSet<u32, FastHash>,
     /// The fraction of the brightest visible samples [`ShadingCache::l_white`] leaves above it.
     l_white_outliers: f64,
-    /// The albedo at each vertex, which multiplies its samples' illumination when read.
+    /// The mean albedo around each vertex, which multiplies its samples' illumination when read.
     albedos: VertexAlbedos,
 }
 
@@ -118,21 +118,21 @@ impl ShadingCache {
         }
     }
 
-    /// The same cache reading the albedo of its vertices from `scene` (without, every vertex's
-    /// albedo is one: the samples are shown as stored).
+    /// The same cache taking the mean albedo around its vertices from `scene`'s materials and
+    /// textures (without, every vertex's albedo is one: the samples are shown as stored).
     pub fn with_albedos_of(mut self, scene: std::sync::Arc<scene::Scene>) -> Self {
         self.albedos = VertexAlbedos::of(scene);
         self
     }
 
-    /// Looks up the albedo of every vertex of `mesh` not yet known: called before samples of
-    /// new vertices arrive (answers, a restored cache file).
+    /// Takes the mean albedo around every vertex of `mesh` not yet covered (`albedo`): called
+    /// before samples of new vertices arrive (answers, a restored cache file).
     pub fn cover_albedos(&mut self, mesh: &SubdivisionMesh) {
         self.albedos.cover(mesh);
     }
 
-    /// A stored estimate of `slot` as displayed: the albedo at its vertex multiplies its
-    /// illumination (`sample::display_radiance`).
+    /// A stored estimate of `slot` as displayed: the mean albedo around its vertex multiplies
+    /// its illumination (`sample::display_radiance`).
     fn displayed(&self, slot: usize, e: &Estimate) -> Estimate {
         display_radiance(e, self.albedos.at((slot / 2) as u32))
     }

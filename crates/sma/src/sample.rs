@@ -4,7 +4,8 @@
 //! paths (one count: the parts of a sample always come from the same paths), and the bounce
 //! depth they were traced at. Everything that reads or merges samples goes through here.
 //!
-//! - [`display_radiance`]: where the illumination parts meet the albedo at the sample's vertex,
+//! - [`display_radiance`]: where the illumination parts meet the mean albedo around the sample's
+//!   vertex,
 //!   turning a stored estimate into the radiance the SMA judges (the cache's readers get it so).
 //!   A viewer is sent the illumination itself and multiplies each pixel's albedo in
 //!   (`cache::leaf_shading`).
@@ -190,8 +191,9 @@ pub fn display(l: f32, l_white: f32) -> f32 {
     DisplayMap::new(l_white).display(l)
 }
 
-/// The estimate as the SMA judges it (DESIGN.md §5, "Parts, and textures"): `albedo`, the
-/// diffuse albedo at the sample's point (a texel or `Kd`), multiplies the illumination parts,
+/// The estimate as the SMA judges it (DESIGN.md §5, "Parts, and textures"; §6): `albedo`, the
+/// mean diffuse albedo over the leaves around the sample's vertex (`cache::albedo`: the mean of
+/// the texels a viewer shows there, or `Kd`), multiplies the illumination parts,
 /// and their luminance variances scale by the square of the luminance ratio it makes (exact for
 /// a grey albedo); the view-dependent part stays as it is. The criteria, L_white and the
 /// stopping rule read this, so they judge what the person sees: a dark texture does not draw

@@ -1,7 +1,7 @@
 //! What a viewer is sent of a shown leaf (DESIGN.md §5, "Parts, and textures"): per corner the
 //! illumination, its direct share and the view-dependent radiance, which the viewer combines
 //! with the albedo of each pixel; and beside them the radiance the SMA itself judges, with the
-//! albedo at each vertex (`albedo`), as the criteria, L_white and the stopping rule read it.
+//! mean albedo around each vertex (`albedo`), as the criteria, L_white and the stopping rule read it.
 
 use glam::Vec3;
 use protocol::Side;
@@ -16,7 +16,7 @@ use crate::sample::Estimate;
 /// One shown leaf's corners, as seen from one eye.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LeafShading {
-    /// Per vertex the displayed radiance with the albedo at the vertex: what the luminance
+    /// Per vertex the displayed radiance with the mean albedo around the vertex: what the luminance
     /// image of `nld-is` draws.
     pub radiance: [[f32; 3]; 3],
     /// What the viewer is sent.
@@ -93,7 +93,7 @@ mod tests {
     use crate::mesh::MeshParams;
 
     /// On a leaf of bracara's textured paving: the viewer is sent the illumination, its direct
-    /// share and no view-dependent part, while the SMA judges the albedo at each vertex times
+    /// share and no view-dependent part, while the SMA judges the mean albedo around each vertex times
     /// it; the leaf's material is its scene triangle's, its coordinates the scene's at its
     /// corners, whole periods off.
     #[test]
@@ -146,8 +146,7 @@ mod tests {
                     .all(|(a, b)| (a - b).abs() <= 0.02),
                 "{illumination:?}"
             );
-            let v = mesh.vertex(vertex);
-            let albedo = scene.albedo_at(v.base_triangle as usize, v.bary);
+            let albedo = Vec3::from(cache.albedos.at(vertex));
             let radiance = Vec3::from(shown.radiance[k]);
             assert!((radiance - albedo * Vec3::from(want)).abs().max_element() <= 0.05);
         }

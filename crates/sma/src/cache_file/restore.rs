@@ -140,11 +140,13 @@ pub fn restore(
     let start = std::time::Instant::now();
     let steps = replay_splits(records, mesh);
     let replay = start.elapsed();
-    // The replay made midpoint vertices no answer has covered yet: until their albedos are
-    // looked up, every reader of a sample (the criteria, L_white, the stopping rule) would
-    // judge them at albedo one beside corners at their material's, a variation the first
-    // visit never saw, and split the restored leaves again (DESIGN.md §5, "Parts, and
-    // textures"; "Persistence": a site walked yesterday appears at once today).
+    // The replay made midpoint vertices no answer has covered yet: until their mean albedos are
+    // taken (over the restored leaves around them, finer than when a walk made them: on a
+    // texture far finer than the leaves the two means agree), every reader of a sample (the
+    // criteria, L_white, the stopping rule) would judge them at albedo one beside corners at
+    // their material's, a variation the first visit never saw, and split the restored leaves
+    // again (DESIGN.md §5, "Parts, and textures"; "Persistence": a site walked yesterday
+    // appears at once today).
     cache.cover_albedos(mesh);
     // The best stored sample per slot `2 * vertex + side`: a table by slot, as the cache's own
     // is (zeroed pages cost nothing until touched), and the slots filled, in order.

@@ -44,7 +44,7 @@ struct Entry {
     /// each corner): a sync sends an `Update` when the cache's differs; two alike in their
     /// 64-bit hash are taken as one.
     sent: [u32; 2],
-    /// The luminance of the radiance last sent (with the albedo at each vertex), per corner:
+    /// The luminance of the radiance last sent (with the mean albedo around each vertex), per corner:
     /// what `nld-is` reads.
     luminance: [f32; 3],
     /// Its corners when sent: the mesh reuses removed nodes' ids (`mesh::free_nodes`), so an id
