@@ -120,6 +120,26 @@ impl DirectTiles {
             + self.withdrawn.capacity() * size_of::<u64>()
     }
 
+    /// What the tiles of `camera` take once cut ([`Self::heap_bytes`] of its first request).
+    pub fn bytes_for(camera: &Camera) -> usize {
+        let rects = TileRect::cover(camera.width, camera.height).len();
+        rects * size_of::<Tile>()
+            + (camera.width as usize * camera.height as usize) * size_of::<PartEstimate>()
+    }
+
+    /// Whether `camera` is the one these tiles are of (or were declined for).
+    pub fn holds(&self, camera: &Camera) -> bool {
+        self.camera.as_ref().is_some_and(|c| c.seq == camera.seq)
+    }
+
+    /// No tiles for `camera` (the memory budget has no room for them): it gets no request,
+    /// and its stated end does not wait for any.
+    pub fn decline(&mut self, camera: &Camera) {
+        self.camera_moved();
+        self.camera = Some(camera.clone());
+        self.tiles = Vec::new();
+    }
+
     /// The passes of old cameras still asked for.
     pub fn take_withdrawn(&mut self) -> Vec<u64> {
         std::mem::take(&mut self.withdrawn)
@@ -133,7 +153,7 @@ impl DirectTiles {
         lights: DirectLights,
         target: TileTarget,
     ) -> Vec<TileRequest> {
-        if self.camera.as_ref().map(|c| c.seq) != Some(camera.seq) {
+        if !self.holds(camera) {
             self.camera_moved();
             self.camera = Some(camera.clone());
             self.tiles = TileRect::cover(camera.width, camera.height)
@@ -359,5 +379,29 @@ mod tests {
         assert_eq!(pooled, want);
         let quiet = vec![pixels[0]; 12];
         assert!(pooled_variances(&quiet, rect).iter().all(|&v| v == 0.0));
+    }
+
+    #[test]
+    fn a_declined_camera_asks_for_nothing_and_its_end_waits_for_no_tile() {
+        let mut tiles = DirectTiles::default();
+        let cut = tiles.requests(&camera(1), DirectLights::All, TARGET);
+        assert!(!cut.is_empty() && tiles.heap_bytes() >= DirectTiles::bytes_for(&camera(1)));
+        tiles.decline(&camera(2));
+        assert_eq!(
+            tiles.take_withdrawn().len(),
+            cut.len(),
+            "the old camera's passes go"
+        );
+        assert!(tiles.holds(&camera(2)) && tiles.converged(TARGET));
+        assert!(
+            tiles
+                .requests(&camera(2), DirectLights::All, TARGET)
+                .is_empty()
+        );
+        assert!(
+            !tiles
+                .requests(&camera(3), DirectLights::All, TARGET)
+                .is_empty()
+        );
     }
 }

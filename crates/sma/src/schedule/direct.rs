@@ -6,14 +6,18 @@ use protocol::viewer_link::SmaToViewer;
 
 use super::Schedule;
 use super::viewers::Viewer;
-use crate::direct_tiles::TileTarget;
+use crate::direct_tiles::{DirectTiles, TileTarget};
 use crate::pool::TileNews;
 
 impl Schedule {
     /// Withdraws the passes of old cameras, then asks for the next pass of every tile of each
-    /// resting viewer's camera (the pool sends them only while no batch waits).
+    /// resting viewer's camera (the pool sends them only while no batch waits). A camera whose
+    /// tiles would not fit the memory budget gets none, and tiles are dropped once everything
+    /// no longer fits: per-pixel direct light refines the picture, as a round of splits does,
+    /// and the budget wins (DESIGN.md §5).
     pub(super) fn request_tiles(&mut self) {
         let settings = self.config.direct_tiles;
+        let account = self.memory_account();
         for viewer in self.viewers.iter_mut() {
             let withdrawn = viewer.direct.take_withdrawn();
             if !withdrawn.is_empty() {
@@ -25,6 +29,21 @@ impl Schedule {
             // A viewer's first camera rests at once (`turns::TurnView::camera_replaced`).
             let rests = !viewer.camera_replaced || viewer.camera_at.elapsed() >= self.config.rest;
             if !settings.enabled || self.renderers == 0 || viewer.paused || !rests {
+                continue;
+            }
+            let growth = if viewer.direct.holds(camera) {
+                0
+            } else {
+                DirectTiles::bytes_for(camera)
+            };
+            if !self.memory.fits(&account, growth) {
+                if growth > 0 || viewer.direct.heap_bytes() > 0 {
+                    tracing::debug!(
+                        camera = camera.seq,
+                        "no direct tiles: the memory budget is full"
+                    );
+                    viewer.direct.decline(camera);
+                }
                 continue;
             }
             let target = target(viewer, self.config.display_error);
