@@ -365,7 +365,7 @@ impl CacheFile {
     /// When [`Self::save_if_due`] next has work: now while a sliced snapshot has base triangles
     /// left, else a period after the last save.
     pub fn save_due_at(&self) -> Instant {
-        if self.leaving.is_some() {
+        if self.leaving.is_some() && self.takes_subtrees() {
             // Subtrees wait for the writer's commit to leave memory (`evict`): soon, without
             // spinning on the cores the writer needs.
             Instant::now() + evict::POLL

@@ -80,7 +80,7 @@ impl CacheFile {
     }
 
     /// Once the file holds every record the leaving base triangles need: collapses those still
-    /// unchanged and out of every view (`unseen`), frees the cached samples of the vertices no
+    /// unchanged and out of every view (`unseen`; one not loaded yet keeps its record as it is), frees the cached samples of the vertices no
     /// leaf has any more, and marks them as not loaded. None while that commit is not in the
     /// file yet (a failed one: until a later commit succeeds).
     pub fn drop_written(
@@ -99,7 +99,7 @@ impl CacheFile {
         let bases: Vec<u32> = leaving
             .bases
             .into_iter()
-            .filter(|&b| self.is_loaded(b) && !self.is_dirty[b as usize] && unseen(b))
+            .filter(|&b| !self.is_dirty[b as usize] && unseen(b))
             .collect();
         let leaves = |mesh: &SubdivisionMesh| -> Vec<NodeId> {
             bases.iter().flat_map(|&b| mesh.leaves_of_base(b)).collect()
@@ -118,9 +118,10 @@ impl CacheFile {
         // The file keeps the records written, and the loader reads them when the base
         // triangles are seen again; what the collapse changed in neighbours is theirs to save.
         for &base in &bases {
-            self.unloaded[base as usize] = true;
+            let unloaded = &mut self.unloaded[base as usize];
+            self.unloaded_count += usize::from(!*unloaded);
+            *unloaded = true;
         }
-        self.unloaded_count += bases.len();
         for base in mesh.take_changed_bases() {
             self.mark(base);
         }

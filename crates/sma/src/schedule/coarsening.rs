@@ -8,7 +8,8 @@
 //! leaf someone sees (a green closure in a visible neighbour undone), the viewer keeps the old
 //! leaves until the new ones are shaded, then swaps them in one update. The mesh keeps its
 //! midpoint vertices, so refining a region again reuses them and their cached samples, unless
-//! the memory budget is pressed (`schedule::memory`).
+//! the memory budget is pressed (`schedule::memory`). With a cache file, what this picks goes to
+//! the file instead, and loads again when seen (`schedule::persistence`, DESIGN.md §5).
 
 use std::collections::BTreeSet;
 
@@ -53,16 +54,20 @@ impl Coarsening {
     /// Collapses, as far as conformity allows, the subdivision of every base triangle unseen for
     /// the set number of passes; returns the steps of all levels, for the pending groups.
     pub fn collapse_stale(&mut self, mesh: &mut SubdivisionMesh, pass: u64) -> Vec<RefinementStep> {
+        let stale = self.stale(pass);
+        self.collapse(mesh, stale)
+    }
+
+    /// The refined base triangles unseen for the set number of passes at `pass`.
+    pub fn stale(&self, pass: u64) -> Vec<u32> {
         if self.after_passes == 0 {
             return Vec::new();
         }
-        let stale: Vec<u32> = self
-            .refined
+        self.refined
             .iter()
             .copied()
             .filter(|&b| self.last_seen[b as usize] + self.after_passes <= pass)
-            .collect();
-        self.collapse(mesh, stale)
+            .collect()
     }
 
     /// Under the memory budget's pressure (`schedule::memory`): collapses the subdivision of the

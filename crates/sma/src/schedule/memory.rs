@@ -183,7 +183,10 @@ impl super::Schedule {
                 self.free_unused_midpoints();
             }
         }
-        let mut leaves_changed = self.refinement.coarsen_stale(&mut self.mesh, self.frame);
+        let mut leaves_changed = match self.stale_to_file() {
+            Some(changed) => changed,
+            None => self.refinement.coarsen_stale(&mut self.mesh, self.frame),
+        };
         if pressed {
             leaves_changed |= self.relieve_pressure() == Some(true);
         }

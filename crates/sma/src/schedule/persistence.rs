@@ -109,6 +109,22 @@ impl Schedule {
         Some(Eviction::Waiting)
     }
 
+    /// With a cache file whose last commit succeeded, the subtrees no view has seen for long go
+    /// to it rather than being coarsened away (DESIGN.md §4, §5): written out, then dropped
+    /// once their commit is in. Whether the leaves changed; None without such a file: the
+    /// caller coarsens as without one.
+    pub(super) fn stale_to_file(&mut self) -> Option<bool> {
+        let file = self.cache_file.as_mut().filter(|f| f.takes_subtrees())?;
+        if file.writing_out() {
+            return Some(self.drop_written());
+        }
+        let stale = self.refinement.stale(self.frame);
+        if !stale.is_empty() {
+            file.write_out(stale, &mut self.mesh, &self.cache);
+        }
+        Some(false)
+    }
+
     /// Drops the subtrees written out to the file once its commit is in; not while refinement
     /// steps wait, whose leaves the collapse could remove. Returns whether the leaves changed
     /// (the caller tells the viewers).

@@ -123,6 +123,15 @@ impl Refinement {
         self.coarsening.least_recent(frame, share, eligible)
     }
 
+    /// The refined base triangles no view has seen for the set number of passes, with a cache
+    /// file (`persistence`); not while refinement steps wait, as [`Self::coarsen_stale`].
+    pub fn stale(&self, frame: u64) -> Vec<u32> {
+        if !self.pending.is_empty() {
+            return Vec::new();
+        }
+        self.coarsening.stale(frame)
+    }
+
     /// Whether no view saw base triangle `base` at `frame`.
     pub fn unseen(&self, base: u32, frame: u64) -> bool {
         self.coarsening.unseen(base, frame)
