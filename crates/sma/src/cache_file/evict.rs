@@ -106,8 +106,8 @@ impl CacheFile {
         };
         let before = corners(mesh, leaves(mesh));
         let steps = mesh.collapse_bases(&bases);
-        // A vertex some leaf still has lies in a leaving base triangle's subtree, or on its
-        // border, where the mesh being conforming puts it on a new leaf of the collapse.
+        // A vertex a leaf elsewhere still has lies on a leaving base triangle's border, where
+        // the conforming mesh makes it a corner of one of its leaves or of a new leaf too.
         let new_leaves = steps.iter().flat_map(|s| s.new_leaves.iter().copied());
         let after = corners(mesh, leaves(mesh).into_iter().chain(new_leaves));
         let freed: Vec<VertexId> = before
