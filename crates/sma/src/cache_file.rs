@@ -19,11 +19,15 @@
 //!   base triangles, at most [`SNAPSHOT_SLICE`] of them per turn's worth of time, and the writer
 //!   thread (`writer`) encodes and commits them. Base triangles changed between saves wait for
 //!   the period (a save per turn would cost the schedule a pause each turn).
+//! - Under the memory budget, the subtrees of base triangles no view sees go to the file rather
+//!   than being lost (`evict`): their records are made sure to be in a commit that succeeded,
+//!   then they are collapsed, their samples freed, and they load again as records do.
 //! - A store that is not this SMA's (truncated, corrupt, another scene, version or settings) is
 //!   refused with one warning naming why, renamed to `PATH.rejected`, and the SMA starts empty. A
 //!   store it cannot use now (locked by another SMA, an unwritable directory) gets one warning,
 //!   and the SMA carries on without it (`store::Unusable`). Neither ends the SMA.
 
+mod evict;
 mod key;
 mod record;
 mod restore;
@@ -41,6 +45,8 @@ use redb::Database;
 
 use crate::cache::ShadingCache;
 use crate::mesh::{RefinementStep, SubdivisionMesh, VertexId};
+pub use evict::Dropped;
+use evict::Leaving;
 pub use key::{FORMAT_VERSION, MeshKey, SampleMeaning, StoreKey};
 use record::{BaseRecord, Numbering};
 pub use restore::Restored;
@@ -143,6 +149,8 @@ pub struct CacheFile {
     unloaded_count: usize,
     /// One warning for records that cannot be read, not one per load.
     warned_unreadable: bool,
+    /// Base triangles on their way to the file under the memory budget (`evict`).
+    leaving: Option<Leaving>,
 }
 
 impl CacheFile {
@@ -196,6 +204,7 @@ impl CacheFile {
             numbering: Numbering::default(),
             unloaded_count: opened.stored.len(),
             warned_unreadable: false,
+            leaving: None,
         };
         // A base triangle's corners are owned by one whose record is loaded where there is one:
         // those with records not loaded yet first, so the others' ownership wins.
@@ -346,12 +355,7 @@ impl CacheFile {
         let start = Instant::now();
         let records = self.snapshot(mesh, cache, Some(start + SNAPSHOT_SLICE));
         self.sliced = !self.dirty.is_empty();
-        if !records.is_empty()
-            && let Err(writer::Busy(back)) = self.writer.try_commit(records)
-        {
-            // The writer is behind (a slow disk): these base triangles go in a later commit.
-            back.iter().for_each(|(base, _)| self.mark(*base));
-        }
+        self.hand_over(records);
         self.note_pause(start.elapsed());
         if !self.sliced {
             self.last_save = Instant::now();
@@ -361,7 +365,11 @@ impl CacheFile {
     /// When [`Self::save_if_due`] next has work: now while a sliced snapshot has base triangles
     /// left, else a period after the last save.
     pub fn save_due_at(&self) -> Instant {
-        if self.sliced {
+        if self.leaving.is_some() && self.takes_subtrees() {
+            // Subtrees wait for the writer's commit to leave memory (`evict`): soon, without
+            // spinning on the cores the writer needs.
+            Instant::now() + evict::POLL
+        } else if self.sliced {
             Instant::now()
         } else {
             self.last_save + self.save_every
@@ -410,6 +418,16 @@ impl CacheFile {
         }
     }
 
+    /// Hands `records` to the writer without waiting.
+    fn hand_over(&mut self, records: Vec<(u32, Option<BaseRecord>)>) {
+        if !records.is_empty()
+            && let Err(writer::Busy(back)) = self.writer.try_commit(records)
+        {
+            // The writer is behind (a slow disk): these base triangles go in a later commit.
+            back.iter().for_each(|(base, _)| self.mark(*base));
+        }
+    }
+
     fn note_owner(&mut self, vertices: &[VertexId], base: u32) {
         for &v in vertices {
             let v = v as usize;
@@ -439,16 +457,25 @@ impl CacheFile {
         let mut records = Vec::new();
         let mut taken = 0;
         while taken < self.dirty.len() && until.is_none_or(|t| Instant::now() < t) {
-            let base = self.dirty[taken];
-            let (record, vertices) = BaseRecord::snapshot(mesh, cache, base, &mut self.numbering);
-            self.note_owner(&vertices, base);
-            records.push((base, (!record.is_empty()).then_some(record)));
+            records.push(self.snapshot_base(mesh, cache, self.dirty[taken]));
             taken += 1;
         }
-        for base in self.dirty.drain(..taken) {
-            self.is_dirty[base as usize] = false;
-        }
+        self.dirty.drain(..taken);
         records
+    }
+
+    /// The record of `base` now, which is no longer out of date (the caller takes it out of
+    /// `dirty`); None where the record is gone.
+    fn snapshot_base(
+        &mut self,
+        mesh: &SubdivisionMesh,
+        cache: &ShadingCache,
+        base: u32,
+    ) -> (u32, Option<BaseRecord>) {
+        let (record, vertices) = BaseRecord::snapshot(mesh, cache, base, &mut self.numbering);
+        self.note_owner(&vertices, base);
+        self.is_dirty[base as usize] = false;
+        (base, (!record.is_empty()).then_some(record))
     }
 }
 

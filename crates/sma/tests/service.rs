@@ -1231,3 +1231,45 @@ async fn reused_node_ids_keep_the_viewers_table_consistent_at_every_epoch() {
     assert!(nodes[2] <= nodes[1], "nodes grew: {nodes:?}");
     sma.stop().await.unwrap();
 }
+
+/// With a cache file, the wall's subdivision out of view long enough goes to the file rather
+/// than being coarsened away (`cache_file::evict`): while it is out of view the leaves and the
+/// cached samples fall, and looking back loads it again, the leaves shown as before.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn subdivision_out_of_view_goes_to_the_cache_file_and_comes_back() {
+    if !gpu_available() {
+        return;
+    }
+    let scene = diffuse_wall();
+    let (renderer, _) = fake_renderer(scene.clone(), Fault::None).await;
+    let dir = tempfile::tempdir().unwrap();
+    let mut config = config(vec![renderer], true);
+    config.schedule.coarsen_after_passes = 2;
+    config.schedule.stats_every = Duration::from_millis(10);
+    config.cache_file = Some(sma::cache_file::CacheFileConfig::at(
+        dir.path().join("wall.redb"),
+    ));
+    let (sma, mut probe) = start_with_probe(&config, &scene).await;
+    view_completely(&mut probe, "front").await;
+    probe.until_converged(WAIT).await.unwrap();
+    let (refined, shown) = (probe.stats.unwrap(), probe.table.len());
+    assert!(shown >= 12, "refined");
+    for _ in 0..6 {
+        let away = probe.view("away", W, H).await.unwrap();
+        probe.complete(away.seq, WAIT).await.unwrap();
+    }
+    // The subdivision leaves once the writer's commit holding it is in the file.
+    let away = probe
+        .until_stats(WAIT, |s| s.leaves < refined.leaves)
+        .await
+        .unwrap_or_else(|e| panic!("{e:#}: refined {refined:?}"));
+    assert!(
+        away.cached_samples < refined.cached_samples,
+        "{away:?}, refined {refined:?}"
+    );
+    view_completely(&mut probe, "front").await;
+    probe.until_converged(WAIT).await.unwrap();
+    assert_eq!(probe.table.len(), shown);
+    assert_eq!(probe.conformity_problem(), None);
+    sma.stop().await.unwrap();
+}

@@ -1,5 +1,6 @@
 //! What leaves the shading cache (DESIGN.md §5): samples seen least recently when it is over
-//! its budget, and every sample of a vertex the mesh freed for reuse.
+//! its budget, the samples of subtrees written to the cache file, and every sample of a vertex
+//! the mesh freed for reuse.
 
 use protocol::renderer_link::SampleKey;
 
@@ -50,6 +51,21 @@ impl ShadingCache {
         if let Some(&moved) = self.owners.get(s) {
             self.slots[moved as usize] = s as u32;
         }
+    }
+
+    /// Drops the samples of `vertices`, whose subtrees left for the cache file
+    /// (`cache_file::evict`); the vertices stay the mesh's. Returns how many were dropped.
+    pub fn drop_samples(&mut self, vertices: &[VertexId]) -> usize {
+        let mut dropped = 0;
+        for &v in vertices {
+            for slot in [2 * v as usize, 2 * v as usize + 1] {
+                if self.slots.get(slot).is_some_and(|&s| s != NO_SLOT) {
+                    self.remove(slot);
+                    dropped += 1;
+                }
+            }
+        }
+        dropped
     }
 
     /// Drops every sample of `vertices`, whose ids the mesh freed for reuse

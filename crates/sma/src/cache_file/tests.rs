@@ -1,3 +1,5 @@
+mod evict;
+
 use std::collections::BTreeMap;
 
 use protocol::renderer_link::{Quality, SampleKey};

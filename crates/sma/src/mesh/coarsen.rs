@@ -104,6 +104,28 @@ impl SubdivisionMesh {
             .collect()
     }
 
+    /// Collapses the subdivision of the base triangles `bases` as far as conformity allows,
+    /// every level, deepest first; returns the steps of all levels. A base held by a
+    /// neighbour's split that stays keeps what that split needs.
+    pub fn collapse_bases(&mut self, bases: &[u32]) -> Vec<RefinementStep> {
+        let mut steps = Vec::new();
+        loop {
+            // Each call undoes the deepest red splits whose children are all leaves; the level
+            // above becomes eligible in the next (coarsen_many skips green parents: their red
+            // neighbour's collapse undoes them).
+            let parents: Vec<NodeId> = bases
+                .iter()
+                .flat_map(|&b| self.leaves_of_base(b))
+                .filter_map(|leaf| self.node(leaf).parent())
+                .collect();
+            let level = self.coarsen_many(&parents);
+            if level.is_empty() {
+                return steps;
+            }
+            steps.extend(level);
+        }
+    }
+
     /// Whether a neighbour splits either half of the parent's edge `k` (held by the red corner
     /// children `k` and `k + 1`, see `refine::red_children`).
     fn half_edges_split(&self, first_child: NodeId, k: usize) -> bool {

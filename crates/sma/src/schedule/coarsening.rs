@@ -8,11 +8,12 @@
 //! leaf someone sees (a green closure in a visible neighbour undone), the viewer keeps the old
 //! leaves until the new ones are shaded, then swaps them in one update. The mesh keeps its
 //! midpoint vertices, so refining a region again reuses them and their cached samples, unless
-//! the memory budget is pressed (`schedule::memory`).
+//! the memory budget is pressed (`schedule::memory`). With a cache file, what this picks goes to
+//! the file instead, and loads again when seen (`schedule::persistence`, DESIGN.md §5).
 
 use std::collections::BTreeSet;
 
-use crate::mesh::{NodeId, RefinementStep, SubdivisionMesh};
+use crate::mesh::{RefinementStep, SubdivisionMesh};
 use crate::visible_set::VisibleSet;
 
 #[derive(Debug)]
@@ -53,16 +54,20 @@ impl Coarsening {
     /// Collapses, as far as conformity allows, the subdivision of every base triangle unseen for
     /// the set number of passes; returns the steps of all levels, for the pending groups.
     pub fn collapse_stale(&mut self, mesh: &mut SubdivisionMesh, pass: u64) -> Vec<RefinementStep> {
+        let stale = self.stale(pass);
+        self.collapse(mesh, stale)
+    }
+
+    /// The refined base triangles unseen for the set number of passes at `pass`.
+    pub fn stale(&self, pass: u64) -> Vec<u32> {
         if self.after_passes == 0 {
             return Vec::new();
         }
-        let stale: Vec<u32> = self
-            .refined
+        self.refined
             .iter()
             .copied()
             .filter(|&b| self.last_seen[b as usize] + self.after_passes <= pass)
-            .collect();
-        self.collapse(mesh, stale)
+            .collect()
     }
 
     /// Under the memory budget's pressure (`schedule::memory`): collapses the subdivision of the
@@ -75,18 +80,11 @@ impl Coarsening {
         pass: u64,
         share: f64,
     ) -> Vec<RefinementStep> {
-        let mut unseen: Vec<(u64, u32)> = self
-            .refined
-            .iter()
-            .map(|&b| (self.last_seen[b as usize], b))
-            .filter(|&(seen, _)| seen < pass)
-            .collect();
-        unseen.sort_unstable();
-        let take = ((unseen.len() as f64 * share).ceil() as usize).max(1);
+        let (unseen, take) = self.unseen_least_recent_first(pass, share, |_| true);
         // A base refined only by a neighbour's closure goes with that neighbour: chunks that
         // hold nothing to collapse alone are passed over.
         for chunk in unseen.chunks(take) {
-            let steps = self.collapse(mesh, chunk.iter().map(|&(_, b)| b).collect());
+            let steps = self.collapse(mesh, chunk.to_vec());
             if !steps.is_empty() {
                 self.pressed_in_vain = false;
                 return steps;
@@ -103,29 +101,63 @@ impl Coarsening {
 
     /// Collapses the subdivision of `stale` bases as far as conformity allows, every level.
     fn collapse(&mut self, mesh: &mut SubdivisionMesh, stale: Vec<u32>) -> Vec<RefinementStep> {
-        let mut steps = Vec::new();
-        loop {
-            // Each call undoes the deepest red splits whose children are all leaves; the level
-            // above becomes eligible in the next (coarsen_many skips green parents: their red
-            // neighbour's collapse undoes them).
-            let parents: Vec<NodeId> = stale
-                .iter()
-                .flat_map(|&b| mesh.leaves_of_base(b))
-                .filter_map(|leaf| mesh.node(leaf).parent())
-                .collect();
-            let level = mesh.coarsen_many(&parents);
-            if level.is_empty() {
-                break;
-            }
-            steps.extend(level);
-        }
-        // A base held by a neighbour's split that stays is kept, and tried again at later passes.
-        for b in stale {
+        let steps = mesh.collapse_bases(&stale);
+        self.collapsed(mesh, &stale);
+        steps
+    }
+
+    /// Forgets those of `bases` that are bare base triangles again. A base held by a
+    /// neighbour's split that stays is kept, and tried again at later passes.
+    pub fn collapsed(&mut self, mesh: &SubdivisionMesh, bases: &[u32]) {
+        for &b in bases {
             if mesh.leaves_of_base(b) == [b] {
                 self.refined.remove(&b);
             }
         }
-        steps
+    }
+
+    /// The `share` of refined base triangles in no view at `pass` that were seen least
+    /// recently (one at least) among those `eligible`, least recent first: what goes to the
+    /// cache file under the memory budget's pressure (`schedule::persistence`). Not empty: the
+    /// last pressed collapse is not in vain.
+    pub fn least_recent(
+        &mut self,
+        pass: u64,
+        share: f64,
+        eligible: impl Fn(u32) -> bool,
+    ) -> Vec<u32> {
+        let (mut unseen, take) = self.unseen_least_recent_first(pass, share, eligible);
+        unseen.truncate(take);
+        if !unseen.is_empty() {
+            self.pressed_in_vain = false;
+        }
+        unseen
+    }
+
+    /// The refined base triangles in no view at `pass` among those `eligible`, seen least
+    /// recently first, and how many make the `share` of them (one at least).
+    fn unseen_least_recent_first(
+        &self,
+        pass: u64,
+        share: f64,
+        eligible: impl Fn(u32) -> bool,
+    ) -> (Vec<u32>, usize) {
+        let mut unseen: Vec<(u64, u32)> = self
+            .refined
+            .iter()
+            .map(|&b| (self.last_seen[b as usize], b))
+            .filter(|&(seen, b)| seen < pass && eligible(b))
+            .collect();
+        unseen.sort_unstable();
+        let take = ((unseen.len() as f64 * share).ceil() as usize).max(1);
+        (unseen.into_iter().map(|(_, b)| b).collect(), take)
+    }
+
+    /// Whether base triangle `base` is in no view at `pass`.
+    pub fn unseen(&self, base: u32, pass: u64) -> bool {
+        self.last_seen
+            .get(base as usize)
+            .is_some_and(|&seen| seen < pass)
     }
 
     /// Base triangles holding subdivision.
@@ -137,6 +169,7 @@ impl Coarsening {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::NodeId;
     use crate::mesh::grid_mesh;
 
     /// Refines a few leaves of `bases` `levels` times over.

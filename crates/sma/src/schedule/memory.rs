@@ -9,13 +9,14 @@
 //! nodes are reused (`mesh::free_nodes`) and the node array's free end given back
 //! (`mesh::compact`), and the midpoint vertices and split edges no live node uses are freed for
 //! reuse; with nothing out of view left to collapse, the samples no current view shows are
-//! evicted. When the current views alone need more, refinement stops and the SMA says
+//! evicted. With a cache file, what is out of view goes to the file first (`persistence`). When the current views alone need more, refinement stops and the SMA says
 //! it is memory-bound (`Stats`; the log warns the first time).
 
 use std::collections::HashSet;
 
 use protocol::viewer_link::SmaMemory;
 
+use super::persistence::Eviction;
 use crate::mesh::fast_hash::FastHash;
 use crate::mesh::{MeshMemory, VertexId};
 use crate::viewer_link::ViewerId;
@@ -182,11 +183,12 @@ impl super::Schedule {
                 self.free_unused_midpoints();
             }
         }
-        let mut leaves_changed = self.refinement.coarsen_stale(&mut self.mesh, self.frame);
+        let mut leaves_changed = match self.stale_to_file() {
+            Some(changed) => changed,
+            None => self.refinement.coarsen_stale(&mut self.mesh, self.frame),
+        };
         if pressed {
-            leaves_changed |=
-                self.refinement
-                    .coarsen_pressed(&mut self.mesh, self.frame, PRESSED_COLLAPSE_SHARE);
+            leaves_changed |= self.relieve_pressure() == Some(true);
         }
         let cache_budget = self.memory.cache_budget(&self.memory_account());
         self.cache.set_budget_bytes(cache_budget);
@@ -209,12 +211,11 @@ impl super::Schedule {
             self.memory.set_bound(false, &account);
             return true;
         }
-        let share = PRESSED_COLLAPSE_SHARE;
-        if self
-            .refinement
-            .coarsen_pressed(&mut self.mesh, self.frame, share)
-        {
-            self.viewers.leaves_changed();
+        match self.relieve_pressure() {
+            // Subtrees wait for the cache file's commit: a later turn drops them.
+            None => return false,
+            Some(true) => self.viewers.leaves_changed(),
+            Some(false) => {}
         }
         if self.refinement.pressed_in_vain() && self.evict_unseen_for_round() {
             let account = self.memory_account();
@@ -231,6 +232,21 @@ impl super::Schedule {
             }
         }
         false
+    }
+
+    /// Frees what no view shows, seen least recently first: subtrees go to the cache file where
+    /// one takes them (`persistence`, DESIGN.md §5), else they are coarsened away. Whether the
+    /// leaves changed; None while subtrees wait for the file's commit.
+    fn relieve_pressure(&mut self) -> Option<bool> {
+        let share = PRESSED_COLLAPSE_SHARE;
+        match self.evict_to_file(share) {
+            Some(Eviction::Dropped) => Some(true),
+            Some(Eviction::Waiting) => None,
+            None => Some(
+                self.refinement
+                    .coarsen_pressed(&mut self.mesh, self.frame, share),
+            ),
+        }
     }
 
     /// Evicts cached samples that no view showed at the last pass, least recently seen first,

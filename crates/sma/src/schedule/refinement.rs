@@ -15,7 +15,7 @@ use super::viewers::Viewer;
 use crate::cache::ShadingCache;
 use crate::config::ScheduleConfig;
 use crate::criteria::{CriterionInput, LuminanceImage};
-use crate::mesh::{NodeId, SubdivisionMesh};
+use crate::mesh::{NodeId, RefinementStep, SubdivisionMesh};
 use crate::viewer_link::ViewerId;
 use crate::visibility::{LeafView, LuminancePass, Visibility};
 use protocol::renderer_link::Quality;
@@ -110,6 +110,44 @@ impl Refinement {
         );
         self.pending.add(steps);
         true
+    }
+
+    /// Under the memory budget's pressure with a cache file (`persistence`): the `share` of the
+    /// refined base triangles in no view, among those `eligible`, that were seen least recently.
+    pub fn least_recent_unseen(
+        &mut self,
+        frame: u64,
+        share: f64,
+        eligible: impl Fn(u32) -> bool,
+    ) -> Vec<u32> {
+        self.coarsening.least_recent(frame, share, eligible)
+    }
+
+    /// The refined base triangles no view has seen for the set number of passes, with a cache
+    /// file (`persistence`); not while refinement steps wait, as [`Self::coarsen_stale`].
+    pub fn stale(&self, frame: u64) -> Vec<u32> {
+        if !self.pending.is_empty() {
+            return Vec::new();
+        }
+        self.coarsening.stale(frame)
+    }
+
+    /// Whether no view saw base triangle `base` at `frame`.
+    pub fn unseen(&self, base: u32, frame: u64) -> bool {
+        self.coarsening.unseen(base, frame)
+    }
+
+    /// Subtrees the cache file brought back or took away: their steps wait in the pending
+    /// groups like a round's, and coarsening follows the base triangles they refined.
+    pub fn cache_file_steps(
+        &mut self,
+        mesh: &SubdivisionMesh,
+        steps: Vec<RefinementStep>,
+        left: &[u32],
+    ) {
+        self.coarsening.refined(mesh, &steps);
+        self.coarsening.collapsed(mesh, left);
+        self.pending.add(steps);
     }
 
     /// Whether the last coarsening under the memory budget's pressure found nothing out of view
