@@ -292,7 +292,7 @@ pub struct Cli {
     #[arg(long, default_value_t = defaults().schedule.display_error)]
     pub display_error: f32,
     /// While a viewer's camera rests, ask the renderers for its direct light per pixel and
-    /// forward it in tiles (on|off) [default: on, off under `--profile thesis`].
+    /// forward it in tiles (on|off) [default: off, and under `--profile thesis`].
     #[arg(long, value_parser = on_off)]
     pub per_pixel_direct: Option<bool>,
     /// The lights the per-pixel tiles trace (sun|sun-sky|all): only `all` replaces the

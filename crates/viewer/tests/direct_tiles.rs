@@ -25,12 +25,7 @@ fn half_direct_triangles() -> Vec<ShownTriangle> {
 
 /// A tile of one known direct radiance over `rect`, exact (no standard error).
 fn constant_tile(camera_seq: u64, rect: TileRect, rgb: [f32; 3]) -> ViewerTile {
-    ViewerTile {
-        camera_seq,
-        rect,
-        samples: 16,
-        pixels: vec![TilePixel::new(rgb, 0.0); rect.pixels()],
-    }
+    noisy_tile(camera_seq, rect, rgb, 0.0)
 }
 
 #[test]

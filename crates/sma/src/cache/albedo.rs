@@ -264,19 +264,7 @@ mod tests {
                 vertex,
                 side: Side::Front,
             };
-            cache.insert(
-                key,
-                CachedSample {
-                    parts,
-                    quality: Quality {
-                        paths: 16,
-                        bounces: Some(2),
-                    },
-                    view_dependent: false,
-                    eye: None,
-                    last_seen: 0,
-                },
-            );
+            cache.insert(key, diffuse_sample(parts));
             let shown = Vec3::from(cache.get(key).expect("cached").rgb());
             let albedo = Vec3::from(cache.albedos.at(vertex));
             let want = albedo * Vec3::new(3.0, 4.0, 5.0) + 0.25;
@@ -324,6 +312,20 @@ mod tests {
     /// A 4 m square (two triangles) whose texture coordinates are `8 × position + 0.25`: every
     /// vertex down to 1 m leaves sits on the centre of texel (0, 1) of the 2 × 2 texture
     /// `texels`, which repeats 8 times a metre, far finer than any leaf.
+    /// A diffuse sample of 16 paths with `parts`.
+    fn diffuse_sample(parts: SampleParts) -> CachedSample {
+        CachedSample {
+            parts,
+            quality: Quality {
+                paths: 16,
+                bounces: Some(2),
+            },
+            view_dependent: false,
+            eye: None,
+            last_seen: 0,
+        }
+    }
+
     fn square_textured_with(texels: [[u8; 3]; 4]) -> (Arc<Scene>, SubdivisionMesh) {
         use scene::settings::AlbedoRule;
         use scene::{DiffuseMap, Material, SceneBuilder, SceneSettings, Texture};
@@ -414,19 +416,7 @@ mod tests {
                 vertex: 0,
                 side: Side::Front,
             };
-            cache.insert(
-                key,
-                CachedSample {
-                    parts: SampleParts::direct_only([2.0; 3], 0.5),
-                    quality: Quality {
-                        paths: 16,
-                        bounces: Some(2),
-                    },
-                    view_dependent: false,
-                    eye: None,
-                    last_seen: 0,
-                },
-            );
+            cache.insert(key, diffuse_sample(SampleParts::direct_only([2.0; 3], 0.5)));
             cache.estimate(key, None).expect("cached")
         };
         let bright = shown([WHITE; 4]);
