@@ -28,16 +28,21 @@ fn constant_tile(camera_seq: u64, rect: TileRect, rgb: [f32; 3]) -> ViewerTile {
     noisy_tile(camera_seq, rect, rgb, 0.0)
 }
 
+/// The drawing settings of these tests: the default tone map at their white point.
+fn tone_mapped() -> DrawSettings {
+    DrawSettings {
+        l_white: L_WHITE,
+        ..DrawSettings::default()
+    }
+}
+
 #[test]
 fn a_resting_viewer_draws_its_direct_tiles_and_a_camera_move_drops_them() {
     let Some(gpu) = gpu("a_resting_viewer_draws_its_direct_tiles_and_a_camera_move_drops_them")
     else {
         return;
     };
-    let settings = DrawSettings {
-        l_white: L_WHITE,
-        ..DrawSettings::default()
-    };
+    let settings = tone_mapped();
     let triangles = half_direct_triangles();
     let resting = front_camera(1, W, H);
     let mut direct = DirectImage::default();
@@ -231,10 +236,7 @@ fn a_noisy_tile_stands_in_only_where_the_vertices_are_wrong_beyond_its_noise() {
     else {
         return;
     };
-    let settings = DrawSettings {
-        l_white: L_WHITE,
-        ..DrawSettings::default()
-    };
+    let settings = tone_mapped();
     let triangles = half_direct_triangles();
     let camera = front_camera(1, W, H);
     let plain = render_offscreen_with(&gpu, &triangles, &camera, &settings).unwrap();
