@@ -244,6 +244,11 @@ pub struct AccuracyArgs {
     /// Do not write docs/bench/accuracy.md nor BENCHMARKS.md.
     #[arg(long)]
     pub no_report: bool,
+    /// The textured views of `--convergence` beside their untextured twins, into
+    /// docs/bench/textured.md (instead of the accuracy and headline sections); no per-pixel
+    /// competitors.
+    #[arg(long)]
+    pub textured: bool,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -485,10 +490,16 @@ impl AccuracyArgs {
             levels: self.levels,
             spp: self.spp,
             direct: self.direct,
-            per_pixel_spp: self.per_pixel_spp,
+            // The textured section compares the system with itself and the direct render.
+            per_pixel_spp: if self.textured {
+                vec![]
+            } else {
+                self.per_pixel_spp
+            },
             per_pixel_max_seconds: self.per_pixel_max_seconds,
-            denoise: !self.no_denoise,
+            denoise: !self.no_denoise && !self.textured,
             no_report: self.no_report,
+            textured: self.textured,
         }
     }
 }

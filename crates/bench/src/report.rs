@@ -18,12 +18,13 @@ const SECTIONS: &[Section] = &[
     ("farm", super::farm::section),
 ];
 
-/// Sections written by the long end-to-end benchmarks (`convergence`, `accuracy`, `cost`,
+/// Sections written by the long end-to-end benchmarks (`convergence`, `accuracy`, its `--textured`, `cost`,
 /// `mesh-options`, `walk`, `cache-file-revisit`) and from their runs (`reproduction`).
 const EXTERNAL_SECTIONS: &[&str] = &[
     "cache-file-revisit",
     "convergence",
     "accuracy",
+    "textured",
     "cost",
     "mesh-options",
     "reproduction",

@@ -14,6 +14,11 @@ use super::stats::median_seconds;
 
 /// The Sponza scene file, wherever the benchmark is started from.
 pub(crate) const SPONZA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/sponza.toml");
+/// The same with its textures on.
+pub(crate) const SPONZA_TEXTURED: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../scenes/sponza-textured.toml"
+);
 const TARGET_SECONDS: f64 = 0.5;
 
 pub fn section(quick: bool) -> anyhow::Result<String> {

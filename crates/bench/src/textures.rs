@@ -62,7 +62,6 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
     )?;
     write_wire(&mut md)?;
     let temp = tempfile::tempdir()?;
-    let sponza = arrival::sponza_textured(std::path::Path::new(super::scene::SPONZA), temp.path());
     let arrivals = [
         SceneArrival {
             label: wire::SCENE,
@@ -72,8 +71,8 @@ pub fn section(quick: bool) -> anyhow::Result<String> {
         SceneArrival {
             label: "Sponza (textures on)",
             judged: true,
-            arrival: sponza
-                .and_then(|toml| arrival::measure(&toml.to_string_lossy(), plan.runs, temp.path())),
+            arrival: arrival::sponza_textured()
+                .and_then(|toml| arrival::measure(toml, plan.runs, temp.path())),
         },
     ];
     write_arrivals(&mut md, &arrivals)?;

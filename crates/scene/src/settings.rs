@@ -57,9 +57,9 @@ pub struct SceneSettings {
 /// Diffuse textures (MTL `map_Kd`, DESIGN.md §5). Part of the scene's identity: the renderer,
 /// the SMA and the viewer must agree on them (the fingerprint and the handshake carry them).
 ///
-/// Off by default: the SMA shades mesh vertices only and the viewer does not yet multiply a
-/// texture in per pixel, so a texture would be point-sampled at the vertices and look blotchy.
-/// Off, `map_Kd` is checked but not read, and every material's albedo is its `Kd`.
+/// Off unless a scene file turns them on, so a file written before textures keeps the figures
+/// measured with it. Off, `map_Kd` is checked but not read, and every material's albedo is its
+/// `Kd`; on, the cache holds illumination and the viewer multiplies the texture in per pixel.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TextureSettings {

@@ -274,6 +274,7 @@ mod tests {
             per_pixel_max_seconds: 1.0,
             denoise: false,
             no_report: true,
+            textured: false,
         }
     }
 

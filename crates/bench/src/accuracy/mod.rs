@@ -20,6 +20,7 @@ pub(crate) mod direct;
 mod headline;
 mod per_pixel;
 mod targets;
+mod textured;
 
 use direct::Direct;
 use per_pixel::{PerPixel, PerPixelRecords};
@@ -47,6 +48,9 @@ pub struct AccuracyConfig {
     pub denoise: bool,
     /// Do not write docs/bench/accuracy.md nor BENCHMARKS.md.
     pub no_report: bool,
+    /// Write the textured views beside their untextured twins (`textured::SECTION`) instead of
+    /// the accuracy and headline sections.
+    pub textured: bool,
 }
 
 pub(crate) struct ViewResult {
@@ -95,6 +99,15 @@ pub fn run(args: AccuracyConfig) -> anyhow::Result<()> {
     // whether or not this run writes its section (`reproduction` reads them from there).
     direct::write_records(&args.convergence, &stored)?;
     per_pixel_stored.write(&args.convergence)?;
+    if args.textured {
+        let md = textured::section(&results);
+        print!("{md}");
+        if !args.no_report {
+            std::fs::write(textured::SECTION, &md)?;
+            crate::report::assemble(Path::new("BENCHMARKS.md"))?;
+        }
+        return Ok(());
+    }
     let md = section(&results, &args);
     print!("{md}");
     if !args.no_report {

@@ -13,7 +13,7 @@ use crate::convergence::tables::{PATH_LEVELS, millions};
 use crate::convergence::{BEST_NOISE_AWARE, RIVALS};
 
 /// The speed-up to this mean FLIP…
-const TARGET_FLIP: f64 = 0.1;
+pub(super) const TARGET_FLIP: f64 = 0.1;
 /// …at least this on every view…
 const SPEEDUP_EVERY_VIEW: f64 = 10.0;
 /// …and at least this on [`VIEWS_AT_TWENTY`] of them.
@@ -243,16 +243,18 @@ fn best_speedup(v: &ViewResult, judged: &[RunFigures]) -> Option<f64> {
 }
 
 /// What one run of the judged criterion shows.
-struct RunFigures {
+pub(super) struct RunFigures {
     busy: Option<f64>,
     cpu_share: Option<f64>,
-    flips: [Option<f64>; 3],
+    /// FLIP at [`PLATEAU_TIMES`]: 5, 20 and 60 s.
+    pub flips: [Option<f64>; 3],
     converged: bool,
-    time_to_target: Option<f64>,
+    /// Time to [`TARGET_FLIP`].
+    pub time_to_target: Option<f64>,
 }
 
 impl RunFigures {
-    fn of(v: &ViewResult, label: &str, rows: &[&Measurement]) -> RunFigures {
+    pub(super) fn of(v: &ViewResult, label: &str, rows: &[&Measurement]) -> RunFigures {
         RunFigures {
             busy: min_window_busy(rows),
             cpu_share: renderer_cpu_share(v, label, rows),
@@ -264,7 +266,7 @@ impl RunFigures {
 }
 
 /// The median of the values present (`None` when there is none).
-fn median_of(values: impl Iterator<Item = Option<f64>>) -> Option<f64> {
+pub(super) fn median_of(values: impl Iterator<Item = Option<f64>>) -> Option<f64> {
     let present: Vec<f64> = values.flatten().collect();
     (!present.is_empty()).then(|| crate::stats::median(present))
 }
@@ -305,7 +307,7 @@ fn equal_paths(rows: &[Measurement]) -> (bool, String) {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::super::Direct;
     use super::*;
     use crate::convergence::manifest::ViewRecord;
@@ -313,7 +315,7 @@ mod tests {
     use testkit::loopback::CpuShares;
 
     /// A run of `criterion` with one snapshot a second: FLIP from `flip(t)`, busy `busy(t)`.
-    fn run(
+    pub(in crate::accuracy) fn run(
         criterion: &str,
         seconds: u32,
         flip: impl Fn(f64) -> f64,
@@ -332,7 +334,12 @@ mod tests {
     }
 
     /// The renderer computed for `share` of the cores over a 60-s run.
-    fn view(name: &str, direct_seconds: f64, rows: Vec<Measurement>, share: f64) -> ViewResult {
+    pub(in crate::accuracy) fn view(
+        name: &str,
+        direct_seconds: f64,
+        rows: Vec<Measurement>,
+        share: f64,
+    ) -> ViewResult {
         let cores = std::thread::available_parallelism().unwrap().get() as f64;
         let cpu = CpuShares {
             wall_s: 60.0,
