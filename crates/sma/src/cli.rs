@@ -269,6 +269,10 @@ pub struct Cli {
     /// diagonal; it shrinks as paths^(-1/4).
     #[arg(long, value_parser = fraction, default_value_t = f64::from(defaults().schedule.indirect_filter.radius))]
     pub indirect_filter_radius: f64,
+    /// When above 0, the indirect filter's radius at 64 paths is also at most this many times
+    /// the longest edge of the finest visible leaf at the vertex.
+    #[arg(long, default_value_t = f64::from(defaults().schedule.indirect_filter.leaf_radius))]
+    pub indirect_filter_leaf_radius: f64,
     /// The quality ladder's last rung: samples get paths by fours past the scene's quality
     /// while the viewer rests, up to this many paths each.
     #[arg(long, default_value_t = defaults().schedule.max_paths)]
@@ -487,6 +491,7 @@ impl Cli {
             merge_uniform: defaults().schedule.merge_uniform,
             indirect_filter: IndirectFilterSettings {
                 radius: self.indirect_filter_radius as f32,
+                leaf_radius: self.indirect_filter_leaf_radius.max(0.0) as f32,
                 ..defaults().schedule.indirect_filter
             },
             seed: self.seed,

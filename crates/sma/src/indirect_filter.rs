@@ -58,6 +58,11 @@ pub struct IndirectFilterSettings {
     /// The radius at [`REFERENCE_PATHS`] paths, as a fraction of the scene's bounding-box
     /// diagonal.
     pub radius: f32,
+    /// When above 0, the radius at [`REFERENCE_PATHS`] paths is also at most this many times
+    /// the longest edge of the finest visible leaf at the vertex: the mesh is refined where
+    /// shading varies, so the radius follows it (a hundredth of a town's diagonal is metres,
+    /// of a courtyard's decimetres).
+    pub leaf_radius: f32,
     /// Least cosine between two samples' shown normals for one to borrow from the other.
     pub min_normal_cos: f32,
 }
@@ -75,6 +80,7 @@ impl Default for IndirectFilterSettings {
             // wall, well within the range over which its indirect light is smooth. Not a
             // measured optimum: the noise test keeps a larger one from blurring.
             radius: 0.01,
+            leaf_radius: 0.0,
             // Within about 18°: a crease or a corner is not filtered across.
             min_normal_cos: 0.95,
         }
@@ -85,10 +91,20 @@ impl Default for IndirectFilterSettings {
 pub const REFERENCE_PATHS: f32 = 64.0;
 
 /// The radius for a sample of `paths` paths, in scene units (`diagonal`: the scene's bounding-box
-/// diagonal): shrinking as paths^(-1/4).
-pub fn radius_at(settings: &IndirectFilterSettings, diagonal: f32, paths: u32) -> f32 {
+/// diagonal; `leaf_edge`: the longest edge of the finest visible leaf at the vertex): shrinking
+/// as paths^(-1/4).
+pub fn radius_at(
+    settings: &IndirectFilterSettings,
+    diagonal: f32,
+    leaf_edge: f32,
+    paths: u32,
+) -> f32 {
     let paths = (paths.max(1)) as f32;
-    settings.radius * diagonal * (REFERENCE_PATHS / paths).powf(0.25)
+    let mut reach = settings.radius * diagonal;
+    if settings.leaf_radius > 0.0 {
+        reach = reach.min(settings.leaf_radius * leaf_edge);
+    }
+    reach * (REFERENCE_PATHS / paths).powf(0.25)
 }
 
 /// A sample the filter reads: where it is, which way it faces, its indirect part.
@@ -104,6 +120,8 @@ struct Candidate {
     mean_variance: f32,
     paths: u32,
     depth: Depth,
+    /// Its radius ([`radius_at`]).
+    radius: f32,
 }
 
 /// The filter, with what it keeps from pass to pass: the scene's diagonal, and its buffers.
@@ -119,6 +137,8 @@ pub struct IndirectFilter {
     cells: HashMap<u64, (u32, u32), FastHash>,
     /// Which (vertex, side) slots `gather` has taken, by `2 vertex + side`.
     taken: Vec<bool>,
+    /// By slot, the longest edge of the finest visible leaf there (with a leaf radius only).
+    leaf_edge: Vec<f32>,
     /// When the next run may start ([`IndirectFilter::ready`]).
     next_run: Option<Instant>,
 }
@@ -202,14 +222,29 @@ impl IndirectFilter {
         self.candidates.clear();
         self.taken.clear();
         self.taken.resize(2 * mesh.vertex_count(), false);
+        let by_leaf = self.settings.leaf_radius > 0.0;
+        self.leaf_edge.clear();
+        if by_leaf {
+            self.leaf_edge
+                .resize(2 * mesh.vertex_count(), f32::INFINITY);
+        }
         for view in views {
             for v in &view.leaves {
-                for vertex in mesh.node(v.leaf).vertices {
+                let corners = mesh.node(v.leaf).vertices;
+                let edge = if by_leaf {
+                    longest_edge(mesh, corners)
+                } else {
+                    0.0
+                };
+                for vertex in corners {
                     let key = SampleKey {
                         vertex,
                         side: v.side,
                     };
-                    let slot = 2 * vertex as usize + usize::from(v.side == Side::Back);
+                    let slot = slot_of(key);
+                    if by_leaf {
+                        self.leaf_edge[slot] = self.leaf_edge[slot].min(edge);
+                    }
                     if std::mem::replace(&mut self.taken[slot], true) {
                         continue;
                     }
@@ -219,16 +254,15 @@ impl IndirectFilter {
                 }
             }
         }
+        for c in &mut self.candidates {
+            let edge = self.leaf_edge.get(slot_of(c.key)).copied().unwrap_or(0.0);
+            c.radius = radius_at(&self.settings, self.diagonal, edge, c.paths);
+        }
     }
 
-    /// The largest radius in use: that of the sample of fewest paths.
+    /// The largest radius in use.
     fn cell_size(&self) -> f32 {
-        let largest = self
-            .candidates
-            .iter()
-            .map(|c| c.paths)
-            .min()
-            .map_or(0.0, |p| radius_at(&self.settings, self.diagonal, p));
+        let largest = self.candidates.iter().map(|c| c.radius).fold(0.0, f32::max);
         largest.max(f32::MIN_POSITIVE)
     }
 
@@ -275,7 +309,7 @@ impl IndirectFilter {
     /// Candidate `i`'s shown indirect part, and how many neighbours it borrowed from.
     fn filtered(&self, i: usize) -> (PartEstimate, usize) {
         let me = &self.candidates[i];
-        let radius = radius_at(&self.settings, self.diagonal, me.paths);
+        let radius = me.radius;
         let centre = self.cell_of(me.position, self.cell_size);
         let mut sum = WeightedSum::default();
         sum.add(me);
@@ -314,7 +348,20 @@ impl IndirectFilter {
     }
 }
 
-/// The filter's view of one cached sample, if it is one to filter.
+/// A (vertex, side) slot's index in the filter's per-slot tables.
+fn slot_of(key: SampleKey) -> usize {
+    2 * key.vertex as usize + usize::from(key.side == Side::Back)
+}
+
+/// The longest edge of the triangle of `corners`.
+fn longest_edge(mesh: &SubdivisionMesh, corners: [u32; 3]) -> f32 {
+    let p = corners.map(|v| mesh.vertex(v).position);
+    p[0].distance(p[1])
+        .max(p[1].distance(p[2]))
+        .max(p[2].distance(p[0]))
+}
+
+/// The filter's view of one cached sample, if it is one to filter; its radius is set later.
 fn candidate(mesh: &SubdivisionMesh, cache: &ShadingCache, key: SampleKey) -> Option<Candidate> {
     let (estimate, view_dependent): (Estimate, bool) = cache.answered(key)?;
     if view_dependent || estimate.paths < 2 {
@@ -331,6 +378,7 @@ fn candidate(mesh: &SubdivisionMesh, cache: &ShadingCache, key: SampleKey) -> Op
         mean_variance: indirect.luminance_variance / estimate.paths as f32,
         paths: estimate.paths,
         depth: estimate.depth,
+        radius: 0.0,
     })
 }
 

@@ -234,10 +234,10 @@ fn the_radius_shrinks_as_paths_are_added_and_the_estimate_becomes_the_vertexs_ow
     let s = settings();
     let radii: Vec<f32> = [16, 64, 256, 1024, 1 << 16]
         .iter()
-        .map(|&paths| radius_at(&s, 10.0, paths))
+        .map(|&paths| radius_at(&s, 10.0, 0.0, paths))
         .collect();
     assert!(radii.windows(2).all(|w| w[1] < w[0]), "{radii:?}");
-    assert!((radius_at(&s, 10.0, 64) - s.radius * 10.0).abs() < 1e-6);
+    assert!((radius_at(&s, 10.0, 0.0, 64) - s.radius * 10.0).abs() < 1e-6);
     let mesh = SubdivisionMesh::new(&grid_mesh(N), MeshParams::default());
     // The same noisy patch at ever more paths (a smaller error, claimed and actual, with the
     // same pattern of noise).
@@ -261,6 +261,49 @@ fn the_radius_shrinks_as_paths_are_added_and_the_estimate_becomes_the_vertexs_ow
     assert!(at_4096 <= at_64);
     assert_eq!(at_many, 0, "a radius below one grid cell borrows nothing");
     assert!(own_many, "the filtered estimate is the vertex's own");
+}
+
+/// With a leaf radius, a vertex among fine leaves borrows only from near ones, while one among
+/// coarse leaves reaches as far as the scene's radius lets it.
+#[test]
+fn a_leaf_radius_follows_the_leaves_around_the_vertex() {
+    let s = IndirectFilterSettings {
+        leaf_radius: 2.0,
+        ..settings()
+    };
+    let diagonal = N as f32 * std::f32::consts::SQRT_2;
+    // Coarse leaves (edges of 4): the scene's 2.5 cells are the smaller bound.
+    assert!((radius_at(&s, diagonal, 4.0, 64) - 2.5).abs() < 1e-4);
+    // Fine ones (edges of 0.5): twice that, shrinking with the paths as the other does.
+    assert!((radius_at(&s, diagonal, 0.5, 64) - 1.0).abs() < 1e-6);
+    assert!((radius_at(&s, diagonal, 0.5, 1024) - 0.5).abs() < 1e-6);
+    // On the unit grid (longest leaf edge √2) at 64 paths, 1.5 leaf edges are 2.12 cells,
+    // against 2.5 by the scene: fewer neighbours than without the bound (those √5 away are
+    // left out), but some.
+    let mesh = SubdivisionMesh::new(&grid_mesh(N), MeshParams::default());
+    let noisy = |settings| {
+        let mut cache = shade(&mesh, |v, _| {
+            sample(0.0, 0.5 + (v % 3) as f32 * 0.01, 0.05, 64)
+        });
+        filter(settings, &mesh, &mut cache)
+    };
+    let (by_scene, by_leaves) = (
+        noisy(settings()),
+        noisy(IndirectFilterSettings {
+            leaf_radius: 1.5,
+            ..settings()
+        }),
+    );
+    let tight = noisy(IndirectFilterSettings {
+        leaf_radius: 0.5,
+        ..settings()
+    });
+    assert!(by_leaves.neighbours > 0, "{by_leaves:?}");
+    assert!(
+        by_leaves.neighbours < by_scene.neighbours,
+        "{by_leaves:?} {by_scene:?}"
+    );
+    assert_eq!(tight.borrowed, 0, "a radius under one cell borrows nothing");
 }
 
 #[test]
