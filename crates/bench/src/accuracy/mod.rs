@@ -100,7 +100,7 @@ pub fn run(args: AccuracyConfig) -> anyhow::Result<()> {
     direct::write_records(&args.convergence, &stored)?;
     per_pixel_stored.write(&args.convergence)?;
     if args.textured {
-        let md = textured::section(&results);
+        let md = textured::section(&results, &args.convergence);
         print!("{md}");
         if !args.no_report {
             std::fs::write(textured::SECTION, &md)?;

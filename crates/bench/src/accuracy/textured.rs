@@ -6,6 +6,7 @@
 //! against the direct 64-spp render of the textured scene.
 
 use std::fmt::Write as _;
+use std::path::Path;
 
 use super::ViewResult;
 use super::targets::{self, RunFigures, TARGET_FLIP, median_of};
@@ -50,8 +51,9 @@ impl Figures {
     }
 }
 
-/// The section: the twins' table and its verdicts, then the textured views' own targets.
-pub(super) fn section(results: &[ViewResult]) -> String {
+/// The section: the twins' table and its verdicts, the strips of both (from `folder`, the
+/// convergence runs' output), then the textured views' own targets.
+pub(super) fn section(results: &[ViewResult], folder: &Path) -> String {
     let today: Vec<&ViewResult> = results
         .iter()
         .filter(|v| v.record.profile == Profile::Today)
@@ -130,6 +132,7 @@ pub(super) fn section(results: &[ViewResult]) -> String {
         verdict(faster),
         verdict(no_higher)
     );
+    write_strips(&mut md, &today, folder);
     md.push_str("#### The textured views' end-to-end targets\n\n");
     md.push_str(
         "As in \"accuracy\", against the direct 64-spp render of the textured scene (its time \
@@ -138,6 +141,31 @@ pub(super) fn section(results: &[ViewResult]) -> String {
     );
     md.push_str(&targets::section(&textured));
     md
+}
+
+/// Each view's strip of snapshots (its first run), textured and untextured one after the other.
+fn write_strips(md: &mut String, views: &[&ViewResult], folder: &Path) {
+    let mut strips: Vec<(String, String)> = views
+        .iter()
+        .map(|v| {
+            let plain = v.record.label.trim_end_matches(TEXTURED);
+            let untextured = u8::from(plain == v.record.label);
+            let order = format!("{plain} {} {untextured}", v.record.view);
+            (order, v.record.stem())
+        })
+        .collect();
+    strips.sort();
+    let mut shown = false;
+    for (_, stem) in strips {
+        let strip = folder.join(format!("{stem}-strip.png"));
+        if strip.is_file() {
+            if !shown {
+                md.push_str("Strips of snapshots, each view textured and then untextured:\n\n");
+                shown = true;
+            }
+            let _ = writeln!(md, "![{stem}]({})\n", strip.display());
+        }
+    }
 }
 
 #[cfg(test)]
@@ -174,7 +202,7 @@ mod tests {
             twin("sponza", "S3", &[0.3]),
             twin("sponza-textured", "S3", &[70.0, 70.0, 0.3]),
         ];
-        let md = section(&results);
+        let md = section(&results, Path::new("no such folder"));
         assert!(
             md.contains("| sponza S1 | 3 / 1 | 1.00 s / 1.00 s | 1.00× |"),
             "{md}"
@@ -202,11 +230,34 @@ mod tests {
 
     #[test]
     fn a_view_without_its_twin_is_shown_and_not_met() {
-        let md = section(&[twin("sponza-textured", "S1", &[0.2])]);
+        let md = section(
+            &[twin("sponza-textured", "S1", &[0.2])],
+            Path::new("no such folder"),
+        );
         assert!(
             md.contains("| sponza S1 | 1 / 0 | 1.00 s / not measured | — |"),
             "{md}"
         );
         assert!(md.contains("**missed** (0 of 1, 3 wanted)"), "{md}");
+    }
+
+    #[test]
+    fn strips_come_textured_then_untextured_where_they_were_written() {
+        let dir = tempfile::tempdir().unwrap();
+        for stem in ["sponza-S1", "sponza-textured-S1", "bracara-textured-MC"] {
+            std::fs::write(dir.path().join(format!("{stem}-strip.png")), b"png").unwrap();
+        }
+        let results = vec![
+            twin("sponza", "S1", &[0.2]),
+            twin("bracara", "MC", &[0.2]),
+            twin("sponza-textured", "S1", &[0.2]),
+            twin("bracara-textured", "MC", &[0.2]),
+        ];
+        let md = section(&results, dir.path());
+        let at = |stem: &str| md.find(&format!("![{stem}]")).unwrap_or(usize::MAX);
+        assert!(at("bracara-textured-MC") < at("sponza-textured-S1"), "{md}");
+        assert!(at("sponza-textured-S1") < at("sponza-S1"), "{md}");
+        assert!(at("sponza-S1") < usize::MAX, "{md}");
+        assert!(!md.contains("![bracara-MC]"), "no file, no link: {md}");
     }
 }
