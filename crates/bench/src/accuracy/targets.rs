@@ -226,13 +226,7 @@ fn renderer_cpu_share(v: &ViewResult, run: &str, rows: &[&Measurement]) -> Optio
 /// The best speed-up to [`TARGET_FLIP`] over the view's criteria (for the judged one, from the
 /// median time over its runs), `None` when none reaches it.
 fn best_speedup(v: &ViewResult, judged: &[RunFigures]) -> Option<f64> {
-    // A run that never reaches the level counts as the slowest, not as missing.
-    let judged_time = median_of(
-        judged
-            .iter()
-            .map(|r| Some(r.time_to_target.unwrap_or(f64::INFINITY))),
-    )
-    .filter(|t| t.is_finite());
+    let judged_time = median_time_to_target(judged);
     run_labels(&v.rows)
         .iter()
         .filter(|l| l.as_str() != NO_REFINE && l.as_str() != BEST_NOISE_AWARE)
@@ -263,6 +257,15 @@ impl RunFigures {
             time_to_target: time_to_reach(rows, TARGET_FLIP),
         }
     }
+}
+
+/// The median time to [`TARGET_FLIP`] over `runs`: a run that never reaches it counts as the
+/// slowest, not as missing (`None` when most never do).
+pub(super) fn median_time_to_target(runs: &[RunFigures]) -> Option<f64> {
+    let slowest_if_never = runs
+        .iter()
+        .map(|r| Some(r.time_to_target.unwrap_or(f64::INFINITY)));
+    median_of(slowest_if_never).filter(|t| t.is_finite())
 }
 
 /// The median of the values present (`None` when there is none).

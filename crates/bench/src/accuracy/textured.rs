@@ -40,12 +40,9 @@ impl Figures {
             .iter()
             .map(|(label, rows)| RunFigures::of(v, label, rows))
             .collect();
-        let slowest_if_never = runs
-            .iter()
-            .map(|r| Some(r.time_to_target.unwrap_or(f64::INFINITY)));
         Figures {
             runs: runs.len(),
-            time: median_of(slowest_if_never).filter(|t| t.is_finite()),
+            time: targets::median_time_to_target(&runs),
             flip_60: median_of(runs.iter().map(|r| r.flips[2])),
         }
     }
