@@ -23,6 +23,7 @@ use crate::estimator::{path_radiance, shadow_rays};
 use crate::reference::jittered_ray;
 use crate::sampling::{Rng, stream};
 use crate::shade::PartSum;
+use crate::texture_lod::Footprint;
 use crate::world::{Surface, World};
 
 /// Depth 0: the first vertex's direct light only.
@@ -120,7 +121,7 @@ fn shadowed(
     rng: &mut Rng,
     counts: &mut RayCounts,
 ) -> Vec3 {
-    let bsdf = world.bsdf_at(s);
+    let bsdf = world.bsdf_at(s, Footprint::POINT);
     let origin = world.offset.origin(s.position, s.normal);
     let mut direct = Vec3::ZERO;
     shadow_rays(world, s, origin, wo, &bsdf, true, rng, |ray| {

@@ -15,6 +15,7 @@ use crate::bvh::Hit;
 use crate::counters::{RayCounts, RayKind};
 use crate::material::{Bsdf, BsdfSample, Lobes};
 use crate::sampling::{Rng, uniform2, uniform3};
+use crate::texture_lod::Footprint;
 use crate::wavefront::{Start, trace_paths};
 use crate::world::{Surface, World};
 use rand::RngExt;
@@ -126,11 +127,12 @@ impl Route {
     }
 
     /// How the surface at `s` scatters on this route: with a unit diffuse albedo at the first
-    /// vertex (`World::illumination_bsdf_at`), as it is further on.
-    pub(crate) fn bsdf_at(self, world: &World, s: &Surface) -> Bsdf {
+    /// vertex (`World::illumination_bsdf_at`), as it is further on, its texture read over the
+    /// path's `footprint` there.
+    pub(crate) fn bsdf_at(self, world: &World, s: &Surface, footprint: Footprint) -> Bsdf {
         match self {
             Route::FirstVertex => world.illumination_bsdf_at(s),
-            Route::Indirect | Route::ViewDependent => world.bsdf_at(s),
+            Route::Indirect | Route::ViewDependent => world.bsdf_at(s, footprint),
         }
     }
 }
@@ -206,8 +208,9 @@ pub(crate) fn path_radiance(
     let mut depth = Depth::START;
     let mut direction_u = first_bounce;
     let mut route = Route::FirstVertex;
+    let mut footprint = Footprint::POINT;
     for _ in 0..MAX_DEPTH {
-        let bsdf = &route.bsdf_at(world, &s);
+        let bsdf = &route.bsdf_at(world, &s, footprint);
         let origin = world.offset.origin(s.position, s.normal);
         let u = direction_u.take().unwrap_or_else(|| uniform2(rng));
         let next = continuation(world, bsdf, &s, wo, max_bounces, depth, throughput, u, rng);
@@ -223,6 +226,7 @@ pub(crate) fn path_radiance(
         };
         throughput = next_throughput;
         let hit = world.trace(origin, sample.dir, sample.kind, counts);
+        footprint = footprint.after(sample.kind, hit.map_or(0.0, |h| h.t));
         let arrived = arrive(world, origin, sample.dir, sample.kind, hit, depth);
         radiance.add_seen(route, sample.kind, throughput * arrived.seen);
         route = route.after(sample.kind);

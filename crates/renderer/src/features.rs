@@ -14,6 +14,7 @@ use rayon::prelude::*;
 use crate::counters::{RayCounts, RayKind};
 use crate::material::Specular;
 use crate::sampling::{stream, uniform2};
+use crate::texture_lod::Footprint;
 use crate::world::World;
 
 /// Camera rays per pixel for the features: their edges need antialiasing like the colour's, but
@@ -73,7 +74,7 @@ fn pixel_features(world: &World, camera: &Camera, x: u32, y: u32, key: u64) -> (
 }
 
 fn first_hit_albedo(world: &World, surface: &crate::world::Surface) -> Vec3 {
-    let bsdf = world.bsdf_at(surface);
+    let bsdf = world.bsdf_at(surface, Footprint::POINT);
     let ks = match bsdf.specular {
         Specular::None => Vec3::ZERO,
         Specular::Glossy { ks, .. } | Specular::Mirror { ks } => ks,

@@ -37,6 +37,7 @@ pub mod service;
 pub(crate) mod shade;
 pub(crate) mod strata;
 pub(crate) mod subnormals;
+pub(crate) mod texture_lod;
 pub mod vector_level;
 pub(crate) mod wavefront;
 #[cfg(target_arch = "x86_64")]

@@ -26,6 +26,7 @@ use crate::material::Lobes;
 use crate::ray_order::RayOrder;
 use crate::sampling::{Rng, uniform2};
 use crate::strata::Strata;
+use crate::texture_lod::Footprint;
 use crate::world::{Surface, World};
 
 /// Paths advanced together: the 64 paths of 64 points at the interactive quality. A wave's state
@@ -85,6 +86,8 @@ struct Wave {
     surface: Vec<Surface>,
     wo: Vec<Vec3>,
     depth: Vec<Depth>,
+    /// The width of the path's cone at its current vertex (`texture_lod`).
+    footprint: Vec<Footprint>,
     /// The first continuation's direction sample, until the first vertex takes it.
     first_bounce: Vec<Option<[f32; 2]>>,
 }
@@ -135,6 +138,7 @@ impl Wave {
         self.surface.push(start.surface);
         self.wo.push(start.wo);
         self.depth.push(Depth::START);
+        self.footprint.push(Footprint::POINT);
         self.first_bounce
             .push(start.strata.map(|s| s.point(start.first_index + k)));
     }
@@ -188,7 +192,7 @@ impl Wave {
         let i = p as usize;
         let (s, wo, throughput) = (self.surface[i], self.wo[i], self.throughput[i]);
         let rng = &mut rngs[self.stream[i] as usize];
-        let bsdf = &self.route[i].bsdf_at(world, &s);
+        let bsdf = &self.route[i].bsdf_at(world, &s, self.footprint[i]);
         let origin = world.offset.origin(s.position, s.normal);
         let u = self.first_bounce[i].take().unwrap_or_else(|| uniform2(rng));
         let next = continuation(
@@ -317,6 +321,7 @@ impl Wave {
             );
             let i = p as usize;
             let hit = world.trace(origin, dir, kind, counts);
+            self.footprint[i] = self.footprint[i].after(kind, hit.map_or(0.0, |h| h.t));
             let arrived = arrive(world, origin, dir, kind, hit, self.depth[i]);
             let route = self.route[i];
             self.radiance[i].add_seen(route, kind, self.throughput[i] * arrived.seen);
@@ -348,6 +353,7 @@ impl Wave {
         self.surface.clear();
         self.wo.clear();
         self.depth.clear();
+        self.footprint.clear();
         self.first_bounce.clear();
     }
 }

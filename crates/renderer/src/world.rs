@@ -24,6 +24,7 @@ use crate::material::Bsdf;
 use crate::offset::Offsetter;
 use crate::point::barycentrics;
 use crate::strata::FirstBounce;
+use crate::texture_lod::{Footprint, TextureLod};
 
 /// A point on a surface, on the side being shaded.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -53,6 +54,7 @@ pub struct World {
     /// answers are the same either way; docs/bench/renderer.md measures the cost.
     pub packets: bool,
     bsdfs: Vec<Bsdf>,
+    texture_lod: TextureLod,
     /// Unit counter-clockwise normal per triangle (zero for a degenerate one).
     face_normals: Vec<Vec3>,
     /// The world position of the local frame's origin.
@@ -88,6 +90,7 @@ impl World {
             .map(|t| scene.mesh.face_normal(t).normalize_or_zero())
             .collect();
         let bsdfs = scene.materials.iter().map(Bsdf::from_material).collect();
+        let texture_lod = TextureLod::new(&scene);
         World {
             offset: Offsetter::new(extent),
             extent,
@@ -97,6 +100,7 @@ impl World {
             bvh,
             lights,
             bsdfs,
+            texture_lod,
             face_normals,
             scene,
             origin,
@@ -132,9 +136,10 @@ impl World {
     }
 
     /// How the surface at `s` scatters: its material's, with the albedo read from the material's
-    /// texture at `s` where it has one (DESIGN.md §5), at every vertex of every path alike.
+    /// texture at `s` where it has one (DESIGN.md §5), prefiltered over a path's `footprint`
+    /// there (`texture_lod`).
     #[inline]
-    pub(crate) fn bsdf_at(&self, s: &Surface) -> Bsdf {
+    pub(crate) fn bsdf_at(&self, s: &Surface, footprint: Footprint) -> Bsdf {
         let t = s.triangle as usize;
         let material = self.scene.mesh.triangles[t].material as usize;
         let bsdf = self.bsdfs[material];
@@ -142,8 +147,11 @@ impl World {
             return bsdf;
         }
         let [a, b, c] = self.scene.mesh.triangle_positions(t);
+        let bary = barycentrics(s.position, a, b, c);
         Bsdf {
-            kd: self.scene.albedo_at(t, barycentrics(s.position, a, b, c)),
+            kd: self
+                .texture_lod
+                .albedo_at(&self.scene, t, bary, footprint.width()),
             ..bsdf
         }
     }
@@ -171,7 +179,7 @@ impl World {
     /// The diffuse albedo at `s`: the texel of its material's texture there, or its `Kd`. What
     /// the illumination of a path's first vertex is multiplied by (`PathParts::radiance`).
     pub fn albedo_at(&self, s: &Surface) -> Vec3 {
-        self.bsdf_at(s).kd
+        self.bsdf_at(s, Footprint::POINT).kd
     }
 
     pub fn face_normal(&self, triangle: u32) -> Vec3 {

@@ -1,6 +1,8 @@
 //! Diffuse textures in the path tracer (DESIGN.md §5): the albedo at every path vertex is read
 //! from the material's texture, in shading samples and reference images alike; a material
-//! without one is shaded exactly as before, and so is one whose texture is missing.
+//! without one is shaded exactly as before, and so is one whose texture is missing. Past a
+//! diffuse bounce the texture is read prefiltered over the path's cone (DESIGN.md §5, "Texture
+//! detail past the first vertex").
 
 mod common;
 
@@ -78,10 +80,14 @@ const MTL: &str = "newmtl textured\nKd 0.8 0.8 0.8\nmap_Kd blocks.png\n\
                    newmtl plain\nKd 0.3 0.5 0.7\n";
 
 fn load(toml: &str, mtl: &str, texture: Option<Vec<u8>>) -> Scene {
+    load_with_obj(OBJ, toml, mtl, texture)
+}
+
+fn load_with_obj(obj: &str, toml: &str, mtl: &str, texture: Option<Vec<u8>>) -> Scene {
     let dir = Path::new("s");
     let mut files: HashMap<PathBuf, Vec<u8>> = [
         ("t.toml", toml.as_bytes().to_vec()),
-        ("t.obj", OBJ.as_bytes().to_vec()),
+        ("t.obj", obj.as_bytes().to_vec()),
         ("m.mtl", mtl.as_bytes().to_vec()),
     ]
     .into_iter()
@@ -248,6 +254,83 @@ fn a_missing_texture_falls_back_to_kd() {
     let a = reference(&missing, "both", Some(2));
     let b = reference(&without_map, "both", Some(2));
     assert_eq!(a.pixels, b.pixels);
+}
+
+/// A 4 m floor under a 256 × 256 texture, and 2 m above it a 1 m plain board facing down, lit by
+/// the sun overhead: the board sees the floor only through a diffuse bounce.
+const BOARD_OVER_FLOOR: &str = "mtllib m.mtl
+v -2 0 -2
+v 2 0 -2
+v 2 0 2
+v -2 0 2
+v -0.5 2 -0.5
+v 0.5 2 -0.5
+v 0.5 2 0.5
+v -0.5 2 0.5
+vt 0 1
+vt 1 1
+vt 1 0
+vt 0 0
+usemtl textured
+f 1/1 4/4 3/3
+f 1/1 3/3 2/2
+usemtl plain
+f 5 6 7
+f 5 7 8
+";
+
+/// The board's shading over a floor textured with `texels` (256 × 256, row by row).
+fn board_shading(texels: &[[u8; 3]]) -> (Vec3, World) {
+    let mtl = "newmtl textured\nKd 1 1 1\nmap_Kd blocks.png\nnewmtl plain\nKd 0.5 0.5 0.5\n";
+    let scene = load_with_obj(
+        BOARD_OVER_FLOOR,
+        &toml("enabled = true"),
+        mtl,
+        Some(png(texels, 256, 256)),
+    );
+    let world = World::new(scene);
+    let p = point_hit_by(&world, Vec3::new(0.1, 1.0, 0.2), Vec3::Y);
+    let quality = Quality {
+        paths: 256,
+        bounces: Some(2),
+    };
+    let mut counts = RayCounts::default();
+    let rgb = shade_point(&world, &p, quality, &mut stream(3, 0), &mut counts).rgb;
+    (rgb, world)
+}
+
+#[test]
+fn past_a_diffuse_bounce_a_fine_checker_reads_as_its_mean() {
+    // Black and white texels 1.6 cm wide: a floor vertex reached from the board, 2 m away or
+    // more, stands for a cone some 6 cm wide there, where the checker is read as its mean.
+    let checker: Vec<[u8; 3]> = (0..256 * 256)
+        .map(|i| {
+            if (i % 256 + i / 256) % 2 == 0 {
+                [0; 3]
+            } else {
+                [255; 3]
+            }
+        })
+        .collect();
+    // The code of linear 0.5, the checker's mean as its prefiltered levels store it.
+    let mean = [188; 3];
+    let (through_checker, world) = board_shading(&checker);
+    let (through_uniform, _) = board_shading(&vec![mean; 256 * 256]);
+    assert!(through_checker.min_element() > 0.0);
+    // The same paths, and at every floor vertex the same albedo: the same estimate exactly.
+    // Read texel by texel, each path would see black or white and the two would differ by the
+    // estimate's noise, several per cent at 256 paths.
+    assert_eq!(through_checker, through_uniform);
+    // Seen directly, the floor keeps its texels.
+    // Near two neighbouring texels' centres (one texel is 4 m / 256), read bilinearly.
+    let texel = 4.0 / 256.0;
+    let floor = |x: f32| {
+        let p = point_hit_by(&world, Vec3::new(x, 1.0, 0.5 * texel), Vec3::NEG_Y);
+        let s = renderer::point::surface_of(&world, &p).expect("on the floor");
+        world.albedo_at(&s)
+    };
+    let (a, b) = (floor(1.0 + 0.5 * texel), floor(1.0 + 1.5 * texel));
+    assert!((a - b).abs().min_element() > 0.75, "{a} beside {b}");
 }
 
 /// A renderer and an SMA whose textures differ are refused at the handshake: one with textures

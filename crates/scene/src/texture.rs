@@ -175,6 +175,22 @@ impl Texture {
         top.lerp(bottom, fy)
     }
 
+    /// The texture's mip chain below itself: each level half the previous one's size (at
+    /// least one texel a side), box-filtered in linear values, down to a single texel. What the
+    /// renderer reads past a diffuse bounce, where one path stands for a cone of directions
+    /// wider than a texel (`renderer::texture_lod`; README, "Textures").
+    pub fn mip_levels(&self) -> Vec<Texture> {
+        let mut levels: Vec<Texture> = Vec::new();
+        loop {
+            let above = levels.last().unwrap_or(self);
+            let longest = above.width.max(above.height);
+            if longest == 1 {
+                return levels;
+            }
+            levels.push(above.clone().capped(longest / 2).texture);
+        }
+    }
+
     /// The texture as a PNG file (8-bit RGB, the texels' own codes): what `scene export` writes,
     /// and, for a texture generated in code, the bytes its fingerprint hashes, so that the
     /// exported file reloads to the same scene. The encoding is deterministic.
@@ -263,9 +279,14 @@ impl DiffuseMap {
     /// The albedo at texture coordinates `uv` of a material of diffuse colour `kd`.
     #[inline]
     pub fn albedo(&self, kd: Vec3, uv: Vec2) -> Vec3 {
-        let texel = self
-            .texture
-            .lookup(uv * self.scale + self.offset, self.wrap);
+        self.albedo_from(&self.texture, kd, uv)
+    }
+
+    /// [`Self::albedo`] read from `texture`, one of this map's texture's mip levels
+    /// ([`Texture::mip_levels`]).
+    #[inline]
+    pub fn albedo_from(&self, texture: &Texture, kd: Vec3, uv: Vec2) -> Vec3 {
+        let texel = texture.lookup(uv * self.scale + self.offset, self.wrap);
         match self.rule {
             AlbedoRule::KdTimesTexture => kd * texel,
             AlbedoRule::Texture => texel,

@@ -177,6 +177,31 @@ fn a_texture_over_the_cap_is_box_filtered_in_linear_values() {
 }
 
 #[test]
+fn mip_levels_halve_down_to_one_texel_and_keep_the_mean() {
+    // 8 × 2 black and white stripes one texel wide: 4 × 1, 2 × 1, 1 × 1 below it.
+    let texels: Vec<[u8; 3]> = (0..16)
+        .map(|i| if i % 2 == 0 { [0; 3] } else { [255; 3] })
+        .collect();
+    let t = Texture::from_srgb8(8, 2, &texels);
+    let levels = t.mip_levels();
+    let sizes: Vec<(u32, u32)> = levels.iter().map(|l| (l.width(), l.height())).collect();
+    assert_eq!(sizes, [(4, 1), (2, 1), (1, 1)]);
+    // Every level is uniform at the stripes' linear mean (a quantisation step of the code).
+    for level in &levels {
+        assert!(
+            (level.mean() - t.mean()).abs().max_element() < 0.01,
+            "{level:?}"
+        );
+        assert_eq!(level.texel(0, 0), level.texel(level.width() - 1, 0));
+    }
+    assert!(
+        Texture::from_srgb8(1, 1, &[[9, 9, 9]])
+            .mip_levels()
+            .is_empty()
+    );
+}
+
+#[test]
 fn decoding_caps_the_longest_side_keeping_the_aspect() {
     let wide = MAX_TEXTURE_SIDE + 2;
     let texels = vec![[90, 90, 90]; wide as usize * 3];
