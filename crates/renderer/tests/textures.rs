@@ -40,28 +40,27 @@ fn png(texels: &[[u8; 3]], width: u32, height: u32) -> Vec<u8> {
     bytes.into_inner()
 }
 
-/// Two unit quads in the y = 0 plane, facing up: `textured` on x in 0..1 (u = x, v = 1 - z, so
+/// The vertices of two unit quads in the y = 0 plane, facing up: `textured` on x in 0..1 (u = x, v = 1 - z, so
 /// the image's top edge lies along z = 0) and `plain` on x in 1..2. Coplanar, they exchange no
 /// light. Viewpoints look straight down, with -z at the image's top: `textured` fills view
 /// `top`; `both` sees the two quads side by side.
-const OBJ: &str = "mtllib m.mtl
-v 0 0 0
+const OBJ: &str = "v 0 0 0
 v 1 0 0
 v 1 0 1
 v 0 0 1
 v 2 0 0
 v 2 0 1
-vt 0 1
-vt 1 1
-vt 1 0
-vt 0 0
-usemtl textured
-f 1/1 4/4 3/3
-f 1/1 3/3 2/2
-usemtl plain
-f 2 3 6
-f 2 6 5
 ";
+
+/// An OBJ of `vertices`, whose first four are a quad of material `textured` (texture
+/// coordinates (0, 1), (1, 1), (1, 0), (0, 0) at its corners in turn), and the faces
+/// `plain_faces` of material `plain`.
+fn obj(vertices: &str, plain_faces: &str) -> String {
+    format!(
+        "mtllib m.mtl\n{vertices}vt 0 1\nvt 1 1\nvt 1 0\nvt 0 0\n\
+         usemtl textured\nf 1/1 4/4 3/3\nf 1/1 3/3 2/2\nusemtl plain\n{plain_faces}"
+    )
+}
 
 fn toml(textures: &str) -> String {
     format!(
@@ -80,7 +79,7 @@ const MTL: &str = "newmtl textured\nKd 0.8 0.8 0.8\nmap_Kd blocks.png\n\
                    newmtl plain\nKd 0.3 0.5 0.7\n";
 
 fn load(toml: &str, mtl: &str, texture: Option<Vec<u8>>) -> Scene {
-    load_with_obj(OBJ, toml, mtl, texture)
+    load_with_obj(&obj(OBJ, "f 2 3 6\nf 2 6 5\n"), toml, mtl, texture)
 }
 
 fn load_with_obj(obj: &str, toml: &str, mtl: &str, texture: Option<Vec<u8>>) -> Scene {
@@ -256,10 +255,9 @@ fn a_missing_texture_falls_back_to_kd() {
     assert_eq!(a.pixels, b.pixels);
 }
 
-/// A 4 m floor under a 256 × 256 texture, and 2 m above it a 1 m plain board facing down, lit by
+/// The vertices of a 4 m floor under a 256 × 256 texture, and 2 m above it a 1 m plain board facing down, lit by
 /// the sun overhead: the board sees the floor only through a diffuse bounce.
-const BOARD_OVER_FLOOR: &str = "mtllib m.mtl
-v -2 0 -2
+const BOARD_OVER_FLOOR: &str = "v -2 0 -2
 v 2 0 -2
 v 2 0 2
 v -2 0 2
@@ -267,23 +265,13 @@ v -0.5 2 -0.5
 v 0.5 2 -0.5
 v 0.5 2 0.5
 v -0.5 2 0.5
-vt 0 1
-vt 1 1
-vt 1 0
-vt 0 0
-usemtl textured
-f 1/1 4/4 3/3
-f 1/1 3/3 2/2
-usemtl plain
-f 5 6 7
-f 5 7 8
 ";
 
 /// The board's shading over a floor textured with `texels` (256 × 256, row by row).
 fn board_shading(texels: &[[u8; 3]]) -> (Vec3, World) {
     let mtl = "newmtl textured\nKd 1 1 1\nmap_Kd blocks.png\nnewmtl plain\nKd 0.5 0.5 0.5\n";
     let scene = load_with_obj(
-        BOARD_OVER_FLOOR,
+        &obj(BOARD_OVER_FLOOR, "f 5 6 7\nf 5 7 8\n"),
         &toml("enabled = true"),
         mtl,
         Some(png(texels, 256, 256)),
