@@ -2,7 +2,8 @@
 //! --cache-file PATH` saves what it learnt, is killed, and a new SMA on the same file shows the
 //! same leaves, every one with its samples, before any renderer answers (there is none); a file
 //! of another scene is refused with one warning and set aside as `PATH.rejected`; a file another
-//! SMA holds is left alone with one warning, and the SMA serves without it. Needs a wgpu adapter
+//! SMA holds is left alone with one warning, and the SMA serves without it; a disk that fills
+//! during the saves costs the file its later saves, with one warning, and the view nothing. Needs a wgpu adapter
 //! for the SMA's visibility: without one the tests say so and return, unless
 //! `WALKTHROUGH_REQUIRE_GPU` is set.
 
@@ -13,7 +14,7 @@ use std::time::Duration;
 
 use protocol::viewer_link::ViewerToSma;
 use sma::visibility::Gpu;
-use testkit::child::{Server, start_renderer, start_sma, strings};
+use testkit::child::{Server, start_renderer, start_server, start_sma, strings};
 use testkit::gpu::gpu_or_skip;
 use testkit::probe::Probe;
 
@@ -22,6 +23,9 @@ const H: u32 = 192;
 const WAIT: Duration = Duration::from_secs(120);
 /// The SMA saves this often here, so a kill after a few periods finds everything saved.
 const SAVE_EVERY_S: &str = "0.5";
+/// The "full disk" of the capped SMA, in KiB. redb grows its file in steps: 4.3 MiB once it
+/// holds bracara's view VT refined at this size, 8.5 MiB once MC is added.
+const CAP_KIB: u64 = 6 * 1024;
 
 fn exe() -> &'static Path {
     Path::new(env!("CARGO_BIN_EXE_walkthrough"))
@@ -56,6 +60,22 @@ fn shown(probe: &Probe) -> BTreeSet<Vec<u32>> {
                 .collect()
         })
         .collect()
+}
+
+/// A view shown before a restart and after it: the first SMA's view was carried over from
+/// round to round, the second's is drawn afresh, so they differ by slivers on the rasteriser's
+/// sub-pixel grid (`visibility::carry_over`), never by more than a thousandth of the leaves here.
+fn assert_nearly_the_same_leaves(before: &BTreeSet<Vec<u32>>, after: &BTreeSet<Vec<u32>>) {
+    let (lost, new) = (
+        before.difference(after).count(),
+        after.difference(before).count(),
+    );
+    assert!(
+        lost + new <= before.len() / 1000,
+        "the same leaves as before the restart: {} before, {} after, {lost} lost, {new} new",
+        before.len(),
+        after.len()
+    );
 }
 
 fn count(text: &str, words: &str) -> usize {
@@ -112,20 +132,7 @@ async fn a_killed_sma_restarts_showing_what_it_had_saved_without_a_renderer() {
         restored.shown, restored.visible_leaves,
         "every visible leaf is shown, with its samples from the file:\n{log}"
     );
-    let after = shown(&probe);
-    let (lost, new) = (
-        before.difference(&after).count(),
-        after.difference(&before).count(),
-    );
-    // The first SMA's view was carried over from round to round, the second's is drawn afresh:
-    // they differ by slivers on the rasteriser's sub-pixel grid (`visibility::carry_over`),
-    // never by more than a thousandth of the leaves here.
-    assert!(
-        lost + new <= before.len() / 1000,
-        "the same leaves as before the kill: {} before, {} after, {lost} lost, {new} new",
-        before.len(),
-        after.len()
-    );
+    assert_nearly_the_same_leaves(&before, &shown(&probe));
     assert_eq!(count(&log, "cache file refused"), 0, "{log}");
 }
 
@@ -170,5 +177,108 @@ async fn a_held_file_is_left_alone_and_a_foreign_one_is_refused_and_renamed() {
     assert_eq!(
         epoch.shown, 0,
         "an empty cache: nothing to show without a renderer"
+    );
+}
+
+/// `walkthrough sma` as [`sma`] starts it, in a shell that first caps the size of any file it
+/// writes at `cap_kib` (`ulimit -f`) and ignores the signal a write past it raises: past the cap
+/// a write fails (EFBIG), as a write to a full disk does (ENOSPC).
+fn sma_with_file_cap(
+    scene: &str,
+    file: &Path,
+    renderers: &[SocketAddr],
+    log: &Path,
+    cap_kib: u64,
+) -> Server {
+    let script = format!("ulimit -f {cap_kib}; trap '' XFSZ; exec \"$0\" \"$@\"");
+    let mut args = strings(&["-c", &script, &exe().to_string_lossy(), "sma"]);
+    args.extend(strings(&["--scene", scene, "--listen", "127.0.0.1:0"]));
+    args.extend(strings(&[
+        "--stats-secs",
+        "60",
+        "--cache-file",
+        &file.to_string_lossy(),
+        "--cache-file-save-s",
+        SAVE_EVERY_S,
+    ]));
+    for renderer in renderers {
+        args.extend(["--renderer".to_string(), renderer.to_string()]);
+    }
+    start_server(Path::new("/bin/bash"), "sma", &args, Some(log))
+        .unwrap_or_else(|e| panic!("sma with its files capped: {e:#}"))
+}
+
+/// The disk fills while the SMA refines a second view: the save that no longer fits fails with
+/// one warning, the view goes on refining and shows every leaf, and the file keeps its last good
+/// commit, which a new SMA opens and shows from.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_full_disk_during_saves_costs_the_file_its_news_and_the_view_nothing() {
+    let Some(_gpu) = gpu_or_skip(Gpu::new()) else {
+        return;
+    };
+    const FAILED: &str = "saving the cache file failed";
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("bracara.redb");
+    let renderer = start_renderer(exe(), "bracara", Some(1), None).unwrap();
+    let capped = sma_with_file_cap(
+        "bracara",
+        &file,
+        &[renderer.addr],
+        &dir.path().join("capped.log"),
+        CAP_KIB,
+    );
+    let log = || capped.process.log_text();
+    let mut probe = Probe::connect(&capped.addr.to_string()).await.unwrap();
+    probe.view("VT", W, H).await.unwrap();
+    probe.until_converged(WAIT).await.unwrap();
+    // The saves catch up (no epoch ends the wait); the probe's table holds the last leaves.
+    let _ = probe.until(Duration::from_secs(4), |_| false).await;
+    let first_view = shown(&probe);
+    let saved = std::fs::metadata(&file).unwrap().len();
+    assert!(
+        saved <= CAP_KIB * 1024,
+        "the first view fits: {saved} bytes"
+    );
+    assert_eq!(count(&log(), FAILED), 0, "{}", log());
+
+    // The second view's saves no longer fit; the view carries on, every visible leaf shown.
+    let camera = probe.view("MC", W, H).await.unwrap();
+    let failed = probe
+        .until(WAIT, |e| {
+            e.camera_seq == camera.seq && count(&log(), FAILED) > 0
+        })
+        .await
+        .unwrap_or_else(|e| panic!("{e:#}\n{}", log()));
+    probe
+        .until(WAIT, |e| {
+            e.camera_seq == camera.seq && e.shown > failed.shown && e.shown == e.visible_leaves
+        })
+        .await
+        .unwrap_or_else(|e| panic!("{e:#}\n{}", log()));
+    assert_eq!(count(&log(), FAILED), 1, "one warning:\n{}", log());
+    assert_eq!(count(&log(), "panicked"), 0, "{}", log());
+    drop(probe);
+    drop(capped);
+
+    // The last good commit opens: the first view comes back, without a renderer. (Not every
+    // leaf of it: the second view's first saves, which fitted, hold base triangles it shares
+    // with the first, split further and waiting for samples.)
+    let second = sma("bracara", &file, &[], &dir.path().join("second.log"));
+    let mut probe = Probe::connect(&second.addr.to_string()).await.unwrap();
+    probe.send(ViewerToSma::Pause).await.unwrap();
+    let camera = probe.view("VT", W, H).await.unwrap();
+    let restored = probe
+        .until(WAIT, |e| e.camera_seq == camera.seq && e.shown > 0)
+        .await
+        .unwrap_or_else(|e| panic!("{e:#}\n{}", second.process.log_text()));
+    let log_text = second.process.log_text();
+    assert_eq!(count(&log_text, "cache file refused"), 0, "{log_text}");
+    assert_eq!(restored.samples, 0, "nothing traced: no renderer");
+    let back = shown(&probe);
+    let kept = back.intersection(&first_view).count();
+    assert!(
+        kept > 0,
+        "the first view's leaves come back: {kept} of {} shown",
+        back.len()
     );
 }

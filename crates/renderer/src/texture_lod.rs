@@ -58,14 +58,10 @@ impl Footprint {
     }
 }
 
-/// Every texture's mip chain, and how large a texel of it is on each triangle.
+/// Every texture's mip chain.
 pub(crate) struct TextureLod {
     /// Per material: its texture's levels below the full resolution (empty without a texture).
     levels: Vec<Vec<Texture>>,
-    /// Per triangle: the world-space side of one full-resolution texel on it (the square root
-    /// of the triangle's area over its texels); infinite without a texture or texture
-    /// coordinates that span an area, where every read stays at full resolution.
-    texel_side: Vec<f32>,
 }
 
 impl TextureLod {
@@ -79,18 +75,25 @@ impl TextureLod {
                     .map_or_else(Vec::new, |map| map.texture.mip_levels())
             })
             .collect();
-        let texel_side = (0..scene.mesh.triangles.len())
-            .map(|t| texel_side(scene, t))
-            .collect();
-        TextureLod { levels, texel_side }
+        TextureLod { levels }
     }
 
-    /// The level to read on triangle `t` under a footprint `width` wide: `None` for the full
-    /// resolution, else an index into the material's levels (the coarsest when past it).
-    pub(crate) fn level(&self, scene: &Scene, t: usize, width: f32) -> Option<usize> {
+    /// The level to read on triangle `t`, whose corners are at `corners`, under a footprint
+    /// `width` wide: `None` for the full resolution, else an index into the material's levels
+    /// (the coarsest when past it).
+    pub(crate) fn level(
+        &self,
+        scene: &Scene,
+        t: usize,
+        corners: [Vec3; 3],
+        width: f32,
+    ) -> Option<usize> {
         let levels = &self.levels[scene.mesh.triangles[t].material as usize];
-        let texels_across = width / self.texel_side[t];
-        if levels.is_empty() || texels_across.is_nan() || texels_across < 2.0 {
+        if levels.is_empty() || width <= 0.0 {
+            return None;
+        }
+        let texels_across = width / texel_side(scene, t, corners);
+        if texels_across.is_nan() || texels_across < 2.0 {
             return None;
         }
         // Level k (from 1) has texels 2^k wide: the one whose texels are as wide as the
@@ -99,31 +102,40 @@ impl TextureLod {
         Some(k.min(levels.len()) - 1)
     }
 
-    /// The diffuse albedo at barycentric weights `bary` of triangle `t`, read under a footprint
-    /// `width` wide.
-    pub(crate) fn albedo_at(&self, scene: &Scene, t: usize, bary: [f32; 2], width: f32) -> Vec3 {
+    /// The diffuse albedo at barycentric weights `bary` of triangle `t` (corners at `corners`),
+    /// read under a footprint `width` wide.
+    pub(crate) fn albedo_at(
+        &self,
+        scene: &Scene,
+        t: usize,
+        corners: [Vec3; 3],
+        bary: [f32; 2],
+        width: f32,
+    ) -> Vec3 {
         let material = scene.material_of(t);
-        let (Some(map), Some(k)) = (&material.diffuse_map, self.level(scene, t, width)) else {
+        let (Some(map), Some(k)) = (&material.diffuse_map, self.level(scene, t, corners, width))
+        else {
             return scene.albedo_at(t, bary);
         };
         let level = &self.levels[scene.mesh.triangles[t].material as usize][k];
-        map.albedo_from(level, material.kd, scene.texcoord_at(t, bary))
+        map.albedo_at_level(level, material.kd, scene.texcoord_at(t, bary))
     }
 }
 
-/// The world-space side of one texel of triangle `t`'s texture on it (see `texel_side`).
-fn texel_side(scene: &Scene, t: usize) -> f32 {
+/// The world-space side of one full-resolution texel of triangle `t`'s texture on it, whose
+/// corners are at `corners` (the square root of its area over the texels it covers): infinite
+/// without a texture or with texture coordinates that span no area, where every read stays at
+/// full resolution. Worked out at each read from the corners the hit has just loaded, rather
+/// than kept per triangle: a table would cost one more cache miss at every bounce vertex.
+fn texel_side(scene: &Scene, t: usize, [p, q, r]: [Vec3; 3]) -> f32 {
     let (Some(map), Some([a, b, c])) = (
         &scene.material_of(t).diffuse_map,
         scene.texcoords.get(t).copied(),
     ) else {
         return f32::INFINITY;
     };
-    let [p, q, r] = scene.mesh.triangle_positions(t);
-    let world_area = 0.5 * (q - p).cross(r - p).length();
-    let uv = |x: glam::Vec2| x * map.scale;
-    let (a, b, c) = (uv(a), uv(b), uv(c));
-    let uv_area = 0.5 * (b - a).perp_dot(c - a).abs();
+    let world_area = (q - p).cross(r - p).length();
+    let uv_area = (b - a).perp_dot(c - a).abs() * (map.scale.x * map.scale.y).abs();
     let texels = uv_area * map.texture.width() as f32 * map.texture.height() as f32;
     let side = (world_area / texels).sqrt();
     if side.is_finite() && side > 0.0 {

@@ -146,12 +146,13 @@ impl World {
         if self.scene.materials[material].diffuse_map.is_none() {
             return bsdf;
         }
-        let [a, b, c] = self.scene.mesh.triangle_positions(t);
+        let corners = self.scene.mesh.triangle_positions(t);
+        let [a, b, c] = corners;
         let bary = barycentrics(s.position, a, b, c);
         Bsdf {
             kd: self
                 .texture_lod
-                .albedo_at(&self.scene, t, bary, footprint.width()),
+                .albedo_at(&self.scene, t, corners, bary, footprint.width()),
             ..bsdf
         }
     }

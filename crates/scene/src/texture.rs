@@ -156,8 +156,14 @@ impl Texture {
     /// Texel (x, y) as linear RGB; (0, 0) is the image's top-left.
     #[inline]
     pub fn texel(&self, x: u32, y: u32) -> Vec3 {
+        self.texel_in(&LINEAR, x, y)
+    }
+
+    /// [`Self::texel`] with the sRGB-to-linear table already at hand (one look at the lazy
+    /// table per lookup, not per texel).
+    #[inline]
+    fn texel_in(&self, lin: &[f32; 256], x: u32, y: u32) -> Vec3 {
         let i = 3 * (y as usize * self.width as usize + x as usize);
-        let lin = &*LINEAR;
         Vec3::new(
             lin[self.srgb[i] as usize],
             lin[self.srgb[i + 1] as usize],
@@ -168,11 +174,25 @@ impl Texture {
     /// Bilinear lookup at texture coordinates `uv` (OBJ's: v grows up the image, so v = 1 is
     /// the top row), texel centres at half-integers. A non-finite coordinate reads as 0.
     pub fn lookup(&self, uv: Vec2, wrap: Wrap) -> Vec3 {
+        let lin = &*LINEAR;
         let (x0, x1, fx) = axis(uv.x, self.width, wrap);
         let (y0, y1, fy) = axis(1.0 - uv.y, self.height, wrap);
-        let top = self.texel(x0, y0).lerp(self.texel(x1, y0), fx);
-        let bottom = self.texel(x0, y1).lerp(self.texel(x1, y1), fx);
+        let top = self
+            .texel_in(lin, x0, y0)
+            .lerp(self.texel_in(lin, x1, y0), fx);
+        let bottom = self
+            .texel_in(lin, x0, y1)
+            .lerp(self.texel_in(lin, x1, y1), fx);
         top.lerp(bottom, fy)
+    }
+
+    /// The texel under texture coordinates `uv`, unfiltered: what a mip level is read with
+    /// past a diffuse bounce, where the level's texels are as wide as the path's cone and
+    /// blending neighbours would resolve nothing more (`renderer::texture_lod`).
+    pub fn nearest(&self, uv: Vec2, wrap: Wrap) -> Vec3 {
+        let x = axis_nearest(uv.x, self.width, wrap);
+        let y = axis_nearest(1.0 - uv.y, self.height, wrap);
+        self.texel(x, y)
     }
 
     /// The texture's mip chain below itself: each level half the previous one's size (at
@@ -221,28 +241,45 @@ impl Texture {
     }
 }
 
+/// A coordinate folded into 0..1 (repeating) or clamped there; a non-finite one reads as 0.
+#[inline]
+fn fold(t: f32, wrap: Wrap) -> f32 {
+    let t = if t.is_finite() { t } else { 0.0 };
+    match wrap {
+        // Exact: t and its floor are within a factor of two of each other, or the floor is 0
+        // (a far coordinate, u = 1e6, keeps whatever fraction f32 gave it). `rem_euclid` would
+        // call libm's fmodf at every lookup.
+        Wrap::Repeat => t - t.floor(),
+        Wrap::Clamp => t.clamp(0.0, 1.0),
+    }
+}
+
 /// The two texels a coordinate falls between along an axis of `size` texels, and the weight of
 /// the second.
 #[inline]
 fn axis(t: f32, size: u32, wrap: Wrap) -> (u32, u32, f32) {
-    let t = if t.is_finite() { t } else { 0.0 };
-    let n = size as f32;
+    let x = fold(t, wrap) * size as f32 - 0.5;
+    let base = x.floor();
+    // `x` lies in -0.5..=size - 0.5: `base` in -1..=size - 1.
+    let below = base < 0.0;
+    let i0 = if below {
+        size - 1
+    } else {
+        (base as u32).min(size - 1)
+    };
+    let f = (x - base).clamp(0.0, 1.0);
     match wrap {
-        Wrap::Repeat => {
-            // rem_euclid first keeps far coordinates (u = 1e6) from losing the fraction.
-            let x = t.rem_euclid(1.0) * n - 0.5;
-            let base = x.floor();
-            let i0 = (base as i64).rem_euclid(i64::from(size)) as u32;
-            let i1 = if i0 + 1 == size { 0 } else { i0 + 1 };
-            (i0, i1, (x - base).clamp(0.0, 1.0))
-        }
-        Wrap::Clamp => {
-            let x = (t.clamp(0.0, 1.0) * n - 0.5).clamp(0.0, n - 1.0);
-            let base = x.floor();
-            let i0 = base as u32;
-            (i0, (i0 + 1).min(size - 1), x - base)
-        }
+        Wrap::Repeat => (i0, if i0 + 1 == size { 0 } else { i0 + 1 }, f),
+        // Clamped, the edge texel's outer half reads the edge alone.
+        Wrap::Clamp if below => (0, 0, 0.0),
+        Wrap::Clamp => (i0, (i0 + 1).min(size - 1), f),
     }
+}
+
+/// The texel a coordinate falls in along an axis of `size` texels.
+#[inline]
+fn axis_nearest(t: f32, size: u32, wrap: Wrap) -> u32 {
+    ((fold(t, wrap) * size as f32) as u32).min(size - 1)
 }
 
 /// A material's `map_Kd` as the renderer reads it (DESIGN.md §5).
@@ -279,14 +316,24 @@ impl DiffuseMap {
     /// The albedo at texture coordinates `uv` of a material of diffuse colour `kd`.
     #[inline]
     pub fn albedo(&self, kd: Vec3, uv: Vec2) -> Vec3 {
-        self.albedo_from(&self.texture, kd, uv)
+        self.by_rule(kd, self.texture.lookup(self.placed(uv), self.wrap))
     }
 
-    /// [`Self::albedo`] read from `texture`, one of this map's texture's mip levels
-    /// ([`Texture::mip_levels`]).
+    /// [`Self::albedo`] read from `level`, one of this map's texture's mip levels
+    /// ([`Texture::mip_levels`]), at its nearest texel ([`Texture::nearest`]).
     #[inline]
-    pub fn albedo_from(&self, texture: &Texture, kd: Vec3, uv: Vec2) -> Vec3 {
-        let texel = texture.lookup(uv * self.scale + self.offset, self.wrap);
+    pub fn albedo_at_level(&self, level: &Texture, kd: Vec3, uv: Vec2) -> Vec3 {
+        self.by_rule(kd, level.nearest(self.placed(uv), self.wrap))
+    }
+
+    /// Texture coordinates `uv` as the map's `-s` and `-o` place them.
+    #[inline]
+    fn placed(&self, uv: Vec2) -> Vec2 {
+        uv * self.scale + self.offset
+    }
+
+    #[inline]
+    fn by_rule(&self, kd: Vec3, texel: Vec3) -> Vec3 {
         match self.rule {
             AlbedoRule::KdTimesTexture => kd * texel,
             AlbedoRule::Texture => texel,

@@ -55,6 +55,11 @@ fn squares(texture: Texture, uv_scale: f32) -> Scene {
     b.build().expect("valid test scene")
 }
 
+/// Triangle `t`'s corners.
+fn at(scene: &Scene, t: usize) -> [Vec3; 3] {
+    scene.mesh.triangle_positions(t)
+}
+
 #[test]
 fn a_diffuse_bounce_opens_the_cone_and_a_mirror_carries_it_on() {
     let point = Footprint::POINT;
@@ -73,17 +78,17 @@ fn the_level_is_the_one_whose_texels_are_as_wide_as_the_footprint() {
     let scene = squares(checker(), 1.0);
     let lod = TextureLod::new(&scene);
     let texel = 1.0 / 64.0;
-    assert!((lod.texel_side[0] - texel).abs() < 1e-6);
+    assert!((texel_side(&scene, 0, at(&scene, 0)) - texel).abs() < 1e-6);
     // Under two texels across: the full resolution.
     for width in [0.0, texel, 1.9 * texel] {
-        assert_eq!(lod.level(&scene, 0, width), None, "{width}");
+        assert_eq!(lod.level(&scene, 0, at(&scene, 0), width), None, "{width}");
     }
-    assert_eq!(lod.level(&scene, 0, 2.0 * texel), Some(0));
-    assert_eq!(lod.level(&scene, 0, 5.0 * texel), Some(1));
+    assert_eq!(lod.level(&scene, 0, at(&scene, 0), 2.0 * texel), Some(0));
+    assert_eq!(lod.level(&scene, 0, at(&scene, 0), 5.0 * texel), Some(1));
     // Past the whole texture, its single-texel level.
-    assert_eq!(lod.level(&scene, 0, 10.0), Some(5));
+    assert_eq!(lod.level(&scene, 0, at(&scene, 0), 10.0), Some(5));
     // A plain triangle is read at full resolution whatever the footprint.
-    assert_eq!(lod.level(&scene, 1, 10.0), None);
+    assert_eq!(lod.level(&scene, 1, at(&scene, 1), 10.0), None);
 }
 
 #[test]
@@ -92,9 +97,9 @@ fn a_wide_footprint_reads_the_checker_s_mean_and_a_point_its_texel() {
     let lod = TextureLod::new(&scene);
     let mean = checker().mean();
     for bary in [[0.3, 0.2], [0.51, 0.1], [0.05, 0.9]] {
-        let far = lod.albedo_at(&scene, 0, bary, 1.0);
+        let far = lod.albedo_at(&scene, 0, at(&scene, 0), bary, 1.0);
         assert!((far - mean).abs().max_element() < 0.01, "{far} vs {mean}");
-        let near = lod.albedo_at(&scene, 0, bary, 0.0);
+        let near = lod.albedo_at(&scene, 0, at(&scene, 0), bary, 0.0);
         assert_eq!(near, scene.albedo_at(0, bary));
     }
 }
@@ -104,6 +109,6 @@ fn texture_coordinates_that_span_no_area_stay_at_full_resolution() {
     // Every corner at one texel: the whole triangle reads it, never the checker's mean.
     let scene = squares(checker(), 0.0);
     let lod = TextureLod::new(&scene);
-    assert_eq!(lod.texel_side[0], f32::INFINITY);
-    assert_eq!(lod.level(&scene, 0, 100.0), None);
+    assert_eq!(texel_side(&scene, 0, at(&scene, 0)), f32::INFINITY);
+    assert_eq!(lod.level(&scene, 0, at(&scene, 0), 100.0), None);
 }

@@ -77,6 +77,22 @@ fn repeat_wraps_around_and_clamp_holds_the_edge() {
 }
 
 #[test]
+fn the_nearest_texel_is_the_one_under_the_coordinates_unblended() {
+    let t = quadrants();
+    // Red top-left, green top-right, blue bottom-left; v grows up the image.
+    for wrap in [Wrap::Repeat, Wrap::Clamp] {
+        assert_eq!(t.nearest(Vec2::new(0.01, 0.99), wrap), Vec3::X);
+        assert_eq!(t.nearest(Vec2::new(0.51, 0.51), wrap), Vec3::Y);
+        assert_eq!(t.nearest(Vec2::new(0.49, 0.49), wrap), Vec3::Z);
+    }
+    // Repeating, whole periods away and below zero; clamped, the edge.
+    assert_eq!(t.nearest(Vec2::new(-0.75, 3.75), Wrap::Repeat), Vec3::X);
+    assert_eq!(t.nearest(Vec2::new(1.75, -0.25), Wrap::Repeat), Vec3::Y);
+    assert_eq!(t.nearest(Vec2::new(-3.0, 7.0), Wrap::Clamp), Vec3::X);
+    assert_eq!(t.nearest(Vec2::new(f32::NAN, 1.0), Wrap::Repeat), Vec3::X);
+}
+
+#[test]
 fn the_mean_is_over_linear_values() {
     let t = Texture::from_srgb8(2, 1, &[[0, 0, 0], [255, 255, 255]]);
     assert!(t.mean().abs_diff_eq(Vec3::splat(0.5), 1e-7));
