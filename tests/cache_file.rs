@@ -23,9 +23,6 @@ const H: u32 = 192;
 const WAIT: Duration = Duration::from_secs(120);
 /// The SMA saves this often here, so a kill after a few periods finds everything saved.
 const SAVE_EVERY_S: &str = "0.5";
-/// The "full disk" of the capped SMA, in KiB. redb grows its file in steps: 4.3 MiB once it
-/// holds bracara's view VT refined at this size, 8.5 MiB once MC is added.
-const CAP_KIB: u64 = 6 * 1024;
 
 fn exe() -> &'static Path {
     Path::new(env!("CARGO_BIN_EXE_walkthrough"))
@@ -180,18 +177,17 @@ async fn a_held_file_is_left_alone_and_a_foreign_one_is_refused_and_renamed() {
     );
 }
 
-/// `walkthrough sma` as [`sma`] starts it, in a shell that first caps the size of any file it
-/// writes at `cap_kib` (`ulimit -f`) and ignores the signal a write past it raises: past the cap
-/// a write fails (EFBIG), as a write to a full disk does (ENOSPC).
-fn sma_with_file_cap(
+/// `walkthrough sma` as [`sma`] starts it, through a shell that makes it ignore SIGXFSZ: once
+/// its file size is capped (`Process::cap_file_size`), a write past the cap fails (EFBIG), as a
+/// write to a full disk does (ENOSPC), instead of ending the process.
+fn sma_ignoring_file_size_signals(
     scene: &str,
     file: &Path,
     renderers: &[SocketAddr],
     log: &Path,
-    cap_kib: u64,
 ) -> Server {
-    let script = format!("ulimit -f {cap_kib}; trap '' XFSZ; exec \"$0\" \"$@\"");
-    let mut args = strings(&["-c", &script, &exe().to_string_lossy(), "sma"]);
+    let script = "trap '' XFSZ; exec \"$0\" \"$@\"";
+    let mut args = strings(&["-c", script, &exe().to_string_lossy(), "sma"]);
     args.extend(strings(&["--scene", scene, "--listen", "127.0.0.1:0"]));
     args.extend(strings(&[
         "--stats-secs",
@@ -205,7 +201,7 @@ fn sma_with_file_cap(
         args.extend(["--renderer".to_string(), renderer.to_string()]);
     }
     start_server(Path::new("/bin/bash"), "sma", &args, Some(log))
-        .unwrap_or_else(|e| panic!("sma with its files capped: {e:#}"))
+        .unwrap_or_else(|e| panic!("sma ignoring SIGXFSZ: {e:#}"))
 }
 
 /// The disk fills while the SMA refines a second view: the save that no longer fits fails with
@@ -220,12 +216,11 @@ async fn a_full_disk_during_saves_costs_the_file_its_news_and_the_view_nothing()
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("bracara.redb");
     let renderer = start_renderer(exe(), "bracara", Some(1), None).unwrap();
-    let capped = sma_with_file_cap(
+    let capped = sma_ignoring_file_size_signals(
         "bracara",
         &file,
         &[renderer.addr],
         &dir.path().join("capped.log"),
-        CAP_KIB,
     );
     let log = || capped.process.log_text();
     let mut probe = Probe::connect(&capped.addr.to_string()).await.unwrap();
@@ -234,12 +229,10 @@ async fn a_full_disk_during_saves_costs_the_file_its_news_and_the_view_nothing()
     // The saves catch up (no epoch ends the wait); the probe's table holds the last leaves.
     let _ = probe.until(Duration::from_secs(4), |_| false).await;
     let first_view = shown(&probe);
-    let saved = std::fs::metadata(&file).unwrap().len();
-    assert!(
-        saved <= CAP_KIB * 1024,
-        "the first view fits: {saved} bytes"
-    );
     assert_eq!(count(&log(), FAILED), 0, "{}", log());
+    // The disk is full: the file may not grow past its size now.
+    let saved = std::fs::metadata(&file).unwrap().len();
+    capped.process.cap_file_size(saved).unwrap();
 
     // The second view's saves no longer fit; the view carries on, every visible leaf shown.
     let camera = probe.view("MC", W, H).await.unwrap();
@@ -256,6 +249,11 @@ async fn a_full_disk_during_saves_costs_the_file_its_news_and_the_view_nothing()
         .await
         .unwrap_or_else(|e| panic!("{e:#}\n{}", log()));
     assert_eq!(count(&log(), FAILED), 1, "one warning:\n{}", log());
+    let size = std::fs::metadata(&file).unwrap().len();
+    assert!(
+        size <= saved,
+        "the file grew past the full disk: {saved} → {size} bytes"
+    );
     assert_eq!(count(&log(), "panicked"), 0, "{}", log());
     drop(probe);
     drop(capped);

@@ -127,6 +127,32 @@ impl Process {
         }
     }
 
+    /// Caps the size of any file the child writes from now on at `bytes` (RLIMIT_FSIZE): a
+    /// write past it fails (EFBIG) as on a full disk, once the child ignores SIGXFSZ, whose
+    /// default action would end it. Linux only; an error elsewhere.
+    pub fn cap_file_size(&self, bytes: u64) -> anyhow::Result<()> {
+        let limit = libc::rlimit {
+            rlim_cur: bytes,
+            rlim_max: libc::RLIM_INFINITY,
+        };
+        // SAFETY: prlimit(2) on a child's pid, with a valid new limit and no old one asked for.
+        let done = unsafe {
+            libc::prlimit(
+                self.child.id() as libc::pid_t,
+                libc::RLIMIT_FSIZE,
+                &limit,
+                std::ptr::null_mut(),
+            )
+        };
+        anyhow::ensure!(
+            done == 0,
+            "capping {}'s file size: {}",
+            self.name,
+            std::io::Error::last_os_error()
+        );
+        Ok(())
+    }
+
     /// Keeps every thread of the child, and those it starts later, on CPU `cpu` alone: a host of
     /// its own for the farm benchmark on one machine. Linux only; an error elsewhere.
     pub fn pin_to_cpu(&self, cpu: usize) -> anyhow::Result<()> {
