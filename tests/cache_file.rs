@@ -31,19 +31,24 @@ fn exe() -> &'static Path {
 /// An SMA for `scene` keeping its cache in `file`, logging to `log`; without renderers, a port
 /// for them that none joins.
 fn sma(scene: &str, file: &Path, renderers: &[SocketAddr], log: &Path) -> Server {
-    let mut flags = strings(&[
+    let mut flags = cache_file_flags(file);
+    if renderers.is_empty() {
+        flags.extend(strings(&["--renderer-listen", "127.0.0.1:0"]));
+    }
+    start_sma(exe(), scene, renderers, &flags, Some(log))
+        .unwrap_or_else(|e| panic!("sma for {scene}: {e:#}"))
+}
+
+/// An SMA's flags for keeping its cache in `file`, saved every [`SAVE_EVERY_S`].
+fn cache_file_flags(file: &Path) -> Vec<String> {
+    strings(&[
         "--stats-secs",
         "60",
         "--cache-file",
         &file.to_string_lossy(),
         "--cache-file-save-s",
         SAVE_EVERY_S,
-    ]);
-    if renderers.is_empty() {
-        flags.extend(strings(&["--renderer-listen", "127.0.0.1:0"]));
-    }
-    start_sma(exe(), scene, renderers, &flags, Some(log))
-        .unwrap_or_else(|e| panic!("sma for {scene}: {e:#}"))
+    ])
 }
 
 /// The probe's shown triangles by their corners' bits: what a viewer shows, whatever the ids.
@@ -189,14 +194,7 @@ fn sma_ignoring_file_size_signals(
     let script = "trap '' XFSZ; exec \"$0\" \"$@\"";
     let mut args = strings(&["-c", script, &exe().to_string_lossy(), "sma"]);
     args.extend(strings(&["--scene", scene, "--listen", "127.0.0.1:0"]));
-    args.extend(strings(&[
-        "--stats-secs",
-        "60",
-        "--cache-file",
-        &file.to_string_lossy(),
-        "--cache-file-save-s",
-        SAVE_EVERY_S,
-    ]));
+    args.extend(cache_file_flags(file));
     for renderer in renderers {
         args.extend(["--renderer".to_string(), renderer.to_string()]);
     }
