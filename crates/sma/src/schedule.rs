@@ -439,7 +439,7 @@ impl Schedule {
 
     /// The viewers, the criteria and the stopping rule all read the filtered indirect part
     /// (`indirect_filter`): it is brought up to date before a sync, the paced step that shows
-    /// it, when its own pace allows (`IndirectFilter::ready`).
+    /// it, when its own pace allows (`IndirectFilter::ready`); until then the sync stays owed.
     fn sync_viewers(&mut self) {
         if self.filter_due && self.indirect_filter.ready(Instant::now()) {
             self.filter_due = false;
@@ -451,13 +451,18 @@ impl Schedule {
             cache: &self.cache,
             pending: &self.refinement.pending,
             outstanding_requests: self.requests.outstanding() as u64,
+            filter_owed: self.filter_due,
             samples: self.counters.samples,
             paths: self.counters.paths,
         };
         for viewer in self.viewers.iter_mut() {
             viewer.sync(&input);
         }
-        self.owed.synced();
+        // A filter run put off by its pace keeps the sync owed: the next one, at the sync's own
+        // pace, runs it and shows what it changed, and only then is the picture idle.
+        if !self.filter_due {
+            self.owed.synced();
+        }
     }
 
     /// Keeps each renderer holding `batches_per_renderer` batches, and the pool's backlog

@@ -57,6 +57,9 @@ pub struct SyncInput<'a> {
     pub pending: &'a PendingRefinement,
     /// Samples queued or in flight.
     pub outstanding_requests: u64,
+    /// A run of the indirect filter is owed and its pace put it off: the shown values of
+    /// samples already answered will still change (`indirect_filter`).
+    pub filter_owed: bool,
     /// Samples computed so far, and the paths traced for them.
     pub samples: u64,
     pub paths: u64,
@@ -144,8 +147,10 @@ impl Viewer {
             tracing::debug!(l_white, "tone map");
             messages.push(SmaToViewer::ToneMap { l_white });
         }
-        // Truthful: zero only when nothing is asked for and every wanted triangle is shown.
-        let outstanding = input.outstanding_requests + self.shown.unshown as u64;
+        // Truthful: zero only when nothing is asked for, every wanted triangle is shown, and
+        // what is shown is final (no filter run owed).
+        let outstanding =
+            input.outstanding_requests + self.shown.unshown as u64 + u64::from(input.filter_owed);
         let answered = self.answer_pending.take();
         let completion_changed = self.last_outstanding.map(|o| o == 0) != Some(outstanding == 0);
         if messages.is_empty() && answered.is_none() && !completion_changed {
