@@ -1,7 +1,6 @@
 //! Numerical corners of the whole system, each run as real processes (renderer, SMA, headless
 //! viewer) on view VT of the built-in scene, without refinement and with the thesis's fixed-quality
-//! samples, to the first snapshot with
-//! nothing outstanding.
+//! samples, to the first snapshot with nothing outstanding.
 //!
 //! - A scene far from the origin shades like the centred one (DESIGN.md §7: ray offsets robust
 //!   also far from the origin; §3 steps 2–3 and §2: the SMA's passes and the viewer draw what the
