@@ -54,7 +54,7 @@ mod viewers;
 mod views;
 mod waits;
 
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use scene::Scene;
 use tokio::sync::{mpsc, watch};
@@ -271,11 +271,16 @@ impl Schedule {
             self.submit_batches();
         }
         self.request_tiles();
+        let mut filtered = Duration::ZERO;
         if allowed.sync.now() {
+            filtered = self.filter_indirect();
             self.timed(Work::Sync, Self::sync_viewers);
         }
         if passes == PassesOwed::Walking && self.frame != frame {
-            self.paces.walking_view_ran(start, start.elapsed());
+            // A walking camera's cycle is its pass, re-plan and sync; the filter is paced
+            // apart, by its own cost.
+            let cycle = start.elapsed().saturating_sub(filtered);
+            self.paces.walking_view_ran(start, cycle);
         }
         if let Some(id) = self.refinement_candidate(Instant::now()) {
             self.timed(Work::Round, |s| s.refine_round(id))?;
@@ -440,12 +445,25 @@ impl Schedule {
     /// The viewers, the criteria and the stopping rule all read the filtered indirect part
     /// (`indirect_filter`): it is brought up to date before a sync, the paced step that shows
     /// it, when its own pace allows (`IndirectFilter::ready`); until then the sync stays owed.
-    fn sync_viewers(&mut self) {
-        if self.filter_due && self.indirect_filter.ready(Instant::now()) {
-            self.filter_due = false;
-            let views = self.viewers.views().map(|v| &v.visible);
-            self.indirect_filter.run(&self.mesh, views, &mut self.cache);
+    /// Its cost is counted apart from the sync's: counted in it, a run of tens of milliseconds
+    /// spaced the syncs, and the walking camera's views, by ten times that (`pace`), and a
+    /// walking viewer was shown its new view's triangles late (black where they were missing).
+    /// Returns the time it took.
+    fn filter_indirect(&mut self) -> Duration {
+        if !self.filter_due || !self.indirect_filter.ready(Instant::now()) {
+            return Duration::ZERO;
         }
+        let start = Instant::now();
+        self.timed(Work::Filter, |s| {
+            s.filter_due = false;
+            let views = s.viewers.views().map(|v| &v.visible);
+            s.indirect_filter.run(&s.mesh, views, &mut s.cache);
+        });
+        start.elapsed()
+    }
+
+    /// Brings every viewer up to date (after the indirect filter, `filter_indirect`).
+    fn sync_viewers(&mut self) {
         let input = SyncInput {
             mesh: &self.mesh,
             cache: &self.cache,

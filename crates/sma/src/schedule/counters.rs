@@ -29,15 +29,19 @@ pub enum Work {
     Sync,
     /// A refinement round: the criterion, the luminance pass, the mesh's splits.
     Round,
+    /// A run of the object-space filter of the indirect part (`indirect_filter`), spaced by its
+    /// own cost there.
+    Filter,
 }
 
 impl Work {
-    const ALL: [Work; 5] = [
+    const ALL: [Work; 6] = [
         Work::Pass,
         Work::CarryOver,
         Work::Replan,
         Work::Sync,
         Work::Round,
+        Work::Filter,
     ];
 
     fn index(self) -> usize {

@@ -200,7 +200,8 @@ impl Paces {
             Work::Sync => &mut self.sync,
             Work::Replan => &mut self.replan,
             Work::Round => &mut self.round,
-            Work::Pass | Work::CarryOver => return,
+            // The filter keeps its own pace (`IndirectFilter::ready`).
+            Work::Pass | Work::CarryOver | Work::Filter => return,
         };
         pace.ran(started, spent);
     }
