@@ -1,9 +1,10 @@
 //! The SMA's cache file with real processes (DESIGN.md §5, persistence): `walkthrough sma
 //! --cache-file PATH` saves what it learnt, is killed, and a new SMA on the same file shows the
-//! same leaves, every one with its samples, before any renderer answers (there is none); a file
-//! of another scene is refused with one warning and set aside as `PATH.rejected`; a file another
-//! SMA holds is left alone with one warning, and the SMA serves without it; a disk that fills
-//! during the saves costs the file its later saves, with one warning, and the view nothing. Needs a wgpu adapter
+//! same leaves, every one with its samples, before any renderer answers (there is none), but
+//! for guards of its view whose hidden corners the first never sampled; a file of another scene
+//! is refused with one warning and set aside as `PATH.rejected`; a file another SMA holds is left
+//! alone with one warning, and the SMA serves without it; a disk that fills during the saves
+//! costs the file its later saves, with one warning, and the view nothing. Needs a wgpu adapter
 //! for the SMA's visibility: without one the tests say so and return, unless
 //! `WALKTHROUGH_REQUIRE_GPU` is set.
 
@@ -130,9 +131,14 @@ async fn a_killed_sma_restarts_showing_what_it_had_saved_without_a_renderer() {
         restored.samples, 0,
         "nothing was traced: there is no renderer"
     );
-    assert_eq!(
-        restored.shown, restored.visible_leaves,
-        "every visible leaf is shown, with its samples from the file:\n{log}"
+    // A guard of today's view (no pixels) whose hidden corner the first SMA's view never asked
+    // for waits for a renderer (`pending::Group::waits_for_guards`); everything else is shown.
+    let unshown = restored.visible_leaves - restored.shown;
+    assert!(
+        unshown <= restored.visible_leaves / 1000,
+        "every visible leaf is shown, with its samples from the file: {} of {}\n{log}",
+        restored.shown,
+        restored.visible_leaves
     );
     assert_nearly_the_same_leaves(&before, &shown(&probe));
     assert_eq!(count(&log, "cache file refused"), 0, "{log}");

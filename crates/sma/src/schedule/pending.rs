@@ -15,6 +15,13 @@ use crate::mesh::{NodeId, RefinementStep};
 pub struct Group {
     pub new_leaves: Vec<NodeId>,
     pub replaced_leaves: Vec<NodeId>,
+    /// Whether its guard leaves (`visibility::guards`: no pixels) hold it back too. Those of a
+    /// refinement step do: a step shown before its guards may open a crack pixel. Those of a
+    /// subtree the cache file brought back do not: its guards come from today's view, not the
+    /// saved one, so their hidden corners may never have been sampled, and the site walked
+    /// yesterday must appear at once (DESIGN.md §5, persistence), not after a renderer answers
+    /// (never, with none).
+    pub waits_for_guards: bool,
 }
 
 /// Pending groups, and for each of their new leaves the group it belongs to.
@@ -36,7 +43,18 @@ impl PendingRefinement {
 
     /// Adds the steps of one `refine` call, merged into independent groups.
     pub fn add(&mut self, steps: Vec<RefinementStep>) {
-        for group in merge(steps) {
+        self.add_groups(steps, true);
+    }
+
+    /// Adds the steps of subtrees the cache file brought back or took away, whose guards do
+    /// not hold them back ([`Group::waits_for_guards`]).
+    pub fn add_from_file(&mut self, steps: Vec<RefinementStep>) {
+        self.add_groups(steps, false);
+    }
+
+    fn add_groups(&mut self, steps: Vec<RefinementStep>, waits_for_guards: bool) {
+        for mut group in merge(steps) {
+            group.waits_for_guards = waits_for_guards;
             let id = self.next_group;
             self.next_group += 1;
             for &leaf in &group.new_leaves {
@@ -49,6 +67,11 @@ impl PendingRefinement {
     /// The group a new leaf belongs to, while pending.
     pub fn group_of(&self, leaf: NodeId) -> Option<usize> {
         self.group_of.get(&leaf).copied()
+    }
+
+    /// Whether group `id`'s guards hold it back; false once it is gone.
+    pub fn waits_for_guards(&self, id: usize) -> bool {
+        self.groups.get(&id).is_some_and(|g| g.waits_for_guards)
     }
 
     pub fn group(&self, id: usize) -> Option<&Group> {
@@ -113,6 +136,7 @@ fn merge(steps: Vec<RefinementStep>) -> Vec<Group> {
             Group {
                 new_leaves,
                 replaced_leaves,
+                waits_for_guards: true,
             }
         })
         .collect()

@@ -147,7 +147,7 @@ impl Refinement {
     ) {
         self.coarsening.refined(mesh, &steps);
         self.coarsening.collapsed(mesh, left);
-        self.pending.add(steps);
+        self.pending.add_from_file(steps);
     }
 
     /// Whether the last coarsening under the memory budget's pressure found nothing out of view
@@ -199,8 +199,9 @@ impl Refinement {
         true
     }
 
-    /// Commits every pending group none of whose visible new leaves lacks a sample; returns
-    /// whether any was.
+    /// Commits every pending group none of whose visible new leaves lacks a sample (its guards
+    /// counted only where it waits for them, `Group::waits_for_guards`); returns whether any
+    /// was.
     pub fn commit_ready<'a>(
         &mut self,
         views: impl Iterator<Item = &'a LeafView>,
@@ -214,6 +215,7 @@ impl Refinement {
         for view in views {
             for v in &view.visible.leaves {
                 if let Some(g) = self.pending.group_of(v.leaf)
+                    && (v.pixels > 0 || self.pending.waits_for_guards(g))
                     && cache.missing_keys(mesh, v.leaf, v.side).next().is_some()
                 {
                     waiting.insert(g);
@@ -341,4 +343,77 @@ pub fn luminance_image(
         luminance: lum,
         ids,
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cache::CachedSample;
+    use crate::mesh::grid_mesh;
+    use crate::visible_set::{VisibleLeaf, VisibleSet};
+    use protocol::SampleParts;
+    use protocol::Side;
+    use protocol::renderer_link::SampleKey;
+
+    /// A refined grid whose new leaves are all visible, one of them as a guard (no pixels),
+    /// every vertex shaded but one corner of the guard's.
+    fn refined_with_an_unshaded_guard()
+    -> (SubdivisionMesh, Vec<RefinementStep>, LeafView, ShadingCache) {
+        let mut mesh = SubdivisionMesh::new(&grid_mesh(2), Default::default());
+        let steps = mesh.refine(&[0], &|_| false);
+        let leaves: Vec<NodeId> = mesh.leaves().collect();
+        let guard = *steps[0].new_leaves.last().expect("a split makes leaves");
+        let unshaded = mesh.node(guard).vertices[2];
+        let mut cache = ShadingCache::new(1 << 20);
+        for vertex in (0..mesh.vertex_count() as u32).filter(|&v| v != unshaded) {
+            let sample = CachedSample {
+                parts: SampleParts::direct_only([0.5; 3], 0.0),
+                quality: Quality::INTERACTIVE,
+                view_dependent: false,
+                eye: None,
+                last_seen: 0,
+            };
+            cache.insert(
+                SampleKey {
+                    vertex,
+                    side: Side::Front,
+                },
+                sample,
+            );
+        }
+        let mut visible = VisibleSet::of_front_leaves(&leaves);
+        let others_of_unshaded =
+            |v: &VisibleLeaf| v.leaf != guard && mesh.node(v.leaf).vertices.contains(&unshaded);
+        visible.leaves.retain(|v| !others_of_unshaded(v));
+        for v in visible.leaves.iter_mut().filter(|v| v.leaf == guard) {
+            v.pixels = 0;
+        }
+        let view = LeafView {
+            visible,
+            ..Default::default()
+        };
+        (mesh, steps, view, cache)
+    }
+
+    #[test]
+    fn a_refinement_step_waits_for_its_guards_and_a_restored_subtree_does_not() {
+        let config = ScheduleConfig::default();
+        let (mesh, steps, view, cache) = refined_with_an_unshaded_guard();
+        let mut refinement = Refinement::new(mesh.base_count(), &config);
+        refinement.pending.add(steps.clone());
+        let views = || std::iter::once(&view);
+        assert!(
+            !refinement.commit_ready(views(), &mesh, &cache),
+            "waits for its guard"
+        );
+        assert!(!refinement.pending.is_empty());
+
+        let mut restored = Refinement::new(mesh.base_count(), &config);
+        restored.cache_file_steps(&mesh, steps, &[]);
+        assert!(
+            restored.commit_ready(views(), &mesh, &cache),
+            "shown at once"
+        );
+        assert!(restored.pending.is_empty());
+    }
 }
