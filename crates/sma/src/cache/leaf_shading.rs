@@ -85,7 +85,6 @@ impl ShadingCache {
 mod tests {
     use std::sync::Arc;
 
-    use protocol::renderer_link::Quality;
     use protocol::{PartEstimate, SampleParts};
 
     use super::*;
@@ -118,13 +117,7 @@ mod tests {
                 indirect: part([1.0; 3]),
                 view_dependent: part([0.0; 3]),
             };
-            let sample = CachedSample {
-                parts,
-                quality: Quality::INTERACTIVE,
-                view_dependent: false,
-                eye: None,
-                last_seen: 0,
-            };
+            let sample = CachedSample::diffuse(parts);
             cache.insert(
                 SampleKey {
                     vertex,

@@ -27,6 +27,20 @@ pub struct CachedSample {
     pub last_seen: u64,
 }
 
+#[cfg(test)]
+impl CachedSample {
+    /// A diffuse sample of `parts` at the interactive quality, never seen: what tests cache.
+    pub(crate) fn diffuse(parts: SampleParts) -> CachedSample {
+        CachedSample {
+            parts,
+            quality: Quality::INTERACTIVE,
+            view_dependent: false,
+            eye: None,
+            last_seen: 0,
+        }
+    }
+}
+
 impl CachedSample {
     pub fn estimate(&self) -> Estimate {
         Estimate {

@@ -366,13 +366,7 @@ mod tests {
         let unshaded = mesh.node(guard).vertices[2];
         let mut cache = ShadingCache::new(1 << 20);
         for vertex in (0..mesh.vertex_count() as u32).filter(|&v| v != unshaded) {
-            let sample = CachedSample {
-                parts: SampleParts::direct_only([0.5; 3], 0.0),
-                quality: Quality::INTERACTIVE,
-                view_dependent: false,
-                eye: None,
-                last_seen: 0,
-            };
+            let sample = CachedSample::diffuse(SampleParts::direct_only([0.5; 3], 0.0));
             cache.insert(
                 SampleKey {
                     vertex,

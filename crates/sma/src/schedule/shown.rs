@@ -194,7 +194,7 @@ impl ShownSet {
 
 #[cfg(test)]
 mod tests {
-    use protocol::renderer_link::{Quality, SampleKey};
+    use protocol::renderer_link::SampleKey;
 
     use super::*;
     use crate::cache::CachedSample;
@@ -208,13 +208,7 @@ mod tests {
                     vertex,
                     side: Side::Front,
                 },
-                CachedSample {
-                    parts: SampleParts::direct_only([value; 3], 0.0),
-                    quality: Quality::INTERACTIVE,
-                    view_dependent: false,
-                    eye: None,
-                    last_seen: 0,
-                },
+                CachedSample::diffuse(SampleParts::direct_only([value; 3], 0.0)),
             );
         }
     }
