@@ -23,7 +23,6 @@ const W: u32 = 256;
 const H: u32 = 192;
 const WAIT: Duration = Duration::from_secs(120);
 /// The SMA saves this often here, so a kill after a few periods finds everything saved.
-const SAVE_EVERY_S: &str = "0.5";
 const SAVE_PERIOD: Duration = Duration::from_millis(500);
 /// Where writes start to fail once the disk is full: past the log's first lines, before any
 /// page the cache file's next commits would write.
@@ -46,7 +45,7 @@ fn sma(scene: &str, file: &Path, renderers: &[SocketAddr], log: &Path) -> Server
         .unwrap_or_else(|e| panic!("sma for {scene}: {e:#}"))
 }
 
-/// An SMA's flags for keeping its cache in `file`, saved every [`SAVE_EVERY_S`].
+/// An SMA's flags for keeping its cache in `file`, saved every [`SAVE_PERIOD`].
 fn cache_file_flags(file: &Path) -> Vec<String> {
     strings(&[
         "--stats-secs",
@@ -54,7 +53,7 @@ fn cache_file_flags(file: &Path) -> Vec<String> {
         "--cache-file",
         &file.to_string_lossy(),
         "--cache-file-save-s",
-        SAVE_EVERY_S,
+        &SAVE_PERIOD.as_secs_f64().to_string(),
     ])
 }
 
@@ -195,9 +194,9 @@ async fn a_held_file_is_left_alone_and_a_foreign_one_is_refused_and_renamed() {
 }
 
 /// Bracara's other views one after another, each refined until every visible leaf is shown
-/// and nothing is outstanding, while the file's size is capped: a full disk still lets a file
-/// rewrite the pages it has free, so the first view may fit. Whether a save failed, its saves
-/// given a few periods to catch up after each view, and a view after it still came whole.
+/// and nothing is outstanding, while the file's size is capped (`FULL_FILE_CAP`): whether a
+/// save failed, its saves given a few periods to catch up after each view, and a view after it
+/// still came whole.
 async fn views_after_a_full_disk(probe: &mut Probe, log: &impl Fn() -> String) -> bool {
     let failed = || count(&log(), FAILED_SAVE) > 0;
     let mut failed_before = false;
@@ -273,7 +272,7 @@ async fn a_full_disk_during_saves_costs_the_file_its_news_and_the_view_nothing()
     // views carry on, every visible leaf shown, also after a save failed.
     assert!(
         views_after_a_full_disk(&mut probe, &log).await,
-        "no save failed past {saved} bytes:\n{}",
+        "no save failed past {FULL_FILE_CAP} bytes:\n{}",
         log()
     );
     assert_eq!(count(&log(), FAILED_SAVE), 1, "one warning:\n{}", log());

@@ -53,8 +53,7 @@ impl PendingRefinement {
     }
 
     fn add_groups(&mut self, steps: Vec<RefinementStep>, waits_for_guards: bool) {
-        for mut group in merge(steps) {
-            group.waits_for_guards = waits_for_guards;
+        for group in merge(steps, waits_for_guards) {
             let id = self.next_group;
             self.next_group += 1;
             for &leaf in &group.new_leaves {
@@ -92,8 +91,9 @@ impl PendingRefinement {
     }
 }
 
-/// Connected components of steps linked by a leaf one creates and another replaces.
-fn merge(steps: Vec<RefinementStep>) -> Vec<Group> {
+/// Connected components of steps linked by a leaf one creates and another replaces, each a group
+/// that waits for its guards or not (`Group::waits_for_guards`).
+fn merge(steps: Vec<RefinementStep>, waits_for_guards: bool) -> Vec<Group> {
     let mut parent: Vec<usize> = (0..steps.len()).collect();
     fn root(parent: &mut [usize], mut i: usize) -> usize {
         while parent[i] != i {
@@ -136,7 +136,7 @@ fn merge(steps: Vec<RefinementStep>) -> Vec<Group> {
             Group {
                 new_leaves,
                 replaced_leaves,
-                waits_for_guards: true,
+                waits_for_guards,
             }
         })
         .collect()
