@@ -115,7 +115,9 @@ pub struct Epoch {
     /// Paths traced for those samples so far: the cost of the picture, as samples of different
     /// rungs of the quality ladder cost different numbers of paths (DESIGN.md §5, §10).
     pub paths: u64,
-    /// Shade requests not yet answered.
+    /// What keeps this picture from being final: shade requests not yet answered, visible
+    /// leaves not shown yet for lack of samples, and triangles a walking viewer still holds
+    /// from earlier views; zero when the picture is complete.
     pub outstanding: u64,
 }
 

@@ -90,6 +90,16 @@ fn share(text: &str) -> Result<f64, String> {
     }
 }
 
+/// Seconds of keeping, from 0 to an hour (`ShownSet` notes the syncs of that long).
+fn keeping_seconds(text: &str) -> Result<Duration, String> {
+    let value: f64 = text.parse().map_err(|e| format!("{text:?}: {e}"))?;
+    if (0.0..=3600.0).contains(&value) {
+        Ok(Duration::from_secs_f64(value))
+    } else {
+        Err(format!("{value} s is not from 0 to 3600"))
+    }
+}
+
 #[derive(Parser, Debug, Clone)]
 #[command(
     name = "sma",
@@ -235,6 +245,11 @@ pub struct Cli {
     /// refinement waits for the camera to rest [default: on; off under --profile thesis].
     #[arg(long, value_parser = on_off)]
     pub work_while_walking: Option<bool>,
+    /// Seconds a walking viewer keeps showing what left its view, while still a leaf: its view
+    /// is the last visibility pass, a few steps behind its camera (0: only what that pass saw)
+    /// [default: 2; 0 under --profile thesis].
+    #[arg(long, value_parser = keeping_seconds)]
+    pub kept_while_walking_s: Option<Duration>,
     /// A view-dependent sample is retaken once the eye has moved by this angle, seen from it.
     #[arg(long, default_value_t = defaults().schedule.view_angle_deg)]
     pub view_angle_deg: f32,
@@ -392,6 +407,9 @@ impl Cli {
         if let Some(on) = self.work_while_walking {
             config.schedule.work_while_walking = on;
         }
+        if let Some(keeping) = self.kept_while_walking_s {
+            config.schedule.kept_while_walking = keeping;
+        }
         if let Some(on) = self.merge_uniform {
             config.schedule.merge_uniform = on;
         }
@@ -483,6 +501,7 @@ impl Cli {
             rest: Duration::from_millis(self.rest_ms),
             round_share: self.round_share,
             work_while_walking: defaults().schedule.work_while_walking,
+            kept_while_walking: defaults().schedule.kept_while_walking,
             view_angle_deg: self.view_angle_deg,
             stats_every: Duration::from_secs_f32(self.stats_secs.max(0.1)),
             l_white_outliers: defaults().schedule.l_white_outliers,

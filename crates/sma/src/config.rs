@@ -128,6 +128,7 @@ impl SmaConfig {
                 schedule.indirect_filter.enabled = false;
                 schedule.direct_tiles.enabled = false;
                 schedule.work_while_walking = false;
+                schedule.kept_while_walking = Duration::ZERO;
                 self.mesh.neighbour_rule = NeighbourRule::Thesis;
                 self.cache_file = None;
             }
@@ -321,6 +322,10 @@ pub struct ScheduleConfig {
     /// samples still come first. Off: refinement waits for the camera to rest, as in the
     /// thesis, and every camera gets its pass at once.
     pub work_while_walking: bool,
+    /// While its camera moves, a viewer keeps what left its view for this long, if still a
+    /// leaf (`schedule::shown`): its view lags its camera by a pass. Zero: it is shown only what
+    /// the last pass saw, as in the thesis.
+    pub kept_while_walking: Duration,
     /// A view-dependent sample is retaken once the eye has moved by this angle, seen from it.
     pub view_angle_deg: f32,
     /// Time between stats lines.
@@ -392,6 +397,7 @@ impl Default for ScheduleConfig {
             // As `Cli::round_share`, with the figures that chose it.
             round_share: 0.05,
             work_while_walking: true,
+            kept_while_walking: Duration::from_secs(2),
             view_angle_deg: 2.0,
             stats_every: Duration::from_secs(2),
             // One glint otherwise sets it for the whole view (see `ShadingCache::l_white`).

@@ -251,6 +251,13 @@ impl Schedule {
             self.viewers.leaves_changed();
         }
         let (frame, start) = (self.frame, Instant::now());
+        if self
+            .viewers
+            .next_kept_rest(self.config.rest)
+            .is_some_and(|t| t <= start)
+        {
+            self.owed.camera_rested();
+        }
         let passes = self.passes_owed();
         if self.allowed(passes, false).pass.now() {
             self.run_passes()?;
@@ -472,6 +479,8 @@ impl Schedule {
             filter_owed: self.filter_due,
             samples: self.counters.samples,
             paths: self.counters.paths,
+            now: Instant::now(),
+            kept_while_walking: self.config.kept_while_walking,
         };
         for viewer in self.viewers.iter_mut() {
             viewer.sync(&input);
@@ -584,7 +593,8 @@ impl Schedule {
         let candidate = turns::refinement_candidate(&gate, &views, self.refinement.rounds, now);
         let ready = turns::next_ready(&gate, &views, now);
         let rested = turns::next_rest(&views, gate.rest, now);
-        let wake = [ready, allowed.wake_at(), rested];
+        let kept = self.viewers.next_kept_rest(gate.rest);
+        let wake = [ready, allowed.wake_at(), rested, kept];
         (
             turns::has_work_now(self.owed, &allowed, candidate),
             wake.into_iter().flatten().chain(self.save_due_at()).min(),

@@ -172,6 +172,34 @@ fn work_while_walking_is_on_today_off_under_the_thesis_and_a_flag_sets_it() {
 }
 
 #[test]
+fn a_walking_viewer_keeps_what_left_its_view_two_seconds_none_under_the_thesis_or_as_flagged() {
+    let kept = |args: &[&str]| {
+        let mut all = vec!["sma", "--renderer", "r:1"];
+        all.extend_from_slice(args);
+        Cli::try_parse_from(all).map(|cli| cli.config().unwrap().schedule.kept_while_walking)
+    };
+    assert_eq!(kept(&[]).unwrap(), Duration::from_secs(2));
+    assert_eq!(
+        kept(&["--kept-while-walking-s", "0.5"]).unwrap(),
+        Duration::from_millis(500)
+    );
+    for bad in ["-1", "NaN", "inf", "4000"] {
+        assert!(kept(&["--kept-while-walking-s", bad]).is_err(), "{bad}");
+    }
+    assert_eq!(
+        thesis(&[]).unwrap().schedule.kept_while_walking,
+        Duration::ZERO
+    );
+    assert_eq!(
+        thesis(&["--kept-while-walking-s", "1"])
+            .unwrap()
+            .schedule
+            .kept_while_walking,
+        Duration::from_secs(1)
+    );
+}
+
+#[test]
 fn the_indirect_filter_is_on_by_default_off_under_the_thesis_profile_and_by_flag() {
     let parsed = |args: &[&str]| {
         let mut all = vec!["sma", "--renderer", "r:1"];

@@ -3,12 +3,12 @@
 //! `Remove`/`Insert`/`Update`, `ToneMap` and the `Epoch` that closes each consistent update.
 
 use std::collections::BTreeMap;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use protocol::viewer_link::{Camera, Epoch, SmaToViewer, ViewerToSma};
 
 use super::pending::PendingRefinement;
-use super::shown::ShownSet;
+use super::shown::{Keeping, ShownSet};
 use super::targets::targets;
 use super::turns::TurnView;
 use super::waits::ViewWait;
@@ -46,6 +46,8 @@ pub struct Viewer {
     pub criterion_dry: bool,
     pub last_l_white: Option<f32>,
     last_outstanding: Option<u64>,
+    /// The camera its last sync answered (`shown::Keeping`).
+    synced_camera: Option<u64>,
     /// Its resting camera's direct light per pixel (`direct_tiles`).
     pub direct: DirectTiles,
 }
@@ -63,6 +65,9 @@ pub struct SyncInput<'a> {
     /// Samples computed so far, and the paths traced for them.
     pub samples: u64,
     pub paths: u64,
+    pub now: Instant,
+    /// `ScheduleConfig::kept_while_walking`.
+    pub kept_while_walking: Duration,
 }
 
 impl Viewer {
@@ -84,6 +89,7 @@ impl Viewer {
             criterion_dry: false,
             last_l_white: None,
             last_outstanding: None,
+            synced_camera: None,
             direct: DirectTiles::default(),
         }
     }
@@ -119,6 +125,12 @@ impl Viewer {
         self.outbox.drop_tiles();
     }
 
+    /// When its camera rests, if it moved: a sync is owed then, which, answering the camera
+    /// the last one answered, drops what the viewer kept of earlier views (`shown::Keeping`).
+    pub fn kept_until(&self, rest: Duration) -> Option<Instant> {
+        self.camera_replaced.then(|| self.camera_at + rest)
+    }
+
     /// Whether its view was drawn from another camera than its current one.
     pub fn view_behind_camera(&self) -> bool {
         self.view
@@ -138,9 +150,24 @@ impl Viewer {
             return;
         };
         self.targets = targets(view, input.pending, input.mesh, camera.eye_vec());
-        let mut messages =
-            self.shown
-                .sync(&self.targets, input.mesh, input.cache, camera.eye_vec());
+        // Whether the camera rests is not asked of the clock: a sync follows a pass that took
+        // longer than `rest`, so most of a walk's syncs came after its camera "rested" while
+        // the next camera already waited unread. A sync for another camera than the last one
+        // is a step of a walk; one for the same camera, a stop (or a rest, `kept_until`).
+        let moved = self.synced_camera.is_some_and(|seq| seq != camera.seq);
+        self.synced_camera = Some(camera.seq);
+        let keeping = Keeping {
+            now: input.now,
+            walking: moved && !input.kept_while_walking.is_zero(),
+            for_: input.kept_while_walking,
+        };
+        let mut messages = self.shown.sync(
+            &self.targets,
+            input.mesh,
+            input.cache,
+            camera.eye_vec(),
+            keeping,
+        );
         let l_white = input.cache.l_white(input.mesh, &view.visible);
         if self.last_l_white != Some(l_white) && l_white > 0.0 {
             self.last_l_white = Some(l_white);
@@ -148,9 +175,10 @@ impl Viewer {
             messages.push(SmaToViewer::ToneMap { l_white });
         }
         // Truthful: zero only when nothing is asked for, every wanted triangle is shown, and
-        // what is shown is final (no filter run owed).
-        let outstanding =
-            input.outstanding_requests + self.shown.unshown as u64 + u64::from(input.filter_owed);
+        // what is shown is final (no filter run owed, nothing kept of earlier views).
+        let outstanding = input.outstanding_requests
+            + (self.shown.unshown + self.shown.kept) as u64
+            + u64::from(input.filter_owed);
         let answered = self.answer_pending.take();
         let completion_changed = self.last_outstanding.map(|o| o == 0) != Some(outstanding == 0);
         if messages.is_empty() && answered.is_none() && !completion_changed {
@@ -260,6 +288,15 @@ impl Viewers {
     /// Every viewer's current view.
     pub fn views(&self) -> impl Iterator<Item = &LeafView> {
         self.iter().filter_map(|v| v.view.as_ref())
+    }
+
+    /// The first rest of a camera whose viewer shows triangles that left its view: a sync is
+    /// owed then, to take them away (`Viewer::kept_until`).
+    pub fn next_kept_rest(&self, rest: Duration) -> Option<Instant> {
+        self.iter()
+            .filter(|v| v.shown.kept > 0)
+            .filter_map(|v| v.kept_until(rest))
+            .min()
     }
 
     /// Whether a visibility pass is owed to anyone.

@@ -108,6 +108,12 @@ impl Owed {
         self.resync = true;
     }
 
+    /// A walking camera came to rest: what its viewer kept of earlier views goes
+    /// (`shown::Keeping`).
+    pub fn camera_rested(&mut self) {
+        self.resync = true;
+    }
+
     pub fn replan(self) -> bool {
         self.replan
     }
