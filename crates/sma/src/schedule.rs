@@ -251,11 +251,7 @@ impl Schedule {
             self.viewers.leaves_changed();
         }
         let (frame, start) = (self.frame, Instant::now());
-        if self
-            .viewers
-            .next_kept_rest(self.config.rest)
-            .is_some_and(|t| t <= start)
-        {
+        if self.viewers.kept_past_rest(self.config.rest, start) {
             self.owed.camera_rested();
         }
         let passes = self.passes_owed();

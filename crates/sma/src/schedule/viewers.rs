@@ -299,6 +299,12 @@ impl Viewers {
             .min()
     }
 
+    /// Whether a camera has come to rest by `now` while its viewer shows triangles that left
+    /// its view (`next_kept_rest`).
+    pub fn kept_past_rest(&self, rest: Duration, now: Instant) -> bool {
+        self.next_kept_rest(rest).is_some_and(|t| t <= now)
+    }
+
     /// Whether a visibility pass is owed to anyone.
     pub fn need_pass(&self) -> bool {
         self.iter().any(|v| v.wait.needs_pass())
