@@ -589,7 +589,7 @@ impl Schedule {
         let candidate = turns::refinement_candidate(&gate, &views, self.refinement.rounds, now);
         let ready = turns::next_ready(&gate, &views, now);
         let rested = turns::next_rest(&views, gate.rest, now);
-        let kept = self.viewers.next_kept_rest(gate.rest);
+        let kept = self.viewers.next_kept_rest(gate.rest).filter(|&t| t > now);
         let wake = [ready, allowed.wake_at(), rested, kept];
         (
             turns::has_work_now(self.owed, &allowed, candidate),

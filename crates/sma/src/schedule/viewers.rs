@@ -291,7 +291,8 @@ impl Viewers {
     }
 
     /// The first rest of a camera whose viewer shows triangles that left its view: a sync is
-    /// owed then, to take them away (`Viewer::kept_until`).
+    /// owed then, to take them away (`Viewer::kept_until`). The loop wakes for it while it lies
+    /// ahead; once passed, the sync it owes waits for the sync's own pace, not a spinning loop.
     pub fn next_kept_rest(&self, rest: Duration) -> Option<Instant> {
         self.iter()
             .filter(|v| v.shown.kept > 0)
