@@ -296,8 +296,9 @@ impl Schedule {
     /// What of the work owed, and of the `passes` owed, its pace allows now (`pass_ran`: the
     /// viewers see a new view at once).
     fn allowed(&self, passes: PassesOwed, pass_ran: bool) -> Allowed {
+        let work_queued = self.requests.queued() > 0;
         self.paces
-            .allowed(self.owed, passes, pass_ran, Instant::now())
+            .allowed(self.owed, passes, pass_ran, work_queued, Instant::now())
     }
 
     /// The passes owed, and whether they may wait (`turns::passes_owed`).
@@ -585,7 +586,7 @@ impl Schedule {
         let now = Instant::now();
         let (views, gate) = (self.viewers.turn_views(), self.refine_gate());
         let passes = self.passes_owed();
-        let allowed = self.paces.allowed(self.owed, passes, false, now);
+        let allowed = self.allowed(passes, false);
         let candidate = turns::refinement_candidate(&gate, &views, self.refinement.rounds, now);
         let ready = turns::next_ready(&gate, &views, now);
         let rested = turns::next_rest(&views, gate.rest, now);

@@ -33,6 +33,10 @@ const REPLAN_SHARE: f64 = 0.1;
 /// the latest camera, those that came meanwhile are skipped. Unpaced, the cycles of a large
 /// view took the whole thread, and the rasteriser's threads the cores the renderers needed.
 /// A camera after a pause finds the pace long due, so its first picture never waits for it.
+/// Like the rounds' pace, it holds only while the queue has work for the renderers: with
+/// nothing queued the time it saves would be idle time, and on a walk that returns to a place
+/// already cached (nothing new to trace) the paced views lagged the camera by half a second,
+/// leaving the edge the head turns into black.
 const WALKING_VIEW_SHARE: f64 = 1.0 / 3.0;
 
 /// Spaces out a recurring task that may wait: the next run comes no sooner than `min_interval`
@@ -161,19 +165,22 @@ impl Paces {
     }
 
     /// What of `owed` and of the `passes` owed may run at `now`. Passes come at once unless
-    /// every one owed is a walking camera's ([`WALKING_VIEW_SHARE`]). A sync comes at once
-    /// after a pass (`pass_ran`: the viewers see a new view as soon as it is drawn), else at its
-    /// pace ([`SYNC_INTERVAL`], [`SYNC_SHARE`]); a re-plan that may wait at its own
-    /// ([`REPLAN_INTERVAL`], [`REPLAN_SHARE`]).
-    pub fn allowed(&self, owed: Owed, passes: PassesOwed, pass_ran: bool, now: Instant) -> Allowed {
-        let walking = passes == PassesOwed::Walking;
+    /// every one owed is a walking camera's and the renderers have work queued
+    /// (`work_queued`, [`WALKING_VIEW_SHARE`]). A sync comes at once after a pass (`pass_ran`:
+    /// the viewers see a new view as soon as it is drawn), else at its pace ([`SYNC_INTERVAL`],
+    /// [`SYNC_SHARE`]); a re-plan that may wait at its own ([`REPLAN_INTERVAL`],
+    /// [`REPLAN_SHARE`]).
+    pub fn allowed(
+        &self,
+        owed: Owed,
+        passes: PassesOwed,
+        pass_ran: bool,
+        work_queued: bool,
+        now: Instant,
+    ) -> Allowed {
+        let paced = passes == PassesOwed::Walking && work_queued;
         Allowed {
-            pass: Timing::of(
-                passes != PassesOwed::None,
-                &self.walking_view,
-                !walking,
-                now,
-            ),
+            pass: Timing::of(passes != PassesOwed::None, &self.walking_view, !paced, now),
             sync: Timing::of(owed.resync(), &self.sync, pass_ran, now),
             replan_soon: Timing::of(owed.replan_soon(), &self.replan, false, now),
         }
@@ -243,16 +250,19 @@ mod tests {
         let mut owed = Owed::default();
         owed.samples_arrived();
         let none = PassesOwed::None;
-        assert_eq!(paces.allowed(owed, none, false, t0).sync, Timing::Now);
+        assert_eq!(paces.allowed(owed, none, false, true, t0).sync, Timing::Now);
         paces.ran(Work::Sync, t0, MS);
         let later = t0 + 10 * MS;
-        let allowed = paces.allowed(owed, none, false, later);
+        let allowed = paces.allowed(owed, none, false, true, later);
         assert_eq!(allowed.sync, Timing::Deferred(t0 + SYNC_INTERVAL));
         assert_eq!(allowed.wake_at(), Some(t0 + SYNC_INTERVAL));
         assert!(owed.resync(), "still owed");
-        assert_eq!(paces.allowed(owed, none, true, later).sync, Timing::Now);
         assert_eq!(
-            paces.allowed(Owed::default(), none, true, later).sync,
+            paces.allowed(owed, none, true, true, later).sync,
+            Timing::Now
+        );
+        assert_eq!(
+            paces.allowed(Owed::default(), none, true, true, later).sync,
             Timing::NotOwed
         );
     }
@@ -264,14 +274,14 @@ mod tests {
         paces.ran(Work::Replan, t0, 20 * MS);
         let mut owed = Owed::default();
         owed.queue_changed();
-        let allowed = paces.allowed(owed, PassesOwed::None, false, t0 + MS);
+        let allowed = paces.allowed(owed, PassesOwed::None, false, true, t0 + MS);
         assert_eq!(allowed.replan_soon, Timing::Deferred(t0 + 200 * MS));
         assert_eq!(allowed.sync, Timing::NotOwed);
         owed.views_changed();
         assert!(owed.replan(), "owed at once, whatever the pace");
         assert_eq!(
             paces
-                .allowed(owed, PassesOwed::None, false, t0 + 200 * MS)
+                .allowed(owed, PassesOwed::None, false, true, t0 + 200 * MS)
                 .replan_soon,
             Timing::Now
         );
@@ -290,7 +300,8 @@ mod tests {
     fn a_walking_cameras_views_take_a_third_of_the_time_and_other_passes_never_wait() {
         let t0 = Instant::now();
         let mut paces = Paces::new(0.05, t0);
-        let pass = |paces: &Paces, passes, at| paces.allowed(Owed::default(), passes, false, at);
+        let pass =
+            |paces: &Paces, passes, at| paces.allowed(Owed::default(), passes, false, true, at);
         assert_eq!(pass(&paces, PassesOwed::Walking, t0).pass, Timing::Now);
         paces.walking_view_ran(t0, 20 * MS);
         let soon = t0 + 30 * MS;
@@ -307,5 +318,20 @@ mod tests {
             pass(&paces, PassesOwed::Walking, t0 + 60 * MS).pass,
             Timing::Now
         );
+    }
+
+    #[test]
+    fn a_walking_cameras_views_wait_only_while_the_renderers_have_work_queued() {
+        let t0 = Instant::now();
+        let mut paces = Paces::new(0.05, t0);
+        paces.walking_view_ran(t0, 20 * MS);
+        let soon = t0 + 30 * MS;
+        let pass = |queued| {
+            paces
+                .allowed(Owed::default(), PassesOwed::Walking, false, queued, soon)
+                .pass
+        };
+        assert_eq!(pass(true), Timing::Deferred(t0 + 60 * MS));
+        assert_eq!(pass(false), Timing::Now, "its time would be idle time");
     }
 }
