@@ -292,6 +292,10 @@ pub struct WalkArgs {
     /// Write the scenes' path files (crates/bench/walks) from their routes and measure nothing.
     #[arg(long)]
     pub write_paths: bool,
+    /// Runs of each side of the viewer's frame rate with work while walking on and off, on the
+    /// route's first two stops (default 3, quick 1; 0: not measured).
+    #[arg(long)]
+    pub frame_runs: Option<usize>,
 }
 
 impl WalkArgs {
@@ -307,6 +311,7 @@ impl WalkArgs {
             sma_flags: self.sma_flags,
             no_report: self.no_report,
             write_paths: self.write_paths,
+            frame_runs: self.frame_runs.unwrap_or(defaults.frame_runs),
             ..defaults
         }
     }

@@ -1,7 +1,8 @@
 //! `walkthrough-bench walk --quick` end to end on the built-in scene: a short scripted walk with
 //! two stops, walked twice by a real system on loopback (renderer, SMA and headless viewer as
 //! separate processes) and by the per-pixel viewport. The CSV must judge every stop and moment
-//! of both passes for both systems, with sane values, and the plot must be written.
+//! of both passes for both systems, with sane values, and the plot must be written; the viewer's
+//! own frame rate, drawn as its window would, is measured with work while walking on and off.
 //!
 //! Needs a wgpu adapter (Mesa's llvmpipe without a GPU): without one the test says so and returns,
 //! unless `WALKTHROUGH_REQUIRE_GPU` is set, where it fails.
@@ -123,4 +124,22 @@ fn a_quick_walk_judges_every_stop_and_moment_of_both_systems() {
     );
     let svg = std::fs::read_to_string(work.path().join("out/bracara-walk.svg")).unwrap();
     assert!(svg.contains("pass 2") && svg.contains("per-pixel"));
+    // The viewer's own frames, drawn as its window would, with work while walking on and off.
+    let frames = read_csv(&work.path().join("out/bracara-walk-frames.csv"));
+    for side in ["on", "off"] {
+        let runs: Vec<&Row> = frames
+            .iter()
+            .filter(|r| r["work_while_walking"] == side)
+            .collect();
+        assert_eq!(
+            runs.len(),
+            1,
+            "one quick run with work while walking {side}"
+        );
+        let fps = number(runs[0], "frames_per_s");
+        assert!(
+            fps > 1.0 && fps <= 61.0,
+            "{fps} frames a second with work while walking {side}"
+        );
+    }
 }

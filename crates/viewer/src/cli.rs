@@ -99,6 +99,11 @@ pub struct Cli {
     /// Headless: draw the window's panel over the PNG snapshots (they are clean otherwise).
     #[arg(long, requires = "headless")]
     pub overlay: bool,
+    /// Headless: also draw every frame at the current camera as the window would (at most 60 a
+    /// second), timed, into frames.csv beside the snapshots: the frame rate while the system
+    /// works.
+    #[arg(long, requires = "headless")]
+    pub draw_frames: bool,
 }
 
 /// Runs the viewer until the window closes or the headless run ends.
@@ -139,6 +144,7 @@ impl Cli {
             no_refine: self.no_refine,
             progress: self.progress,
             overlay: self.overlay,
+            draw_frames: self.draw_frames,
         }
     }
 }

@@ -44,4 +44,7 @@ pub struct ViewerConfig {
     pub progress: bool,
     /// Headless: draw the panel over the PNG snapshots.
     pub overlay: bool,
+    /// Headless: also draw every frame as the window would, timed, into `out`/frames.csv
+    /// (`live_frames`: the viewer's frame rate while the system works).
+    pub draw_frames: bool,
 }

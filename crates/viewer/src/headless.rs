@@ -13,6 +13,7 @@ use crate::camera_sender::{CameraSender, DEFAULT_INTERVAL};
 use crate::config::ViewerConfig;
 use crate::draw::DrawSettings;
 use crate::link::{Link, LinkEvent, event_queue};
+use crate::live_frames::LiveFrames;
 use crate::panel::Facts;
 use crate::progress::ProgressPrinter;
 use crate::session::{pick_viewpoint, preferences};
@@ -138,6 +139,10 @@ pub fn run(config: &ViewerConfig) -> anyhow::Result<()> {
     let (writer, adapter) = SnapshotWriter::create(&config.out, canvas, config.hold_snapshots)?;
     tracing::debug!(%adapter, "headless viewer");
     tracing::info!("snapshots go to {}", config.out.display());
+    let frames = config
+        .draw_frames
+        .then(|| LiveFrames::new(config.width, config.height, &config.out))
+        .transpose()?;
     // The loop looks every tick, so it needs no wake-up.
     let (notify, events) = event_queue(|| {});
     let link = Link::spawn(config.connect.clone(), notify)?;
@@ -158,12 +163,14 @@ pub fn run(config: &ViewerConfig) -> anyhow::Result<()> {
         walk: None,
         snapshots: 0,
         progress: ProgressPrinter::new(config.progress),
+        frames,
     };
     let result = headless.run(&events.receiver);
     // Nothing takes the link's events any more: a link waiting for room stops waiting.
     drop(events);
     headless.link.close();
-    result.and(headless.writer.finish())
+    let frames = headless.frames.as_ref().map_or(Ok(()), LiveFrames::finish);
+    result.and(frames).and(headless.writer.finish())
 }
 
 /// The camera in force and the scripted walk, if any, that moves it.
@@ -186,20 +193,25 @@ struct Headless<'a> {
     walk: Option<Walk>,
     snapshots: u32,
     progress: ProgressPrinter,
+    /// `--draw-frames`: the window's frames, drawn and timed as it would.
+    frames: Option<LiveFrames>,
 }
 
 impl Headless<'_> {
     fn run(&mut self, events: &mpsc::Receiver<LinkEvent>) -> anyhow::Result<()> {
         let launched = Instant::now();
         loop {
-            for event in first_and_pending(events, TICK) {
+            let wait = self.frames.as_ref().map_or(TICK, |f| f.due_in().min(TICK));
+            for event in first_and_pending(events, wait) {
                 if self.state.handle(event) == Reaction::Resend {
                     self.restate()?;
                 }
             }
-            // No GPU copy follows this table (a snapshot copies it whole), so the slots it
-            // changed need no keeping.
-            self.state.table.clear_dirty();
+            if self.frames.is_none() {
+                // No GPU copy follows this table (a snapshot copies it whole), so the slots it
+                // changed need no keeping.
+                self.state.table.clear_dirty();
+            }
             self.progress.tick(&self.state);
             let Some(walk) = &self.walk else {
                 let waited = launched.elapsed().as_secs_f64();
@@ -213,6 +225,7 @@ impl Headless<'_> {
             };
             let t = walk.started.elapsed().as_secs_f64();
             self.follow_path(t);
+            self.draw_frame(t)?;
             if self
                 .plan
                 .due(t, self.state.epoch.as_ref(), self.sender.seq())
@@ -271,15 +284,28 @@ impl Headless<'_> {
         }
     }
 
-    fn snapshot(&mut self, t: f64) -> anyhow::Result<()> {
-        let Some(walk) = &self.walk else {
-            return Ok(());
-        };
-        let settings = DrawSettings {
+    fn draw_settings(&self) -> DrawSettings {
+        DrawSettings {
             tone_map: self.config.tone_map,
             l_white: self.state.l_white,
             wireframe: self.config.wireframe,
             sky: self.state.sky(),
+        }
+    }
+
+    /// `--draw-frames`: the window's frame at the current camera, when one is due.
+    fn draw_frame(&mut self, t: f64) -> anyhow::Result<()> {
+        let settings = self.draw_settings();
+        let (Some(frames), Some(walk)) = (&mut self.frames, &self.walk) else {
+            return Ok(());
+        };
+        frames.draw_if_due(&mut self.state, &walk.camera, &settings, t)
+    }
+
+    fn snapshot(&mut self, t: f64) -> anyhow::Result<()> {
+        let settings = self.draw_settings();
+        let Some(walk) = &self.walk else {
+            return Ok(());
         };
         // `--overlay`: the window's panel over the PNG snapshots.
         let facts = self.config.overlay.then(|| Facts {

@@ -16,7 +16,8 @@
 //! - [`progress`]: the one-line progress a parent process shows (`--progress`);
 //! - [`panel`] (egui, drawn by `overlay`): what the system does, the keys, buttons for them;
 //! - [`window`] (winit) and [`headless`] (snapshots: copied at their instant, drawn later by
-//!   [`snapshot_painter`] on [`snapshot_files`]' idle writer thread) front ends, with
+//!   [`snapshot_painter`] on [`snapshot_files`]' idle writer thread; `--draw-frames` also draws
+//!   and times the window's frames, [`live_frames`]) front ends, with
 //!   [`walk_camera`], [`camera_path`], [`camera_sender`] and [`session`];
 //! - [`gpu`]: device setup and the `WALKTHROUGH_REQUIRE_GPU` rule;
 //! - [`config`]: the viewer's configuration, plain values;
@@ -33,6 +34,7 @@ pub mod draw;
 pub mod gpu;
 pub(crate) mod headless;
 pub mod link;
+pub mod live_frames;
 pub mod looks;
 pub mod looks_texture;
 pub mod offscreen;

@@ -198,6 +198,9 @@ pub(crate) struct SceneResult {
     pub viewport_walking_fps: f64,
     /// The system's snapshots taken too late to show the camera asked for, left out.
     pub late: usize,
+    /// The viewer's frame rate with work while walking on and off (`frames`; empty: not
+    /// measured).
+    pub frame_rates: super::frames::FrameRates,
 }
 
 /// The stops' and moments' ground truths' costs.
@@ -292,6 +295,7 @@ pub(crate) fn judge(
         viewport_walking_fps: viewport.walking_frames_per_second(),
         late,
         plan,
+        frame_rates: Default::default(),
     })
 }
 

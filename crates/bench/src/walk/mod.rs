@@ -7,6 +7,7 @@
 //! same path in real time on the same cores and is judged at the same instants. The section
 //! `docs/bench/walk.md`, a CSV and a plot per scene go into the output folders.
 
+mod frames;
 pub(crate) mod measure;
 pub(crate) mod route;
 mod section;
@@ -61,16 +62,19 @@ pub struct WalkConfig {
     pub no_report: bool,
     /// Write the scenes' path files into `crates/bench/walks` and measure nothing.
     pub write_paths: bool,
+    /// Runs of each side of the viewer's frame rate with work while walking on and off
+    /// (`frames`); 0: not measured.
+    pub frame_runs: usize,
 }
 
 impl WalkConfig {
     /// The full measurement's settings (`quick`: the smoke run's), writing into `out`, `runs`
     /// and `gt_cache`.
     pub fn new(quick: bool, out: PathBuf, runs: PathBuf, gt_cache: PathBuf) -> WalkConfig {
-        let (width, height, stop_spp, moment_spp, moments) = if quick {
-            (96, 72, 16, 8, 2)
+        let (width, height, stop_spp, moment_spp, moments, frame_runs) = if quick {
+            (96, 72, 16, 8, 2, 1)
         } else {
-            (512, 384, 1024, 256, 30)
+            (512, 384, 1024, 256, 30, 3)
         };
         WalkConfig {
             scene: None,
@@ -88,11 +92,23 @@ impl WalkConfig {
             sma_flags: Vec::new(),
             no_report: false,
             write_paths: false,
+            frame_runs,
         }
     }
 
+    /// The walk measured: the route (or its first `stops`), with its moments.
     fn plan(&self, route: &Route) -> WalkPlan {
-        let route = match self.stops {
+        self.plan_of(route, self.stops, self.moments)
+    }
+
+    /// The stretch the viewer's frame rate is measured on (`frames`): the route's first stops.
+    fn frames_plan(&self, route: &Route) -> WalkPlan {
+        let stops = self.stops.unwrap_or(usize::MAX).min(frames::FRAME_STOPS);
+        self.plan_of(route, Some(stops), 0)
+    }
+
+    fn plan_of(&self, route: &Route, stops: Option<usize>, moments: usize) -> WalkPlan {
+        let route = match stops {
             Some(n) => route.first_stops(n),
             None => route.clone(),
         };
@@ -101,7 +117,7 @@ impl WalkConfig {
         } else {
             route
         };
-        route::generate(&route, self.moments)
+        route::generate(&route, moments)
     }
 }
 
@@ -120,6 +136,18 @@ const DRAWING_ALLOWANCE: Duration = Duration::from_secs(600);
 struct Walkable {
     spec: String,
     route: Route,
+}
+
+impl Walkable {
+    /// The scene's first viewpoint: the viewer starts there (the path then sets every camera).
+    fn first_view(&self) -> anyhow::Result<String> {
+        scene::load(&self.spec)?
+            .settings
+            .viewpoints
+            .first()
+            .map(|v| v.name.clone())
+            .context("the scene has no viewpoint")
+    }
 }
 
 pub fn run(config: WalkConfig) -> anyhow::Result<()> {
@@ -218,7 +246,14 @@ fn walk_scene(config: &WalkConfig, exe: &Path, walkable: &Walkable) -> anyhow::R
     eprintln!("  the per-pixel viewport along the walk…");
     let times: Vec<f64> = asks.iter().map(Ask::time_s).collect();
     let viewport = viewport::follow(&scene, &plan, &times, config.width, config.height);
-    measure::judge(plan, asks, &references, system, viewport)
+    let mut result = measure::judge(plan, asks, &references, system, viewport)?;
+    if config.frame_runs > 0 {
+        eprintln!("  the viewer's frames with work while walking on and off…");
+        let plan = config.frames_plan(&walkable.route);
+        result.frame_rates =
+            frames::measure(config, exe, walkable, &plan, config.frame_runs, &dir)?;
+    }
+    Ok(result)
 }
 
 /// What the system's run left: its snapshots, the SMA's resident memory along the walk
@@ -247,15 +282,8 @@ fn run_system(
         renderers: 1,
         sma_flags: [STATS_EVERY.map(String::from).as_slice(), &config.sma_flags].concat(),
     };
-    // The path sets every camera; the view only has to exist.
-    let first_view = scene::load(&walkable.spec)?
-        .settings
-        .viewpoints
-        .first()
-        .map(|v| v.name.clone())
-        .context("the scene has no viewpoint")?;
     let viewer = ViewerConfig {
-        view: first_view,
+        view: walkable.first_view()?,
         width: config.width,
         height: config.height,
         seconds: Some(plan.seconds()),

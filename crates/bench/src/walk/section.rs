@@ -6,10 +6,12 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::WalkConfig;
+use super::frames::{FRAME_STOPS, FrameRates};
 use super::measure::{PER_PIXEL, Row, SYSTEM, SceneResult, time_to};
 use super::route::{PASSES, STEPS_PER_SECOND};
 use crate::plots::{self, Panel};
 use crate::stats::median;
+use viewer::live_frames::MAX_FRAME_RATE;
 
 /// The mean FLIP levels timed at the stops.
 const LEVELS: [f64; 2] = [0.1, 0.05];
@@ -41,6 +43,7 @@ pub(crate) fn write(config: &WalkConfig, results: &[SceneResult]) -> anyhow::Res
     for result in results {
         let stem = format!("{}-walk", result.plan.scene);
         write_csv(&config.out.join(format!("{stem}.csv")), &result.rows)?;
+        (result.frame_rates).write_csv(&config.out.join(format!("{stem}-frames.csv")))?;
         let svg = config.out.join(format!("{stem}.svg"));
         plot(&svg, result)?;
         scene_section(&mut md, config, result, &svg);
@@ -234,9 +237,36 @@ fn walk_figures(md: &mut String, result: &SceneResult) {
         md,
         "Frames per second: the per-pixel viewport completed {:.1} frames a second over the walk ({:.1} while \
          walking), each one path per pixel; the system's viewer draws its triangles at the current camera every \
-         frame whatever the renderers do (its frame times are in the viewer section) and sends the SMA up to 20 \
-         cameras a second.\n",
+         frame whatever the renderers do and sends the SMA up to 20 cameras a second.\n",
         result.viewport_fps, result.viewport_walking_fps
+    );
+    frame_rates(md, &result.frame_rates);
+}
+
+/// The viewer's frame rate with work while walking on and off (`frames`).
+fn frame_rates(md: &mut String, rates: &FrameRates) {
+    let Some((on, off)) = rates.medians() else {
+        return;
+    };
+    let list = |v: &[f64]| {
+        v.iter()
+            .map(|f| format!("{f:.1}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let _ = writeln!(
+        md,
+        "The viewer's own frames while walking (the first pass of the route's first {} stops, {:.0} s walked; \
+         a headless viewer drawing every frame as its window would, at most {} a second, on the same cores as \
+         the renderer and the SMA; runs alternating, medians): {on:.1} frames a second with work while walking \
+         ({}), {off:.1} with it off ({}): {:.2}× (target ≥ 0.9×: {}).\n",
+        FRAME_STOPS,
+        rates.walking_s,
+        MAX_FRAME_RATE,
+        list(&rates.on),
+        list(&rates.off),
+        on / off.max(1e-9),
+        verdict(on >= 0.9 * off)
     );
 }
 
