@@ -85,6 +85,11 @@ impl DirectShare {
     }
 }
 
+/// A viewer sends at most one camera per this interval (DESIGN.md §3 step 1: every camera
+/// restarts the SMA's visibility passes). Two cameras that reach the SMA closer together were
+/// read in one turn of its loop, not taken that close.
+pub const CAMERA_INTERVAL: std::time::Duration = std::time::Duration::from_millis(50);
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Camera {
     /// Increases with every camera change of this viewer.

@@ -245,6 +245,11 @@ pub struct Cli {
     /// refinement waits for the camera to rest [default: on; off under --profile thesis].
     #[arg(long, value_parser = on_off)]
     pub work_while_walking: Option<bool>,
+    /// With work while walking, a walking camera's visibility passes are drawn a little ahead
+    /// of it, its last step's motion continued, and again from the camera once it rests
+    /// (on|off) [default: on; off under --profile thesis].
+    #[arg(long, value_parser = on_off)]
+    pub lead_while_walking: Option<bool>,
     /// Seconds a walking viewer keeps showing what left its view, while still a leaf: its view
     /// is the last visibility pass, a few steps behind its camera (0: only what that pass saw)
     /// [default: 2; 0 under --profile thesis].
@@ -407,6 +412,9 @@ impl Cli {
         if let Some(on) = self.work_while_walking {
             config.schedule.work_while_walking = on;
         }
+        if let Some(on) = self.lead_while_walking {
+            config.schedule.lead_while_walking = on;
+        }
         if let Some(keeping) = self.kept_while_walking_s {
             config.schedule.kept_while_walking = keeping;
         }
@@ -501,6 +509,7 @@ impl Cli {
             rest: Duration::from_millis(self.rest_ms),
             round_share: self.round_share,
             work_while_walking: defaults().schedule.work_while_walking,
+            lead_while_walking: defaults().schedule.lead_while_walking,
             kept_while_walking: defaults().schedule.kept_while_walking,
             view_angle_deg: self.view_angle_deg,
             stats_every: Duration::from_secs_f32(self.stats_secs.max(0.1)),

@@ -128,6 +128,7 @@ impl SmaConfig {
                 schedule.indirect_filter.enabled = false;
                 schedule.direct_tiles.enabled = false;
                 schedule.work_while_walking = false;
+                schedule.lead_while_walking = false;
                 schedule.kept_while_walking = Duration::ZERO;
                 self.mesh.neighbour_rule = NeighbourRule::Thesis;
                 self.cache_file = None;
@@ -322,6 +323,11 @@ pub struct ScheduleConfig {
     /// samples still come first. Off: refinement waits for the camera to rest, as in the
     /// thesis, and every camera gets its pass at once.
     pub work_while_walking: bool,
+    /// With work while walking, a walking viewer's visibility passes are drawn a little ahead
+    /// of its camera, its last step's motion continued (`schedule::ahead::lead`): the view
+    /// reaches the viewer a pass later and is shown until the next. Off: from its camera, as
+    /// in the thesis.
+    pub lead_while_walking: bool,
     /// While its camera moves, a viewer keeps what left its view for this long, if still a
     /// leaf (`schedule::shown`): its view lags its camera by a pass. Zero: it is shown only what
     /// the last pass saw, as in the thesis.
@@ -397,6 +403,7 @@ impl Default for ScheduleConfig {
             // As `Cli::round_share`, with the figures that chose it.
             round_share: 0.05,
             work_while_walking: true,
+            lead_while_walking: true,
             kept_while_walking: Duration::from_secs(2),
             view_angle_deg: 2.0,
             stats_every: Duration::from_secs(2),
@@ -476,6 +483,10 @@ mod tests {
         assert!(
             !s.work_while_walking && today.schedule.work_while_walking,
             "refinement only at rest"
+        );
+        assert!(
+            !s.lead_while_walking && today.schedule.lead_while_walking,
+            "passes from the camera"
         );
         assert_eq!(thesis.mesh.neighbour_rule, NeighbourRule::Thesis);
         assert_eq!(s.criterion, CriterionKind::NldOsThesis);

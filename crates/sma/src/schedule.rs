@@ -251,7 +251,7 @@ impl Schedule {
             self.viewers.leaves_changed();
         }
         let (frame, start) = (self.frame, Instant::now());
-        if self.viewers.kept_past_rest(self.config.rest, start) {
+        if self.viewers.rested(self.config.rest, start) {
             self.owed.camera_rested();
         }
         let passes = self.passes_owed();
@@ -435,7 +435,8 @@ impl Schedule {
             return None;
         };
         let moving = viewer.camera_at.elapsed() < self.config.rest;
-        if !self.config.work_while_walking || !moving {
+        // A view drawn ahead of the camera already looks where the motion heads.
+        if !self.config.work_while_walking || !moving || viewer.view_behind_camera() {
             return None;
         }
         let depth = ahead::centre_depth(view, &self.mesh, camera);
@@ -590,7 +591,7 @@ impl Schedule {
         let candidate = turns::refinement_candidate(&gate, &views, self.refinement.rounds, now);
         let ready = turns::next_ready(&gate, &views, now);
         let rested = turns::next_rest(&views, gate.rest, now);
-        let kept = self.viewers.next_kept_rest(gate.rest).filter(|&t| t > now);
+        let kept = self.viewers.next_rest_owed(gate.rest).filter(|&t| t > now);
         let wake = [ready, allowed.wake_at(), rested, kept];
         (
             turns::has_work_now(self.owed, &allowed, candidate),

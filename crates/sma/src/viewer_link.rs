@@ -21,6 +21,8 @@ mod outbox;
 
 pub use looks::SceneLooks;
 pub use outbox::Outbox;
+#[cfg(test)]
+pub(crate) use outbox::outbox;
 use outbox::Outgoing;
 
 /// Identifies one viewer connection for the life of the process.

@@ -5,10 +5,10 @@
 
 use std::time::{Duration, Instant};
 
-use protocol::viewer_link::Camera;
+use protocol::viewer_link::{CAMERA_INTERVAL, Camera};
 
-/// At most 20 cameras a second.
-pub const DEFAULT_INTERVAL: Duration = Duration::from_millis(50);
+/// At most 20 cameras a second, the most the SMA expects.
+pub const DEFAULT_INTERVAL: Duration = CAMERA_INTERVAL;
 
 pub struct CameraSender {
     interval: Duration,

@@ -11,7 +11,7 @@
 //! a median 1.90 M paths traced in the first second with the drawing at idle priority, 2.02 M
 //! without; on Sponza S3, mean FLIP 0.1 read at 3.7 s against 3.25 s). So the writer holds the
 //! frames, when asked to (`ViewerConfig::hold_snapshots`, as the benchmarks do), and draws only
-//! once they hold [`HELD_BEFORE_DRAWING`] bytes: in a benchmark's first seconds, when the error
+//! once they hold half the memory they may (`held_before_drawing`): in a benchmark's first seconds, when the error
 //! falls fastest, nothing is drawn at all. Once the run ends, the viewer's own thread draws and
 //! writes what is left, at its normal priority. The record's time is the snapshot's, not the
 //! file's.
@@ -28,14 +28,36 @@ use protocol::viewer_link::Stats;
 use crate::offscreen::Snapshot;
 use crate::snapshot_painter::{Canvas, Frame, SnapshotPainter};
 
-/// Memory the frames waiting for the writer may hold, at most (a frame is 72 bytes per shown
-/// triangle: 14 MB at 200 000; a 60-s benchmark run at 1024×768 queues a few hundred MB). Beyond
-/// it the viewer waits for the writer rather than hold more.
-const MAX_WAITING_BYTES: usize = 1 << 30;
+/// Memory the frames waiting for the writer may hold, at most: a quarter of the machine's
+/// memory, between 1 and 16 GiB (a frame is 72 bytes per shown triangle: 14 MB at 200 000; a
+/// 60-s benchmark run at 1024×768 queues a few hundred MB, a walk of both passes 0.6–0.8 GB).
+/// Beyond it the viewer waits for the writer rather than hold more. A fixed 1 GiB, drawn from
+/// at half, had the idle writer drawing in a walk's last minute, and the viewer's loop stalled
+/// for 5.5 s there (Sponza's walk, its last stop): a thread of the lowest priority that holds a
+/// lock the viewer needs runs only when nothing else wants a core, and the renderer wanted both.
+fn max_waiting_bytes() -> usize {
+    static MAX: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *MAX.get_or_init(|| {
+        let total = std::fs::read_to_string("/proc/meminfo")
+            .ok()
+            .and_then(|info| mem_total_bytes(&info))
+            .unwrap_or(0);
+        (total / 4).clamp(1 << 30, 16 << 30)
+    })
+}
+
+/// `MemTotal` of a `/proc/meminfo` text, in bytes.
+fn mem_total_bytes(meminfo: &str) -> Option<usize> {
+    let line = meminfo.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kib: usize = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
+}
 
 /// A writer that holds its frames draws only while they hold more than this: half the budget,
 /// so the viewer never waits for room while the writer catches up.
-const HELD_BEFORE_DRAWING: usize = MAX_WAITING_BYTES / 2;
+fn held_before_drawing() -> usize {
+    max_waiting_bytes() / 2
+}
 
 pub const CSV_NAME: &str = "snapshots.csv";
 /// `inserted`/`removed` are summed over the epochs since the previous snapshot (Δins, Δrem);
@@ -96,10 +118,10 @@ impl SnapshotWriter {
         canvas: Canvas,
         hold: bool,
     ) -> anyhow::Result<(SnapshotWriter, String)> {
-        let held_before_drawing = if hold { HELD_BEFORE_DRAWING } else { 0 };
+        let held_before_drawing = if hold { held_before_drawing() } else { 0 };
         let files = SnapshotFiles::create(dir)?;
         // Bounded in bytes, not in count: `Shared::reserve` admits a frame only while the frames
-        // queued hold at most `MAX_WAITING_BYTES`, each counting at least its own size. A count
+        // queued hold at most `max_waiting_bytes`, each counting at least its own size. A count
         // bound could not stand in for it: frames range from a few hundred bytes to tens of
         // megabytes, a `sync_channel` of the count the budget allows would allocate its slots up
         // front, and one that filled first would leave a holding writer waiting for bytes that
@@ -218,7 +240,7 @@ impl Shared {
         let mut state = self
             .changed
             .wait_while(self.lock(), |s| {
-                !s.stopped && s.held > 0 && s.held + bytes > MAX_WAITING_BYTES
+                !s.stopped && s.held > 0 && s.held + bytes > max_waiting_bytes()
             })
             .unwrap_or_else(|e| e.into_inner());
         state.held += bytes;
@@ -468,7 +490,7 @@ mod tests {
     #[test]
     fn the_budget_holds_a_frame_back_until_room_is_released() {
         let budget = Arc::new(Shared::default());
-        assert!(budget.reserve(MAX_WAITING_BYTES - 10));
+        assert!(budget.reserve(max_waiting_bytes() - 10));
         let admitted = Arc::new(AtomicBool::new(false));
         let waiter = {
             let (budget, admitted) = (Arc::clone(&budget), Arc::clone(&admitted));
@@ -480,7 +502,7 @@ mod tests {
         };
         std::thread::sleep(Duration::from_millis(100));
         assert!(!admitted.load(Ordering::SeqCst), "100 bytes do not fit yet");
-        budget.release(MAX_WAITING_BYTES - 10);
+        budget.release(max_waiting_bytes() - 10);
         assert!(waiter.join().unwrap(), "room was released");
     }
 
@@ -511,15 +533,24 @@ mod tests {
     }
 
     #[test]
+    fn the_budget_is_a_quarter_of_the_machines_memory_within_bounds() {
+        let info = "MemTotal:       24576000 kB\nMemFree:  100 kB\n";
+        assert_eq!(mem_total_bytes(info), Some(24_576_000 * 1024));
+        assert_eq!(mem_total_bytes("MemFree: 1 kB\n"), None);
+        let max = max_waiting_bytes();
+        assert!((1 << 30..=16 << 30).contains(&max), "{max}");
+    }
+
+    #[test]
     fn a_frame_larger_than_the_budget_fits_an_empty_queue() {
         let budget = Shared::default();
-        assert!(budget.reserve(2 * MAX_WAITING_BYTES));
+        assert!(budget.reserve(2 * max_waiting_bytes()));
     }
 
     #[test]
     fn a_stopped_writer_releases_whoever_waits_for_room() {
         let budget = Arc::new(Shared::default());
-        assert!(budget.reserve(MAX_WAITING_BYTES));
+        assert!(budget.reserve(max_waiting_bytes()));
         let waiter = {
             let budget = Arc::clone(&budget);
             std::thread::spawn(move || budget.reserve(1))

@@ -172,6 +172,19 @@ fn work_while_walking_is_on_today_off_under_the_thesis_and_a_flag_sets_it() {
 }
 
 #[test]
+fn a_walking_cameras_passes_lead_it_today_not_under_the_thesis_and_as_flagged() {
+    let leads = |args: &[&str]| {
+        let mut all = vec!["sma", "--renderer", "r:1"];
+        all.extend_from_slice(args);
+        Cli::try_parse_from(all).map(|cli| cli.config().unwrap().schedule.lead_while_walking)
+    };
+    assert!(leads(&[]).unwrap());
+    assert!(!leads(&["--lead-while-walking", "off"]).unwrap());
+    assert!(leads(&["--lead-while-walking", "maybe"]).is_err());
+    assert!(!thesis(&[]).unwrap().schedule.lead_while_walking);
+}
+
+#[test]
 fn a_walking_viewer_keeps_what_left_its_view_two_seconds_none_under_the_thesis_or_as_flagged() {
     let kept = |args: &[&str]| {
         let mut all = vec!["sma", "--renderer", "r:1"];

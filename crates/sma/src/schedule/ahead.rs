@@ -15,7 +15,7 @@ use std::f32::consts::FRAC_PI_2;
 use std::time::{Duration, Instant};
 
 use glam::{Quat, Vec3};
-use protocol::viewer_link::Camera;
+use protocol::viewer_link::{CAMERA_INTERVAL, Camera};
 
 use crate::mesh::SubdivisionMesh;
 use crate::visibility::LeafView;
@@ -31,34 +31,91 @@ const MIN_STEP: Duration = Duration::from_millis(20);
 /// The turn continued for the look-ahead is at most a quarter turn.
 const MAX_TURN: f32 = FRAC_PI_2;
 
+/// The longest lead a walking camera's view is drawn with (`lead`): a few passes of a large
+/// view, no further than the last steps' motion still says where the walker goes.
+pub const MAX_LEAD: Duration = Duration::from_millis(600);
+
+/// A lead continues a turn by at most this (half a 60° view's height) and a move by at most
+/// this many metres (a walker's pace over [`MAX_LEAD`], and some).
+const MAX_LEAD_TURN: f32 = std::f32::consts::FRAC_PI_6;
+const MAX_LEAD_MOVE: f32 = 1.5;
+
+/// The last step's motion: the turn from the previous camera's orientation to the current one's
+/// (in the world frame), the eye's move, and the step's length in seconds (at least `min_step`).
+struct Motion {
+    turn: Quat,
+    moved: Vec3,
+    step_s: f32,
+}
+
+impl Motion {
+    fn of(
+        (previous, previous_at): (&Camera, Instant),
+        (current, current_at): (&Camera, Instant),
+        min_step: Duration,
+    ) -> Motion {
+        let (before, now) = (previous.pinhole(), current.pinhole());
+        let mut turn = now.rotation * before.rotation.inverse();
+        if turn.w < 0.0 {
+            turn = -turn;
+        }
+        let step = current_at
+            .saturating_duration_since(previous_at)
+            .max(min_step);
+        Motion {
+            turn,
+            moved: now.eye - before.eye,
+            step_s: step.as_secs_f32(),
+        }
+    }
+
+    /// The turn continued for `k` steps, at most `max` radians.
+    fn turn_for(&self, k: f32, max: f32) -> Quat {
+        let (axis, angle) = self.turn.to_axis_angle();
+        if angle.is_finite() && angle > 0.0 {
+            Quat::from_axis_angle(axis, (angle * k).min(max))
+        } else {
+            Quat::IDENTITY
+        }
+    }
+}
+
+/// The camera `current` will be `by` from now if it goes on as it went from `previous`: its
+/// turn and its move continued (at most [`MAX_LEAD_TURN`] and [`MAX_LEAD_MOVE`]). A walking
+/// viewer's view is drawn from it (DESIGN.md §3 step 9): the view reaches the viewer a pass
+/// later and is shown until the next one, while the head goes on turning, so a view of the
+/// camera as it was left the edge the head turns into black (what leaves the view on the other
+/// side the viewer keeps, `shown`). Two cameras read in one turn count as a viewer's
+/// [`CAMERA_INTERVAL`] apart.
+pub fn lead(previous: (&Camera, Instant), current: (&Camera, Instant), by: Duration) -> Camera {
+    let motion = Motion::of(previous, current, CAMERA_INTERVAL);
+    let k = by.as_secs_f32() / motion.step_s;
+    let now = current.0.pinhole();
+    let rotation = (motion.turn_for(k, MAX_LEAD_TURN) * now.rotation).normalize();
+    let moved = (motion.moved * k).clamp_length_max(MAX_LEAD_MOVE);
+    Camera {
+        eye: (now.eye + moved).to_array(),
+        orientation: rotation.to_array(),
+        ..current.0.clone()
+    }
+}
+
 /// The focus in pixels of `current`, which came at `current_at` after `previous` at
 /// `previous_at`, seeing the surface at its image's centre at `depth` along its view direction
 /// (None: nothing there; then only the turn moves the focus). On the image: clamped to its
 /// border.
 pub fn focus(
-    (previous, previous_at): (&Camera, Instant),
-    (current, current_at): (&Camera, Instant),
+    previous: (&Camera, Instant),
+    current: (&Camera, Instant),
     depth: Option<f32>,
 ) -> (f32, f32) {
-    let (before, now) = (previous.pinhole(), current.pinhole());
-    let step = current_at
-        .saturating_duration_since(previous_at)
-        .max(MIN_STEP);
-    let k = LOOKAHEAD.as_secs_f32() / step.as_secs_f32();
-    let mut turn = now.rotation * before.rotation.inverse();
-    if turn.w < 0.0 {
-        turn = -turn;
-    }
-    let (axis, angle) = turn.to_axis_angle();
-    let ahead_turn = if angle.is_finite() && angle > 0.0 {
-        Quat::from_axis_angle(axis, (angle * k).min(MAX_TURN))
-    } else {
-        Quat::IDENTITY
-    };
-    let forward = ahead_turn * now.forward();
+    let motion = Motion::of(previous, current, MIN_STEP);
+    let k = LOOKAHEAD.as_secs_f32() / motion.step_s;
+    let now = current.0.pinhole();
+    let forward = motion.turn_for(k, MAX_TURN) * now.forward();
     // Where the view will be centred, as seen from the current eye.
     let towards = match depth {
-        Some(depth) => (now.eye - before.eye) * k + forward * depth,
+        Some(depth) => motion.moved * k + forward * depth,
         None => forward,
     };
     let local = now.rotation.inverse() * towards;
@@ -155,6 +212,48 @@ mod tests {
         assert!(after_step(&a, &left, None).0 < 70.0);
         let up = camera(Vec3::ZERO, Vec3::new(0.0, 0.03, -1.0));
         assert!(after_step(&a, &up, None).1 < 25.0);
+    }
+
+    fn forward_of(camera: &Camera) -> Vec3 {
+        camera.pinhole().forward()
+    }
+
+    #[test]
+    fn at_rest_the_lead_is_the_camera_and_a_turn_or_a_step_goes_on_the_same_way() {
+        let t0 = Instant::now();
+        let later = t0 + CAMERA_INTERVAL;
+        let a = camera(Vec3::ZERO, Vec3::NEG_Z);
+        let still = lead((&a, t0), (&a, later), MAX_LEAD);
+        assert!((still.eye_vec() - a.eye_vec()).length() < 1e-6);
+        assert!(forward_of(&still).angle_between(forward_of(&a)) < 1e-4);
+        // About 1.7° a step to the right: 300 ms on, six steps more, about 10° further right.
+        let turned = camera(Vec3::ZERO, Vec3::new(0.03, 0.0, -1.0));
+        let led = lead((&a, t0), (&turned, later), Duration::from_millis(300));
+        let step = forward_of(&a).angle_between(forward_of(&turned));
+        let further = forward_of(&turned).angle_between(forward_of(&led));
+        assert!((further / step - 6.0).abs() < 0.1, "{further} after {step}");
+        assert!(forward_of(&led).x > forward_of(&turned).x, "to the right");
+        assert_eq!((led.width, led.height, led.seq), (W, H, turned.seq));
+        // Walking on: 5 cm a step, 30 cm in six.
+        let stepped = camera(Vec3::new(0.0, 0.0, -0.05), Vec3::new(0.0, 0.0, -1.05));
+        let led = lead((&a, t0), (&stepped, later), Duration::from_millis(300));
+        assert!((led.eye_vec() - Vec3::new(0.0, 0.0, -0.35)).length() < 1e-4);
+    }
+
+    #[test]
+    fn a_lead_is_bounded_and_two_cameras_read_at_once_count_a_viewers_interval_apart() {
+        let t0 = Instant::now();
+        let a = camera(Vec3::ZERO, Vec3::NEG_Z);
+        let fast = camera(Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.5, 0.0, -1.0));
+        let led = lead((&a, t0), (&fast, t0 + CAMERA_INTERVAL), MAX_LEAD);
+        let turn = forward_of(&fast).angle_between(forward_of(&led));
+        assert!(turn <= MAX_LEAD_TURN + 1e-4, "{turn}");
+        assert!((led.eye_vec() - fast.eye_vec()).length() <= MAX_LEAD_MOVE + 1e-4);
+        let turned = camera(Vec3::ZERO, Vec3::new(0.01, 0.0, -1.0));
+        let by = Duration::from_millis(200);
+        let at_once = lead((&a, t0), (&turned, t0), by);
+        let apart = lead((&a, t0), (&turned, t0 + CAMERA_INTERVAL), by);
+        assert_eq!(at_once, apart);
     }
 
     #[test]

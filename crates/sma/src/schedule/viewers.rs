@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 
 use protocol::viewer_link::{Camera, Epoch, SmaToViewer, ViewerToSma};
 
+use super::ahead;
 use super::pending::PendingRefinement;
 use super::shown::{Keeping, ShownSet};
 use super::targets::targets;
@@ -19,6 +20,13 @@ use crate::direct_tiles::DirectTiles;
 use crate::mesh::{NodeId, SubdivisionMesh};
 use crate::viewer_link::{Outbox, ViewerEvent, ViewerId};
 use crate::visibility::LeafView;
+
+/// A walking viewer's view is drawn this many times the time since its last pass ahead of its
+/// camera (`Viewer::pass_camera`): the view reaches the viewer a pass and a sync later, and is
+/// shown until the next, so it serves cameras from about one interval to about one and a half
+/// ahead of the one it was drawn for; the leading edge of the last of them is what must be
+/// in it.
+const LEAD_PER_INTERVAL: f64 = 1.5;
 
 /// One connected viewer.
 pub struct Viewer {
@@ -33,6 +41,8 @@ pub struct Viewer {
     pub previous: Option<(Camera, Instant)>,
     /// When its last refinement round began (`turns::TurnView::ready_at`).
     pub refined_at: Option<Instant>,
+    /// When its last visibility pass was drawn (`pass_camera`).
+    pub drawn_at: Option<Instant>,
     pub wait: ViewWait,
     /// The camera seq whose epoch is still owed.
     answer_pending: Option<u64>,
@@ -79,6 +89,7 @@ impl Viewer {
             camera_replaced: false,
             previous: None,
             refined_at: None,
+            drawn_at: None,
             wait: ViewWait::Camera,
             answer_pending: None,
             view: None,
@@ -129,6 +140,33 @@ impl Viewer {
     /// the last one answered, drops what the viewer kept of earlier views (`shown::Keeping`).
     pub fn kept_until(&self, rest: Duration) -> Option<Instant> {
         self.camera_replaced.then(|| self.camera_at + rest)
+    }
+
+    /// Whether, once its camera rests, it owes a sync that drops what it keeps of earlier views
+    /// (`shown::Keeping`), or a pass for a view drawn from another camera than the one now at
+    /// rest (a walking view's lead, `pass_camera`).
+    fn owes_at_rest(&self) -> bool {
+        self.shown.kept > 0 || (self.view_behind_camera() && !self.wait.needs_pass())
+    }
+
+    /// The camera its pass is drawn from: its own, or while it walks (and `lead`), that camera
+    /// a little ahead (`ahead::lead`), by [`LEAD_PER_INTERVAL`] times the time since its last
+    /// pass, at most `ahead::MAX_LEAD`.
+    pub fn pass_camera(&self, lead: bool, rest: Duration, now: Instant) -> Option<Camera> {
+        let camera = self.camera.as_ref()?;
+        let walking = self.camera_replaced && now < self.camera_at + rest;
+        match (&self.previous, self.drawn_at) {
+            (Some((previous, previous_at)), Some(drawn_at)) if lead && walking => {
+                let since = now.saturating_duration_since(drawn_at);
+                let by = since.mul_f64(LEAD_PER_INTERVAL).min(ahead::MAX_LEAD);
+                Some(ahead::lead(
+                    (previous, *previous_at),
+                    (camera, self.camera_at),
+                    by,
+                ))
+            }
+            _ => Some(camera.clone()),
+        }
     }
 
     /// Whether its view was drawn from another camera than its current one.
@@ -290,20 +328,29 @@ impl Viewers {
         self.iter().filter_map(|v| v.view.as_ref())
     }
 
-    /// The first rest of a camera whose viewer shows triangles that left its view: a sync is
-    /// owed then, to take them away (`Viewer::kept_until`). The loop wakes for it while it lies
-    /// ahead; once passed, the sync it owes waits for the sync's own pace, not a spinning loop.
-    pub fn next_kept_rest(&self, rest: Duration) -> Option<Instant> {
+    /// The first rest of a camera whose viewer owes something at its rest
+    /// (`Viewer::owes_at_rest`). The loop wakes for it while it lies ahead; once passed, the
+    /// sync it owes waits for the sync's own pace, not a spinning loop.
+    pub fn next_rest_owed(&self, rest: Duration) -> Option<Instant> {
         self.iter()
-            .filter(|v| v.shown.kept > 0)
+            .filter(|v| v.owes_at_rest())
             .filter_map(|v| v.kept_until(rest))
             .min()
     }
 
-    /// Whether a camera has come to rest by `now` while its viewer shows triangles that left
-    /// its view (`next_kept_rest`).
-    pub fn kept_past_rest(&self, rest: Duration, now: Instant) -> bool {
-        self.next_kept_rest(rest).is_some_and(|t| t <= now)
+    /// Whether a camera has come to rest by `now` while its viewer owes something at its rest:
+    /// then a sync is owed, and a view drawn ahead of the camera is owed its pass.
+    pub fn rested(&mut self, rest: Duration, now: Instant) -> bool {
+        let mut any = false;
+        for viewer in self.iter_mut().filter(|v| v.owes_at_rest()) {
+            if viewer.kept_until(rest).is_some_and(|t| t <= now) {
+                any = true;
+                if viewer.view_behind_camera() {
+                    viewer.wait.leaves_changed();
+                }
+            }
+        }
+        any
     }
 
     /// Whether a visibility pass is owed to anyone.
@@ -394,5 +441,62 @@ impl Viewers {
         };
         viewer.send(criteria.refinement_state(viewer));
         heard
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use conventions::camera::look_rotation;
+    use glam::Vec3;
+
+    const REST: Duration = Duration::from_millis(100);
+
+    fn viewer() -> Viewer {
+        let (outbox, _writer) = crate::viewer_link::outbox(1 << 20);
+        let settings = CriterionSettings::default();
+        Viewer::new(outbox, make_criterion(CriterionKind::NldPx, &settings, 1))
+    }
+
+    fn camera(seq: u64, target_x: f32) -> Camera {
+        Camera {
+            seq,
+            eye: [0.0; 3],
+            orientation: look_rotation(Vec3::ZERO, Vec3::new(target_x, 0.0, -1.0), Vec3::Y)
+                .to_array(),
+            fov_y_deg: 60.0,
+            width: 64,
+            height: 48,
+        }
+    }
+
+    #[test]
+    fn a_walking_viewers_pass_leads_its_camera_and_at_rest_its_view_is_drawn_again() {
+        let mut v = viewer();
+        v.camera_moved(camera(1, 0.0));
+        let first = v.camera_at;
+        assert_eq!(v.pass_camera(true, REST, first), Some(camera(1, 0.0)));
+        v.camera_moved(camera(2, 0.03));
+        let now = v.camera_at;
+        v.drawn_at = now.checked_sub(Duration::from_millis(200));
+        let led = v.pass_camera(true, REST, now).unwrap();
+        let turned_right = led.pinhole().forward().x > camera(2, 0.03).pinhole().forward().x;
+        assert!(turned_right, "the turn continued: {led:?}");
+        assert_eq!(v.pass_camera(false, REST, now), Some(camera(2, 0.03)));
+        let rested = now + REST;
+        assert_eq!(v.pass_camera(true, REST, rested), Some(camera(2, 0.03)));
+        // Its view drawn from the led camera: at rest a pass is owed, from the camera itself.
+        v.wait.pass_done();
+        v.view = Some(LeafView {
+            camera: Some(led),
+            ..LeafView::default()
+        });
+        let mut viewers = Viewers::default();
+        viewers.by_id.insert(1, v);
+        assert_eq!(viewers.next_rest_owed(REST), Some(rested));
+        assert!(!viewers.rested(REST, now));
+        assert!(!viewers.need_pass());
+        assert!(viewers.rested(REST, rested));
+        assert!(viewers.need_pass(), "drawn again at rest");
     }
 }
