@@ -427,7 +427,8 @@ impl Schedule {
     }
 
     /// Where a walking viewer's next steps look on its image (`ahead`), while its camera moves
-    /// and work goes on while walking; otherwise None, the image's centre.
+    /// and work goes on while walking; otherwise None, the image's centre (also for a view
+    /// drawn ahead of the camera, `Viewer::pass_camera`: it looks where the motion heads).
     fn focus_of(&self, viewer: &Viewer) -> Option<(f32, f32)> {
         let (Some(view), Some(camera), Some((previous, previous_at))) =
             (&viewer.view, &viewer.camera, &viewer.previous)
@@ -435,16 +436,12 @@ impl Schedule {
             return None;
         };
         let moving = viewer.camera_at.elapsed() < self.config.rest;
-        // A view drawn ahead of the camera already looks where the motion heads.
         if !self.config.work_while_walking || !moving || viewer.view_behind_camera() {
             return None;
         }
         let depth = ahead::centre_depth(view, &self.mesh, camera);
-        Some(ahead::focus(
-            (previous, *previous_at),
-            (camera, viewer.camera_at),
-            depth,
-        ))
+        let (previous, current) = ((previous, *previous_at), (camera, viewer.camera_at));
+        Some(ahead::focus(previous, current, depth))
     }
 
     /// The viewers, the criteria and the stopping rule all read the filtered indirect part

@@ -21,9 +21,9 @@ mod outbox;
 
 pub use looks::SceneLooks;
 pub use outbox::Outbox;
+use outbox::Outgoing;
 #[cfg(test)]
 pub(crate) use outbox::outbox;
-use outbox::Outgoing;
 
 /// Identifies one viewer connection for the life of the process.
 pub type ViewerId = u64;

@@ -14,9 +14,9 @@ use anyhow::Context;
 
 use super::route::{STEPS_PER_SECOND, WalkPlan};
 use super::{WalkConfig, Walkable};
-use crate::convergence::{BEST_NOISE_AWARE, START_ALLOWANCE};
+use crate::convergence::START_ALLOWANCE;
 use crate::stats::median;
-use testkit::loopback::{System, SystemConfig, ViewerConfig};
+use testkit::loopback::{System, ViewerConfig};
 use viewer::live_frames::FRAMES_CSV;
 
 /// The stretch drawn: the route's first stops (walked once).
@@ -111,16 +111,7 @@ fn frames_while_walking(
     }
     std::fs::create_dir_all(dir)?;
     let off = ["--work-while-walking", "off"].map(String::from);
-    let sma_flags = [config.sma_flags.as_slice(), if on { &[] } else { &off }].concat();
-    let system = SystemConfig {
-        exe: exe.to_path_buf(),
-        scene: walkable.spec.clone(),
-        criterion: BEST_NOISE_AWARE.to_string(),
-        refine: true,
-        seed: config.seed,
-        renderers: 1,
-        sma_flags,
-    };
+    let system = config.system(exe, walkable, if on { &[] } else { &off });
     let viewer = ViewerConfig {
         view: walkable.first_view()?,
         width: config.width,

@@ -96,6 +96,21 @@ impl WalkConfig {
         }
     }
 
+    /// A fresh system for `walkable`: one renderer, the SMA with the best noise-aware criterion,
+    /// its statistics every half second, `sma_flags` and then `more_flags`.
+    fn system(&self, exe: &Path, walkable: &Walkable, more_flags: &[String]) -> SystemConfig {
+        let stats = STATS_EVERY.map(String::from);
+        SystemConfig {
+            exe: exe.to_path_buf(),
+            scene: walkable.spec.clone(),
+            criterion: BEST_NOISE_AWARE.to_string(),
+            refine: true,
+            seed: self.seed,
+            renderers: 1,
+            sma_flags: [stats.as_slice(), &self.sma_flags, more_flags].concat(),
+        }
+    }
+
     /// The walk measured: the route (or its first `stops`), with its moments.
     fn plan(&self, route: &Route) -> WalkPlan {
         self.plan_of(route, self.stops, self.moments)
@@ -273,15 +288,7 @@ fn run_system(
     asks: &[Ask],
     dir: &Path,
 ) -> anyhow::Result<SystemRun> {
-    let system = SystemConfig {
-        exe: exe.to_path_buf(),
-        scene: walkable.spec.clone(),
-        criterion: BEST_NOISE_AWARE.to_string(),
-        refine: true,
-        seed: config.seed,
-        renderers: 1,
-        sma_flags: [STATS_EVERY.map(String::from).as_slice(), &config.sma_flags].concat(),
-    };
+    let system = config.system(exe, walkable, &[]);
     let viewer = ViewerConfig {
         view: walkable.first_view()?,
         width: config.width,

@@ -40,6 +40,14 @@ pub const MAX_LEAD: Duration = Duration::from_millis(600);
 const MAX_LEAD_TURN: f32 = std::f32::consts::FRAC_PI_6;
 const MAX_LEAD_MOVE: f32 = 1.5;
 
+/// A step faster than this (m/s, rad/s) is a cut, not a walk (a viewer jumping to a named
+/// viewpoint), and one that came after a longer pause than [`MAX_LEAD_STEP`] starts from rest:
+/// neither says where the camera goes next, and a view led by either showed what the camera
+/// would not see.
+const MAX_WALK_SPEED: f32 = 20.0;
+const MAX_TURN_RATE: f32 = std::f32::consts::TAU;
+const MAX_LEAD_STEP: Duration = Duration::from_millis(500);
+
 /// The last step's motion: the turn from the previous camera's orientation to the current one's
 /// (in the world frame), the eye's move, and the step's length in seconds (at least `min_step`).
 struct Motion {
@@ -69,6 +77,15 @@ impl Motion {
         }
     }
 
+    /// Whether it is a step of someone walking, looking about: not a cut, not a first step
+    /// after a pause.
+    fn is_walking(&self) -> bool {
+        let turned = self.turn.to_axis_angle().1;
+        self.step_s <= MAX_LEAD_STEP.as_secs_f32()
+            && self.moved.length() <= MAX_WALK_SPEED * self.step_s
+            && (!turned.is_finite() || turned <= MAX_TURN_RATE * self.step_s)
+    }
+
     /// The turn continued for `k` steps, at most `max` radians.
     fn turn_for(&self, k: f32, max: f32) -> Quat {
         let (axis, angle) = self.turn.to_axis_angle();
@@ -86,9 +103,12 @@ impl Motion {
 /// later and is shown until the next one, while the head goes on turning, so a view of the
 /// camera as it was left the edge the head turns into black (what leaves the view on the other
 /// side the viewer keeps, `shown`). Two cameras read in one turn count as a viewer's
-/// [`CAMERA_INTERVAL`] apart.
+/// [`CAMERA_INTERVAL`] apart; a cut or a first step after a pause is not led.
 pub fn lead(previous: (&Camera, Instant), current: (&Camera, Instant), by: Duration) -> Camera {
     let motion = Motion::of(previous, current, CAMERA_INTERVAL);
+    if !motion.is_walking() {
+        return current.0.clone();
+    }
     let k = by.as_secs_f32() / motion.step_s;
     let now = current.0.pinhole();
     let rotation = (motion.turn_for(k, MAX_LEAD_TURN) * now.rotation).normalize();
@@ -244,16 +264,40 @@ mod tests {
     fn a_lead_is_bounded_and_two_cameras_read_at_once_count_a_viewers_interval_apart() {
         let t0 = Instant::now();
         let a = camera(Vec3::ZERO, Vec3::NEG_Z);
-        let fast = camera(Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.5, 0.0, -1.0));
+        // 15° and 0.9 m in a step, still a walk (300°/s, 18 m/s): continued for 0.6 s, 180°
+        // and 10.8 m, cut to the bounds.
+        let fast = camera(Vec3::new(0.9, 0.0, 0.0), Vec3::new(0.9 + 0.268, 0.0, -1.0));
         let led = lead((&a, t0), (&fast, t0 + CAMERA_INTERVAL), MAX_LEAD);
         let turn = forward_of(&fast).angle_between(forward_of(&led));
-        assert!(turn <= MAX_LEAD_TURN + 1e-4, "{turn}");
-        assert!((led.eye_vec() - fast.eye_vec()).length() <= MAX_LEAD_MOVE + 1e-4);
+        assert!((turn - MAX_LEAD_TURN).abs() < 1e-3, "{turn}");
+        let moved = (led.eye_vec() - fast.eye_vec()).length();
+        assert!((moved - MAX_LEAD_MOVE).abs() < 1e-3, "{moved}");
         let turned = camera(Vec3::ZERO, Vec3::new(0.01, 0.0, -1.0));
         let by = Duration::from_millis(200);
         let at_once = lead((&a, t0), (&turned, t0), by);
         let apart = lead((&a, t0), (&turned, t0 + CAMERA_INTERVAL), by);
         assert_eq!(at_once, apart);
+    }
+
+    #[test]
+    fn a_jump_to_another_viewpoint_or_a_first_step_after_a_pause_is_not_led() {
+        let t0 = Instant::now();
+        let a = camera(Vec3::ZERO, Vec3::NEG_Z);
+        let by = Duration::from_millis(300);
+        // To the wall's other side in one step: far faster than a walk.
+        let jumped = camera(Vec3::new(0.0, 0.0, -10.0), Vec3::ZERO);
+        assert_eq!(lead((&a, t0), (&jumped, t0 + CAMERA_INTERVAL), by), jumped);
+        // Half a turn in one step.
+        let about = camera(Vec3::ZERO, Vec3::Z);
+        assert_eq!(lead((&a, t0), (&about, t0 + CAMERA_INTERVAL), by), about);
+        // A small step, but after a second at rest.
+        let stepped = camera(Vec3::new(0.05, 0.0, 0.0), Vec3::new(0.05, 0.0, -1.0));
+        let after_pause = t0 + Duration::from_secs(1);
+        assert_eq!(lead((&a, t0), (&stepped, after_pause), by), stepped);
+        assert_ne!(
+            lead((&a, t0), (&stepped, t0 + CAMERA_INTERVAL), by),
+            stepped
+        );
     }
 
     #[test]

@@ -319,7 +319,10 @@ pub fn luminance_image(
 ) -> anyhow::Result<Option<LuminanceImage>> {
     // The view's own camera: a walking viewer's view is drawn ahead of its camera
     // (`Viewer::pass_camera`), and the image must match its leaf per pixel.
-    let Some((view, camera)) = viewer.view.as_ref().and_then(|v| Some((v, v.camera.as_ref()?)))
+    let Some((view, camera)) = viewer
+        .view
+        .as_ref()
+        .and_then(|v| Some((v, v.camera.as_ref()?)))
     else {
         return Ok(None);
     };
