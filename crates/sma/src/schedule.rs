@@ -251,7 +251,7 @@ impl Schedule {
             self.viewers.leaves_changed();
         }
         let (frame, start) = (self.frame, Instant::now());
-        if self.viewers.rested(self.config.rest, start) {
+        if self.viewers.came_to_rest(self.config.rest, start) {
             self.owed.camera_rested();
         }
         let passes = self.passes_owed();

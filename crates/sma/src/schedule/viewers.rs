@@ -136,9 +136,10 @@ impl Viewer {
         self.outbox.drop_tiles();
     }
 
-    /// When its camera rests, if it moved: a sync is owed then, which, answering the camera
-    /// the last one answered, drops what the viewer kept of earlier views (`shown::Keeping`).
-    pub fn kept_until(&self, rest: Duration) -> Option<Instant> {
+    /// When its camera rests, if it moved: a sync may be owed then, which, answering the camera
+    /// the last one answered, drops what the viewer kept of earlier views (`shown::Keeping`),
+    /// and a pass for a view drawn ahead of it (`pass_camera`).
+    pub fn moved_camera_rests_at(&self, rest: Duration) -> Option<Instant> {
         self.camera_replaced.then(|| self.camera_at + rest)
     }
 
@@ -191,7 +192,7 @@ impl Viewer {
         // Whether the camera rests is not asked of the clock: a sync follows a pass that took
         // longer than `rest`, so most of a walk's syncs came after its camera "rested" while
         // the next camera already waited unread. A sync for another camera than the last one
-        // is a step of a walk; one for the same camera, a stop (or a rest, `kept_until`).
+        // is a step of a walk; one for the same camera, a stop (or a rest, `moved_camera_rests_at`).
         let moved = self.synced_camera.is_some_and(|seq| seq != camera.seq);
         self.synced_camera = Some(camera.seq);
         let keeping = Keeping {
@@ -334,16 +335,16 @@ impl Viewers {
     pub fn next_rest_owed(&self, rest: Duration) -> Option<Instant> {
         self.iter()
             .filter(|v| v.owes_at_rest())
-            .filter_map(|v| v.kept_until(rest))
+            .filter_map(|v| v.moved_camera_rests_at(rest))
             .min()
     }
 
     /// Whether a camera has come to rest by `now` while its viewer owes something at its rest:
     /// then a sync is owed, and a view drawn ahead of the camera is owed its pass.
-    pub fn rested(&mut self, rest: Duration, now: Instant) -> bool {
+    pub fn came_to_rest(&mut self, rest: Duration, now: Instant) -> bool {
         let mut any = false;
         for viewer in self.iter_mut().filter(|v| v.owes_at_rest()) {
-            if viewer.kept_until(rest).is_some_and(|t| t <= now) {
+            if viewer.moved_camera_rests_at(rest).is_some_and(|t| t <= now) {
                 any = true;
                 if viewer.view_behind_camera() {
                     viewer.wait.leaves_changed();
@@ -494,9 +495,9 @@ mod tests {
         let mut viewers = Viewers::default();
         viewers.by_id.insert(1, v);
         assert_eq!(viewers.next_rest_owed(REST), Some(rested));
-        assert!(!viewers.rested(REST, now));
+        assert!(!viewers.came_to_rest(REST, now));
         assert!(!viewers.need_pass());
-        assert!(viewers.rested(REST, rested));
+        assert!(viewers.came_to_rest(REST, rested));
         assert!(viewers.need_pass(), "drawn again at rest");
     }
 }
