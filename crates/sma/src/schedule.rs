@@ -207,9 +207,8 @@ impl Schedule {
     }
 
     fn on_viewer_event(&mut self, event: ViewerEvent) {
-        match self.viewers.on_event(event, &self.criteria) {
-            Heard::Nothing => {}
-            Heard::Left => self.owed.queue_changed(),
+        if let Heard::Left = self.viewers.on_event(event, &self.criteria) {
+            self.owed.queue_changed();
         }
     }
 
@@ -274,15 +273,11 @@ impl Schedule {
             self.submit_batches();
         }
         self.request_tiles();
-        let mut filtered = Duration::ZERO;
-        if allowed.sync.now() {
-            filtered = self.filter_indirect();
-            self.timed(Work::Sync, Self::sync_viewers);
-        }
-        if passes == PassesOwed::Walking && self.frame != frame {
-            // A walking camera's cycle is its pass, re-plan and sync; the filter is paced
-            // apart, by its own cost.
-            let cycle = start.elapsed().saturating_sub(filtered);
+        let pass_ran = self.frame != frame;
+        let filtered = allowed.sync.now().then(|| self.sync_and_filter(pass_ran));
+        if passes == PassesOwed::Walking && pass_ran {
+            // A walking camera's cycle is its pass, re-plan and sync (the filter's own pace).
+            let cycle = start.elapsed().saturating_sub(filtered.unwrap_or_default());
             self.paces.walking_view_ran(start, cycle);
         }
         if let Some(id) = self.refinement_candidate(Instant::now()) {
@@ -445,12 +440,11 @@ impl Schedule {
     }
 
     /// The viewers, the criteria and the stopping rule all read the filtered indirect part
-    /// (`indirect_filter`): it is brought up to date before a sync, the paced step that shows
-    /// it, when its own pace allows (`IndirectFilter::ready`); until then the sync stays owed.
-    /// Its cost is counted apart from the sync's: counted in it, a run of tens of milliseconds
-    /// spaced the syncs, and the walking camera's views, by ten times that (`pace`), and a
-    /// walking viewer was shown its new view's triangles late (black where they were missing).
-    /// Returns the time it took.
+    /// (`indirect_filter`): it is brought up to date at a sync (`sync_and_filter`) when its own
+    /// pace allows (`IndirectFilter::ready`); until then the sync stays owed. Its cost is counted
+    /// apart from the sync's: counted in it, a run of tens of milliseconds spaced the syncs and
+    /// the walking camera's views by ten times that (`pace`), and a walking viewer was shown its
+    /// new view's triangles late (black where they were missing). Returns the time it took.
     fn filter_indirect(&mut self) -> Duration {
         if !self.filter_due || !self.indirect_filter.ready(Instant::now()) {
             return Duration::ZERO;
@@ -464,7 +458,15 @@ impl Schedule {
         start.elapsed()
     }
 
-    /// Brings every viewer up to date (after the indirect filter, `filter_indirect`).
+    /// Brings every viewer up to date, the indirect filter run before (`filter_indirect`), or
+    /// after where a pass ran: a run took up to 0.6 s on half a million leaves, and held a stop's
+    /// new view back by as much. Returns the filter's time.
+    fn sync_and_filter(&mut self, pass_ran: bool) -> Duration {
+        let before = (!pass_ran).then(|| self.filter_indirect());
+        self.timed(Work::Sync, Self::sync_viewers);
+        before.unwrap_or_else(|| self.filter_indirect())
+    }
+
     fn sync_viewers(&mut self) {
         let input = SyncInput {
             mesh: &self.mesh,

@@ -369,3 +369,39 @@ fn rare_bright_paths_are_not_weighed_down() {
         "unfiltered {mean_before}, filtered {mean_after}"
     );
 }
+
+/// Samples of few paths (a radius several times the median) among many of 1024: each borrows
+/// from exactly the neighbours a search over every sample finds, wherever they lie among the
+/// hash's cells.
+#[test]
+fn a_sample_of_few_paths_finds_every_neighbour_its_radius_reaches() {
+    let mesh = SubdivisionMesh::new(&grid_mesh(N), MeshParams::default());
+    // Radii of 5, 2.5 and 1.25 grid cells: the first searches every sample, the second the
+    // cells two away from its own.
+    let paths = |v: u32| match (v % 29, v % 31) {
+        (0, _) => 4,
+        (_, 0) => 64,
+        _ => 1024,
+    };
+    let mut cache = shade(&mesh, |v, _| sample(0.3, 0.5, 0.02, paths(v)));
+    let view = all_leaves(&mesh);
+    let mut filter = IndirectFilter::new(settings(), &mesh);
+    filter.run(&mesh, [&view], &mut cache);
+    assert!(
+        filter
+            .candidates
+            .iter()
+            .map(|c| c.radius)
+            .fold(0.0, f32::max)
+            > 2.0 * filter.cell_size,
+        "the test needs radii beyond the cells around a sample's own"
+    );
+    for (i, me) in filter.candidates.iter().enumerate() {
+        let everywhere = (0..filter.candidates.len())
+            .filter(|&j| j != i && filter.agrees(me, &filter.candidates[j], me.radius))
+            .count();
+        assert_eq!(filter.filtered(i).1, everywhere, "sample {:?}", me.key);
+    }
+    assert!(filter.candidates.iter().any(|c| c.paths == 4));
+    assert!(filter.candidates.iter().any(|c| c.paths == 64));
+}
