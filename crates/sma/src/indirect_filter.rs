@@ -130,7 +130,7 @@ pub struct IndirectFilter {
     settings: IndirectFilterSettings,
     diagonal: f32,
     candidates: Vec<Candidate>,
-    /// The hash's cell size, the largest radius in use.
+    /// The hash's cell size, the median radius in use (`cell_size`).
     cell_size: f32,
     /// Candidate indices sorted by cell, and each cell's range in it.
     sorted: Vec<u32>,
@@ -320,36 +320,40 @@ impl IndirectFilter {
         let mut sum = WeightedSum::default();
         sum.add(me);
         let mut neighbours = 0;
-        for j in self.near(me) {
+        self.for_each_near(me, |j| {
             let other = &self.candidates[j as usize];
             if j as usize != i && self.agrees(me, other, radius) {
                 sum.add(other);
                 neighbours += 1;
             }
-        }
+        });
         if neighbours == 0 {
             return (me.indirect, 0);
         }
         (sum.estimate(me.paths), neighbours)
     }
 
-    /// The candidates in the cells within `me`'s radius of its own; where those cells would
-    /// outnumber the candidates (a radius far above the median), every candidate.
-    fn near<'a>(&'a self, me: &Candidate) -> Box<dyn Iterator<Item = u32> + 'a> {
+    /// Visits the candidates in the cells within `me`'s radius of its own; where those cells
+    /// would outnumber the candidates (a radius far above the median), every candidate.
+    fn for_each_near(&self, me: &Candidate, mut visit: impl FnMut(u32)) {
         let reach = (me.radius / self.cell_size).ceil().max(1.0);
         if (2.0 * reach + 1.0).powi(3) > self.candidates.len() as f32 {
-            return Box::new(0..self.candidates.len() as u32);
+            (0..self.candidates.len() as u32).for_each(visit);
+            return;
         }
         let (reach, centre) = (reach as i32, self.cell_of(me.position, self.cell_size));
-        let range = move || -reach..=reach;
-        let cells = range().flat_map(move |z| {
-            range().flat_map(move |y| range().map(move |x| centre + IVec3::new(x, y, z)))
-        });
-        Box::new(
-            cells
-                .filter_map(|c| self.cells.get(&Self::cell_key(c)))
-                .flat_map(|&(a, b)| self.sorted[a as usize..b as usize].iter().copied()),
-        )
+        for z in -reach..=reach {
+            for y in -reach..=reach {
+                for x in -reach..=reach {
+                    let cell = Self::cell_key(centre + IVec3::new(x, y, z));
+                    if let Some(&(a, b)) = self.cells.get(&cell) {
+                        self.sorted[a as usize..b as usize]
+                            .iter()
+                            .for_each(|&j| visit(j));
+                    }
+                }
+            }
+        }
     }
 
     /// Whether `me` may borrow from `other`: near, facing the same way, at the same depth, and

@@ -284,6 +284,7 @@ impl Schedule {
             self.timed(Work::Round, |s| s.refine_round(id))?;
         }
         self.note_convergence();
+        self.trim_cache_to_budget();
         self.save_if_due();
         Ok(())
     }
@@ -399,26 +400,11 @@ impl Schedule {
                 mesh: &self.mesh,
                 cache: &self.cache,
                 rules: &self.rules,
-                more_paths: self.more_paths_for(viewer),
+                more_paths: MorePaths::for_viewer(&self.config, viewer),
                 focus: self.focus_of(viewer),
             }));
         }
         self.requests.replan(needs);
-    }
-
-    /// Every shown view gets more paths where its noise shows, below every other need: they
-    /// keep the renderers busy between refinement rounds and passes (DESIGN.md §3, §5). While
-    /// its criterion still refines, its quieter samples too, last of all (`Urgency::Polish`).
-    /// Without the quality ladder (the thesis's fixed-quality samples) none.
-    fn more_paths_for(&self, viewer: &Viewer) -> Option<MorePaths> {
-        if !self.config.ladder {
-            return None;
-        }
-        Some(MorePaths {
-            l_white: viewer.last_l_white?,
-            threshold: self.config.display_error,
-            polish: self.config.refine && !viewer.criterion_dry,
-        })
     }
 
     /// Where a walking viewer's next steps look on its image (`ahead`), while its camera moves

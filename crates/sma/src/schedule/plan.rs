@@ -11,6 +11,7 @@ use scene::Scene;
 use super::ladder::Qualities;
 use super::need::{Need, Urgency};
 use super::pending::PendingRefinement;
+use super::viewers::Viewer;
 use crate::cache::ShadingCache;
 use crate::config::ScheduleConfig;
 use crate::mesh::SubdivisionMesh;
@@ -60,6 +61,23 @@ pub struct MorePaths {
     pub threshold: f32,
     /// ...but may still get them, last of all, while refinement runs (`Urgency::Polish`).
     pub polish: bool,
+}
+
+impl MorePaths {
+    /// Every shown view gets more paths where its noise shows, below every other need: they
+    /// keep the renderers busy between refinement rounds and passes (DESIGN.md §3, §5). While
+    /// its criterion still refines, its quieter samples too, last of all (`Urgency::Polish`).
+    /// Without the quality ladder (the thesis's fixed-quality samples) none.
+    pub fn for_viewer(config: &ScheduleConfig, viewer: &Viewer) -> Option<MorePaths> {
+        if !config.ladder {
+            return None;
+        }
+        Some(MorePaths {
+            l_white: viewer.last_l_white?,
+            threshold: config.display_error,
+            polish: config.refine && !viewer.criterion_dry,
+        })
+    }
 }
 
 /// How far a view-dependent sample's eye may move, as the angle seen from the vertex, before
