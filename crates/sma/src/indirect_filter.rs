@@ -34,20 +34,22 @@
 //! which every reader of a sample (viewer inserts, criteria, L_white, the stopping rule) reads:
 //! they judge the filtered estimate and its reduced uncertainty.
 
-use std::collections::HashMap;
+mod job;
+mod worker;
+
 use std::time::Instant;
 
-use glam::{IVec3, Vec3};
+use glam::Vec3;
 use protocol::renderer_link::SampleKey;
 use protocol::{PartEstimate, Side};
 
 use crate::cache::ShadingCache;
 use crate::mesh::SubdivisionMesh;
-use crate::mesh::fast_hash::FastHash;
-use crate::nld::NOISE_Z;
 use crate::sample::{Depth, Estimate};
 use crate::visible_set::VisibleSet;
 use conventions::luminance;
+pub use job::{FilterJob, Filtered};
+pub use worker::FilterWorker;
 
 /// The filter's settings, plain values (`cli` fills them from flags).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -124,17 +126,14 @@ struct Candidate {
     radius: f32,
 }
 
-/// The filter, with what it keeps from pass to pass: the scene's diagonal, and its buffers.
+/// The filter, with what it keeps from run to run: the scene's diagonal, its pace, and its
+/// buffers.
 #[derive(Debug, Default)]
 pub struct IndirectFilter {
     settings: IndirectFilterSettings,
     diagonal: f32,
-    candidates: Vec<Candidate>,
-    /// The hash's cell size, the median radius in use (`cell_size`).
-    cell_size: f32,
-    /// Candidate indices sorted by cell, and each cell's range in it.
-    sorted: Vec<u32>,
-    cells: HashMap<u64, (u32, u32), FastHash>,
+    /// The last run's job, kept for its buffers.
+    spare: FilterJob,
     /// Which (vertex, side) slots `gather` has taken, by `2 vertex + side`.
     taken: Vec<bool>,
     /// By slot, the longest edge of the finest visible leaf there (with a leaf radius only).
@@ -144,10 +143,10 @@ pub struct IndirectFilter {
 }
 
 /// A run of the filter is followed by this many times its own duration without one: it takes
-/// at most a fifth of the SMA thread. Run at every sync, its cost (tens of milliseconds at
-/// 50k visible samples) slowed refinement: on bracara MC, VR and VT at 512×384 the views had
-/// a quarter fewer leaves at 5 s than without the filter. Between runs a sample that got
-/// paths is shown unfiltered.
+/// at most a fifth of a core. Run at every sync, its cost (tens of milliseconds at 50k visible
+/// samples) slowed refinement: on bracara MC, VR and VT at 512×384 the views had a quarter fewer
+/// leaves at 5 s than without the filter. Between runs a sample that got paths is shown
+/// unfiltered.
 const SPACING: u32 = 4;
 
 /// What one run of the filter did, for its tests and the benchmark.
@@ -186,29 +185,68 @@ impl IndirectFilter {
     }
 
     /// Sets the shown indirect part of every sample of `views`' leaves (all of them, on their
-    /// seen sides). Off, it does nothing: the shown part stays the answered one.
+    /// seen sides), in one go: [`Self::start`], [`FilterJob::filter`], [`Self::finish`]. Off, it
+    /// does nothing: the shown part stays the answered one.
     pub fn run<'a>(
         &mut self,
         mesh: &SubdivisionMesh,
         views: impl IntoIterator<Item = &'a VisibleSet>,
         cache: &mut ShadingCache,
     ) -> FilterRun {
+        match self.start(mesh, views, cache) {
+            Some(job) => self.finish(job.filter(), mesh, cache),
+            None => FilterRun::default(),
+        }
+    }
+
+    /// A run's first part: the samples of `views`' leaves to filter, to be filtered anywhere
+    /// (`FilterJob::filter`) and set by [`Self::finish`]. None when the filter is off.
+    pub fn start<'a>(
+        &mut self,
+        mesh: &SubdivisionMesh,
+        views: impl IntoIterator<Item = &'a VisibleSet>,
+        cache: &ShadingCache,
+    ) -> Option<FilterJob> {
         if !self.settings.enabled || self.diagonal <= 0.0 {
-            return FilterRun::default();
+            return None;
         }
         let start = Instant::now();
-        self.gather(mesh, views, cache);
-        self.hash();
+        let mut job = std::mem::take(&mut self.spare);
+        job.clear();
+        job.min_normal_cos = self.settings.min_normal_cos;
+        self.gather(mesh, views, cache, &mut job.candidates);
+        job.gathered_in = start.elapsed();
+        Some(job)
+    }
+
+    /// A run's last part: sets each filtered sample's shown indirect part, unless the sample
+    /// changed since [`Self::start`] took it (its own shown part then holds until the next run).
+    /// The next run is spaced by this one's gather, filtering and setting.
+    pub fn finish(
+        &mut self,
+        filtered: Filtered,
+        mesh: &SubdivisionMesh,
+        cache: &mut ShadingCache,
+    ) -> FilterRun {
+        let start = Instant::now();
+        let Filtered {
+            job,
+            shown,
+            filtered_in,
+        } = filtered;
         let mut run = FilterRun::default();
-        for i in 0..self.candidates.len() {
-            let (shown, neighbours) = self.filtered(i);
-            cache.set_shown_indirect(self.candidates[i].key, shown);
+        for (c, &(part, neighbours)) in job.candidates.iter().zip(&shown) {
+            if !unchanged(mesh, cache, c) {
+                continue;
+            }
+            cache.set_shown_indirect(c.key, part);
             run.filtered += 1;
             run.borrowed += usize::from(neighbours > 0);
             run.neighbours += neighbours;
         }
-        let spent = start.elapsed();
-        self.next_run = Some(start + spent + spent * SPACING);
+        let spent = job.gathered_in + filtered_in + start.elapsed();
+        self.next_run = Some(Instant::now() + spent * SPACING);
+        self.spare = job;
         run
     }
 
@@ -218,8 +256,8 @@ impl IndirectFilter {
         mesh: &SubdivisionMesh,
         views: impl IntoIterator<Item = &'a VisibleSet>,
         cache: &ShadingCache,
+        candidates: &mut Vec<Candidate>,
     ) {
-        self.candidates.clear();
         self.taken.clear();
         self.taken.resize(2 * mesh.vertex_count(), false);
         let by_leaf = self.settings.leaf_radius > 0.0;
@@ -249,122 +287,26 @@ impl IndirectFilter {
                         continue;
                     }
                     if let Some(c) = candidate(mesh, cache, key) {
-                        self.candidates.push(c);
+                        candidates.push(c);
                     }
                 }
             }
         }
-        for c in &mut self.candidates {
+        for c in candidates {
             let edge = self.leaf_edge.get(slot_of(c.key)).copied().unwrap_or(0.0);
             c.radius = radius_at(&self.settings, self.diagonal, edge, c.paths);
         }
     }
+}
 
-    /// The median radius in use. Cells of the largest radius, as at first, made one sample of
-    /// few paths (a radius up to five times that of a sample of 1024, [`radius_at`]) widen
-    /// every sample's search a hundredfold in volume: on a walk's 500 k leaves a run took 0.6 s.
-    fn cell_size(&self) -> f32 {
-        let mut radii: Vec<f32> = self.candidates.iter().map(|c| c.radius).collect();
-        if radii.is_empty() {
-            return f32::MIN_POSITIVE;
-        }
-        let middle = radii.len() / 2;
-        let (_, median, _) = radii.select_nth_unstable_by(middle, f32::total_cmp);
-        median.max(f32::MIN_POSITIVE)
-    }
-
-    fn cell_of(&self, p: Vec3, size: f32) -> IVec3 {
-        (p / size).floor().as_ivec3()
-    }
-
-    /// A cell as one hash key, 21 bits an axis. A scene is far fewer cells across (a radius is
-    /// over a ten-thousandth of its diagonal at any path count a `u32` holds); were
-    /// two cells to share a key, they would only be searched together: the distance test still
-    /// decides.
-    fn cell_key(c: IVec3) -> u64 {
-        let axis = |v: i32| u64::from(v as u32 & 0x1F_FFFF);
-        axis(c.x) | axis(c.y) << 21 | axis(c.z) << 42
-    }
-
-    /// Sorts the candidates by cell, so that every neighbour of one lies within as many cells
-    /// of its own as its radius spans (`filtered`).
-    fn hash(&mut self) {
-        let size = self.cell_size();
-        self.cell_size = size;
-        let key: Vec<u64> = self
-            .candidates
-            .iter()
-            .map(|c| Self::cell_key(self.cell_of(c.position, size)))
-            .collect();
-        self.sorted.clear();
-        self.sorted.extend(0..self.candidates.len() as u32);
-        self.sorted.sort_unstable_by_key(|&i| key[i as usize]);
-        self.cells.clear();
-        let mut start = 0;
-        while start < self.sorted.len() {
-            let k = key[self.sorted[start] as usize];
-            let end = start
-                + self.sorted[start..]
-                    .iter()
-                    .take_while(|&&i| key[i as usize] == k)
-                    .count();
-            self.cells.insert(k, (start as u32, end as u32));
-            start = end;
-        }
-    }
-
-    /// Candidate `i`'s shown indirect part, and how many neighbours it borrowed from.
-    fn filtered(&self, i: usize) -> (PartEstimate, usize) {
-        let me = &self.candidates[i];
-        let radius = me.radius;
-        let mut sum = WeightedSum::default();
-        sum.add(me);
-        let mut neighbours = 0;
-        self.for_each_near(me, |j| {
-            let other = &self.candidates[j as usize];
-            if j as usize != i && self.agrees(me, other, radius) {
-                sum.add(other);
-                neighbours += 1;
-            }
-        });
-        if neighbours == 0 {
-            return (me.indirect, 0);
-        }
-        (sum.estimate(me.paths), neighbours)
-    }
-
-    /// Visits the candidates in the cells within `me`'s radius of its own; where those cells
-    /// would outnumber the candidates (a radius far above the median), every candidate.
-    fn for_each_near(&self, me: &Candidate, mut visit: impl FnMut(u32)) {
-        let reach = (me.radius / self.cell_size).ceil().max(1.0);
-        if (2.0 * reach + 1.0).powi(3) > self.candidates.len() as f32 {
-            (0..self.candidates.len() as u32).for_each(visit);
-            return;
-        }
-        let (reach, centre) = (reach as i32, self.cell_of(me.position, self.cell_size));
-        for z in -reach..=reach {
-            for y in -reach..=reach {
-                for x in -reach..=reach {
-                    let cell = Self::cell_key(centre + IVec3::new(x, y, z));
-                    if let Some(&(a, b)) = self.cells.get(&cell) {
-                        self.sorted[a as usize..b as usize]
-                            .iter()
-                            .for_each(|&j| visit(j));
-                    }
-                }
-            }
-        }
-    }
-
-    /// Whether `me` may borrow from `other`: near, facing the same way, at the same depth, and
-    /// different by no more than their noise explains.
-    fn agrees(&self, me: &Candidate, other: &Candidate, radius: f32) -> bool {
-        me.position.distance_squared(other.position) <= radius * radius
-            && me.normal.dot(other.normal) >= self.settings.min_normal_cos
-            && me.depth == other.depth
-            && (me.luminance - other.luminance).abs()
-                <= NOISE_Z * (me.mean_variance + other.mean_variance).sqrt()
-    }
+/// Whether `c`'s sample is still the one gathered: the same paths, at a vertex in the same place
+/// (the mesh reuses a removed vertex's id, `mesh::free_nodes`).
+fn unchanged(mesh: &SubdivisionMesh, cache: &ShadingCache, c: &Candidate) -> bool {
+    (c.key.vertex as usize) < mesh.vertex_count()
+        && mesh.vertex(c.key.vertex).position == c.position
+        && cache
+            .answered(c.key)
+            .is_some_and(|(estimate, _)| estimate.paths == c.paths)
 }
 
 /// A (vertex, side) slot's index in the filter's per-slot tables.
@@ -399,36 +341,6 @@ fn candidate(mesh: &SubdivisionMesh, cache: &ShadingCache, key: SampleKey) -> Op
         depth: estimate.depth,
         radius: 0.0,
     })
-}
-
-/// The paths-weighted sum of indirect parts: their pooled mean and its variance.
-#[derive(Default)]
-struct WeightedSum {
-    rgb: [f64; 3],
-    paths: f64,
-    /// Σ nᵢ sᵢ²: each sample's per-path luminance variance times its paths.
-    spread: f64,
-}
-
-impl WeightedSum {
-    fn add(&mut self, c: &Candidate) {
-        let n = f64::from(c.paths);
-        for (sum, &v) in self.rgb.iter_mut().zip(&c.indirect.rgb) {
-            *sum += n * f64::from(v);
-        }
-        self.paths += n;
-        self.spread += n * f64::from(c.indirect.luminance_variance);
-    }
-
-    /// The pooled mean, with its variance in per-path units for a sample of `paths` paths
-    /// (the cache's convention: the standard error is sqrt(variance / paths)).
-    fn estimate(&self, paths: u32) -> PartEstimate {
-        let mean_variance = self.spread / (self.paths * self.paths);
-        PartEstimate {
-            rgb: self.rgb.map(|s| (s / self.paths) as f32),
-            luminance_variance: (f64::from(paths) * mean_variance) as f32,
-        }
-    }
 }
 
 #[cfg(test)]

@@ -37,6 +37,7 @@ mod answers;
 mod coarsening;
 mod counters;
 mod direct;
+mod filtering;
 mod ladder;
 mod memory;
 mod need;
@@ -102,10 +103,10 @@ pub struct Schedule {
     paces: Paces,
     counters: Counters,
     memory: memory::MemoryBudget,
-    /// The object-space filter of the indirect part, run before each sync when samples or
-    /// views changed since the last run.
+    /// The object-space filter of the indirect part, and its runs beside this thread
+    /// (`filtering`).
     indirect_filter: IndirectFilter,
-    filter_due: bool,
+    filter_runs: filtering::FilterRuns,
     cache_file: Option<CacheFile>,
 }
 
@@ -149,7 +150,7 @@ impl Schedule {
             owed: Owed::default(),
             counters: Counters::new(now),
             indirect_filter,
-            filter_due: false,
+            filter_runs: filtering::FilterRuns::new(),
             cache_file,
         }
     }
@@ -177,6 +178,7 @@ impl Schedule {
         mut shutdown: watch::Receiver<bool>,
     ) -> anyhow::Result<()> {
         let mut stats = tokio::time::interval(self.config.stats_every);
+        let mut filtered = self.filter_runs.take_done();
         loop {
             let (work_now, wake_at) = self.waiting_for();
             tokio::select! {
@@ -187,6 +189,7 @@ impl Schedule {
                     None => return Ok(()),
                 },
                 Some(event) = pool.recv() => self.on_pool_event(event),
+                Some(done) = filtered.recv() => self.finish_filter(done),
                 _ = stats.tick() => {}
                 _ = sleep_until(wake_at), if wake_at.is_some() => {}
                 _ = std::future::ready(()), if work_now => {}
@@ -196,6 +199,9 @@ impl Schedule {
             }
             while let Ok(event) = pool.try_recv() {
                 self.on_pool_event(event);
+            }
+            while let Ok(done) = filtered.try_recv() {
+                self.finish_filter(done);
             }
             self.turn()?;
             // By the clock, not only on the tick: while work keeps this loop busy, the
@@ -227,7 +233,7 @@ impl Schedule {
                 );
                 if answered.points > 0 {
                     self.refinement.merge_input();
-                    self.filter_due = true;
+                    self.filter_runs.due = true;
                 }
                 if self.counters.answered(answered) {
                     self.viewers.new_input();
@@ -274,7 +280,7 @@ impl Schedule {
         }
         self.request_tiles();
         let pass_ran = self.frame != frame;
-        let filtered = allowed.sync.now().then(|| self.sync_and_filter(pass_ran));
+        let filtered = allowed.sync.now().then(|| self.sync_and_filter());
         if passes == PassesOwed::Walking && pass_ran {
             // A walking camera's cycle is its pass, re-plan and sync (the filter's own pace).
             let cycle = start.elapsed().saturating_sub(filtered.unwrap_or_default());
@@ -326,6 +332,7 @@ impl Schedule {
             })
             && self.requests.outstanding() == 0
             && self.refinement.pending.is_empty()
+            && !self.filter_runs.in_flight()
             && !self.owed.any();
         self.counters.converged(converged);
     }
@@ -358,7 +365,7 @@ impl Schedule {
             self.counters.since_pass = 0;
         }
         self.cache.evict(self.frame, &|_| false);
-        self.filter_due = true;
+        self.filter_runs.due = true;
         self.owed.views_changed();
         self.refinement.merge_input();
         let work = if drew { Work::Pass } else { Work::CarryOver };
@@ -425,32 +432,13 @@ impl Schedule {
         Some(ahead::focus(previous, current, depth))
     }
 
-    /// The viewers, the criteria and the stopping rule all read the filtered indirect part
-    /// (`indirect_filter`): it is brought up to date at a sync (`sync_and_filter`) when its own
-    /// pace allows (`IndirectFilter::ready`); until then the sync stays owed. Its cost is counted
-    /// apart from the sync's: counted in it, a run of tens of milliseconds spaced the syncs and
-    /// the walking camera's views by ten times that (`pace`), and a walking viewer was shown its
-    /// new view's triangles late (black where they were missing). Returns the time it took.
-    fn filter_indirect(&mut self) -> Duration {
-        if !self.filter_due || !self.indirect_filter.ready(Instant::now()) {
-            return Duration::ZERO;
-        }
-        let start = Instant::now();
-        self.timed(Work::Filter, |s| {
-            s.filter_due = false;
-            let views = s.viewers.views().map(|v| &v.visible);
-            s.indirect_filter.run(&s.mesh, views, &mut s.cache);
-        });
-        start.elapsed()
-    }
-
-    /// Brings every viewer up to date, the indirect filter run before (`filter_indirect`), or
-    /// after where a pass ran: a run took up to 0.6 s on half a million leaves, and held a stop's
-    /// new view back by as much. Returns the filter's time.
-    fn sync_and_filter(&mut self, pass_ran: bool) -> Duration {
-        let before = (!pass_ran).then(|| self.filter_indirect());
+    /// Brings every viewer up to date, then starts a run of the indirect filter if one is due
+    /// (`filtering`). Returns the time that start took.
+    fn sync_and_filter(&mut self) -> Duration {
         self.timed(Work::Sync, Self::sync_viewers);
-        before.unwrap_or_else(|| self.filter_indirect())
+        let start = Instant::now();
+        self.start_filter();
+        start.elapsed()
     }
 
     fn sync_viewers(&mut self) {
@@ -459,7 +447,7 @@ impl Schedule {
             cache: &self.cache,
             pending: &self.refinement.pending,
             outstanding_requests: self.requests.outstanding() as u64,
-            filter_owed: self.filter_due,
+            filter_owed: self.filter_runs.due || self.filter_runs.in_flight(),
             samples: self.counters.samples,
             paths: self.counters.paths,
             now: Instant::now(),
@@ -468,9 +456,10 @@ impl Schedule {
         for viewer in self.viewers.iter_mut() {
             viewer.sync(&input);
         }
-        // A filter run put off by its pace keeps the sync owed: the next one, at the sync's own
-        // pace, runs it and shows what it changed, and only then is the picture idle.
-        if !self.filter_due {
+        // A filter run due keeps the sync owed: the next one, at the sync's own pace, starts it
+        // if its pace allows, and the one after its results shows what it changed; only then is
+        // the picture idle.
+        if !self.filter_runs.due {
             self.owed.synced();
         }
     }

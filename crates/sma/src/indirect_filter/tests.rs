@@ -383,25 +383,62 @@ fn a_sample_of_few_paths_finds_every_neighbour_its_radius_reaches() {
         (_, 0) => 64,
         _ => 1024,
     };
-    let mut cache = shade(&mesh, |v, _| sample(0.3, 0.5, 0.02, paths(v)));
+    let cache = shade(&mesh, |v, _| sample(0.3, 0.5, 0.02, paths(v)));
     let view = all_leaves(&mesh);
-    let mut filter = IndirectFilter::new(settings(), &mesh);
-    filter.run(&mesh, [&view], &mut cache);
+    let mut job = IndirectFilter::new(settings(), &mesh)
+        .start(&mesh, [&view], &cache)
+        .unwrap();
+    job.hash();
     assert!(
-        filter
-            .candidates
-            .iter()
-            .map(|c| c.radius)
-            .fold(0.0, f32::max)
-            > 2.0 * filter.cell_size,
+        job.candidates.iter().map(|c| c.radius).fold(0.0, f32::max) > 2.0 * job.cell_size,
         "the test needs radii beyond the cells around a sample's own"
     );
-    for (i, me) in filter.candidates.iter().enumerate() {
-        let everywhere = (0..filter.candidates.len())
-            .filter(|&j| j != i && filter.agrees(me, &filter.candidates[j], me.radius))
+    for (i, me) in job.candidates.iter().enumerate() {
+        let everywhere = (0..job.candidates.len())
+            .filter(|&j| j != i && job.agrees(me, &job.candidates[j], me.radius))
             .count();
-        assert_eq!(filter.filtered(i).1, everywhere, "sample {:?}", me.key);
+        assert_eq!(job.filtered(i).1, everywhere, "sample {:?}", me.key);
     }
-    assert!(filter.candidates.iter().any(|c| c.paths == 4));
-    assert!(filter.candidates.iter().any(|c| c.paths == 64));
+    assert!(job.candidates.iter().any(|c| c.paths == 4));
+    assert!(job.candidates.iter().any(|c| c.paths == 64));
+}
+
+/// A run filtered beside the schedule (`FilterWorker`) is set only on the samples that did not
+/// change meanwhile: one that got paths keeps its own answer until the next run.
+#[test]
+fn a_sample_answered_while_its_run_was_filtered_keeps_its_own_value() {
+    let mesh = SubdivisionMesh::new(&grid_mesh(N), MeshParams::default());
+    let mut cache = shade(&mesh, |v, _| {
+        sample(0.3, 0.4 + 0.01 * (v % 3) as f32, 0.05, 64)
+    });
+    let view = all_leaves(&mesh);
+    let mut filter = IndirectFilter::new(settings(), &mesh);
+    let job = filter.start(&mesh, [&view], &cache).unwrap();
+    let (worker_done, mut done) = tokio::sync::mpsc::unbounded_channel();
+    let worker = FilterWorker::spawn(worker_done).unwrap();
+    worker.submit(job).unwrap();
+    let changed = 5;
+    cache.insert(front(changed), sample(0.3, 0.42, 0.05, 128));
+    let filtered = done.blocking_recv().unwrap();
+    let run = filter.finish(filtered, &mesh, &mut cache);
+    assert_eq!(run.filtered, mesh.vertex_count() - 1, "{run:?}");
+    assert_eq!(
+        shown_indirect(&cache, changed),
+        answered_indirect(&cache, changed)
+    );
+    let kept = 6;
+    assert_ne!(
+        shown_indirect(&cache, kept),
+        answered_indirect(&cache, kept),
+        "the others borrowed from their neighbours"
+    );
+    // The next run sets it too.
+    assert_eq!(
+        filter.run(&mesh, [&view], &mut cache).filtered,
+        mesh.vertex_count()
+    );
+    assert_ne!(
+        shown_indirect(&cache, changed),
+        answered_indirect(&cache, changed)
+    );
 }

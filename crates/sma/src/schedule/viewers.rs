@@ -69,8 +69,8 @@ pub struct SyncInput<'a> {
     pub pending: &'a PendingRefinement,
     /// Samples queued or in flight.
     pub outstanding_requests: u64,
-    /// A run of the indirect filter is owed and its pace put it off: the shown values of
-    /// samples already answered will still change (`indirect_filter`).
+    /// A run of the indirect filter is owed (its pace put it off) or under way: the shown values
+    /// of samples already answered will still change (`indirect_filter`).
     pub filter_owed: bool,
     /// Samples computed so far, and the paths traced for them.
     pub samples: u64,

@@ -1,0 +1,96 @@
+//! The object-space filter of the indirect part as the schedule runs it (DESIGN.md §5, "Parts,
+//! and textures"): the viewers, the criteria and the stopping rule all read the filtered part.
+//! A run starts after a sync, when samples or views changed since the last and its pace allows
+//! (`IndirectFilter::ready`); the schedule's thread gathers its candidates, a worker filters them
+//! (`FilterWorker`), and the turn after it is done sets what came back and owes the viewers a
+//! sync. Run whole on the schedule's thread, a run of 0.1–0.3 s on a refined Sponza held back
+//! the pass of a camera that had just stopped; counted in the sync's cost, a run of tens of
+//! milliseconds spaced the syncs and the walking camera's views by ten times that (`pace`).
+
+use tokio::sync::mpsc::{UnboundedReceiver, UnboundedSender, unbounded_channel};
+
+use super::Schedule;
+use super::counters::Work;
+use crate::indirect_filter::{FilterWorker, Filtered};
+
+/// The filter's runs: the worker, where its results come back, and whether one is under way.
+pub struct FilterRuns {
+    /// None where its thread could not start: runs are then filtered on the schedule's thread.
+    worker: Option<FilterWorker>,
+    done: Option<UnboundedReceiver<Filtered>>,
+    /// Samples or views changed since the last run started.
+    pub due: bool,
+    in_flight: bool,
+}
+
+impl FilterRuns {
+    pub fn new() -> FilterRuns {
+        let (to_schedule, done) = unbounded_channel();
+        FilterRuns {
+            worker: spawn_worker(to_schedule),
+            done: Some(done),
+            due: false,
+            in_flight: false,
+        }
+    }
+
+    /// Where the worker's results come back, for the schedule's loop to wait on (taken once).
+    pub fn take_done(&mut self) -> UnboundedReceiver<Filtered> {
+        self.done.take().unwrap_or_else(|| {
+            let (to_schedule, done) = unbounded_channel();
+            self.worker = spawn_worker(to_schedule);
+            done
+        })
+    }
+
+    /// Whether a run is being filtered (its results not yet set).
+    pub fn in_flight(&self) -> bool {
+        self.in_flight
+    }
+}
+
+fn spawn_worker(to_schedule: UnboundedSender<Filtered>) -> Option<FilterWorker> {
+    FilterWorker::spawn(to_schedule)
+        .inspect_err(
+            |e| tracing::warn!(%e, "no thread for the indirect filter: it runs on the schedule's"),
+        )
+        .ok()
+}
+
+impl Schedule {
+    /// Starts a run when one is due, none is under way and its pace allows.
+    pub(super) fn start_filter(&mut self) {
+        let runs = &self.filter_runs;
+        if !runs.due || runs.in_flight || !self.indirect_filter.ready(std::time::Instant::now()) {
+            return;
+        }
+        let job = self.timed(Work::Filter, |s| {
+            s.filter_runs.due = false;
+            let views = s.viewers.views().map(|v| &v.visible);
+            s.indirect_filter.start(&s.mesh, views, &s.cache)
+        });
+        let Some(job) = job else {
+            return;
+        };
+        let job = match &self.filter_runs.worker {
+            Some(worker) => match worker.submit(job) {
+                Ok(()) => {
+                    self.filter_runs.in_flight = true;
+                    return;
+                }
+                Err(job) => job,
+            },
+            None => job,
+        };
+        self.finish_filter(job.filter());
+    }
+
+    /// Sets a run's results: the viewers are owed a sync that shows them.
+    pub(super) fn finish_filter(&mut self, filtered: Filtered) {
+        self.timed(Work::Filter, |s| {
+            s.filter_runs.in_flight = false;
+            s.indirect_filter.finish(filtered, &s.mesh, &mut s.cache);
+        });
+        self.owed.samples_arrived();
+    }
+}
