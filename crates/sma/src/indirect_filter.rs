@@ -33,6 +33,11 @@
 //! What the filter leaves is the cache's shown indirect part (`ShadingCache::set_shown_indirect`),
 //! which every reader of a sample (viewer inserts, criteria, L_white, the stopping rule) reads:
 //! they judge the filtered estimate and its reduced uncertainty.
+//!
+//! A run has three parts: [`IndirectFilter::start`] gathers the candidates from the mesh and the
+//! cache, [`FilterJob::filter`] (the part that grows with the neighbours searched) needs neither
+//! and runs on another thread ([`FilterWorker`]), and [`IndirectFilter::finish`] sets the results
+//! on every sample that did not change in between.
 
 mod job;
 mod worker;

@@ -414,7 +414,7 @@ fn a_sample_answered_while_its_run_was_filtered_keeps_its_own_value() {
     let view = all_leaves(&mesh);
     let mut filter = IndirectFilter::new(settings(), &mesh);
     let job = filter.start(&mesh, [&view], &cache).unwrap();
-    let (worker_done, mut done) = tokio::sync::mpsc::unbounded_channel();
+    let (worker_done, mut done) = tokio::sync::mpsc::channel(1);
     let worker = FilterWorker::spawn(worker_done).unwrap();
     worker.submit(job).unwrap();
     let changed = 5;

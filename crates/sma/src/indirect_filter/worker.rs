@@ -4,29 +4,29 @@
 //! stopped and the syncs that show it. The schedule gathers a run's candidates (`start`), this
 //! thread filters them, and the schedule sets what came back (`finish`) at its next turn.
 
-use std::sync::mpsc::{Sender, channel};
+use std::sync::mpsc::{SyncSender, TrySendError, sync_channel};
 use std::thread::JoinHandle;
 
-use tokio::sync::mpsc::UnboundedSender;
+use tokio::sync::mpsc::Sender;
 
 use super::{FilterJob, Filtered};
 
-/// The worker, fed one job at a time.
+/// The worker, fed one job at a time (the schedule starts a run only when none is under way).
 pub struct FilterWorker {
-    to_worker: Option<Sender<FilterJob>>,
+    to_worker: Option<SyncSender<FilterJob>>,
     thread: Option<JoinHandle<()>>,
 }
 
 impl FilterWorker {
     /// A worker that sends every job it filtered to `done`; it ends once `done` is closed or
     /// the worker dropped.
-    pub fn spawn(done: UnboundedSender<Filtered>) -> std::io::Result<FilterWorker> {
-        let (to_worker, jobs) = channel::<FilterJob>();
+    pub fn spawn(done: Sender<Filtered>) -> std::io::Result<FilterWorker> {
+        let (to_worker, jobs) = sync_channel::<FilterJob>(1);
         let thread = std::thread::Builder::new()
             .name("sma-filter".into())
             .spawn(move || {
                 for job in jobs {
-                    if done.send(job.filter()).is_err() {
+                    if done.blocking_send(job.filter()).is_err() {
                         return;
                     }
                 }
@@ -37,10 +37,12 @@ impl FilterWorker {
         })
     }
 
-    /// Hands `job` over; gives it back when the worker has ended.
+    /// Hands `job` over; gives it back when the worker has ended or still holds another.
     pub fn submit(&self, job: FilterJob) -> Result<(), FilterJob> {
         match &self.to_worker {
-            Some(to_worker) => to_worker.send(job).map_err(|e| e.0),
+            Some(to_worker) => to_worker.try_send(job).map_err(|e| match e {
+                TrySendError::Full(job) | TrySendError::Disconnected(job) => job,
+            }),
             None => Err(job),
         }
     }

@@ -7,7 +7,7 @@
 //! the pass of a camera that had just stopped; counted in the sync's cost, a run of tens of
 //! milliseconds spaced the syncs and the walking camera's views by ten times that (`pace`).
 
-use tokio::sync::mpsc::{UnboundedReceiver, UnboundedSender, unbounded_channel};
+use tokio::sync::mpsc::{Receiver, Sender, channel};
 
 use super::Schedule;
 use super::counters::Work;
@@ -17,7 +17,7 @@ use crate::indirect_filter::{FilterWorker, Filtered};
 pub struct FilterRuns {
     /// None where its thread could not start: runs are then filtered on the schedule's thread.
     worker: Option<FilterWorker>,
-    done: Option<UnboundedReceiver<Filtered>>,
+    done: Option<Receiver<Filtered>>,
     /// Samples or views changed since the last run started.
     pub due: bool,
     in_flight: bool,
@@ -25,7 +25,7 @@ pub struct FilterRuns {
 
 impl FilterRuns {
     pub fn new() -> FilterRuns {
-        let (to_schedule, done) = unbounded_channel();
+        let (to_schedule, done) = channel(1);
         FilterRuns {
             worker: spawn_worker(to_schedule),
             done: Some(done),
@@ -35,9 +35,9 @@ impl FilterRuns {
     }
 
     /// Where the worker's results come back, for the schedule's loop to wait on (taken once).
-    pub fn take_done(&mut self) -> UnboundedReceiver<Filtered> {
+    pub fn take_done(&mut self) -> Receiver<Filtered> {
         self.done.take().unwrap_or_else(|| {
-            let (to_schedule, done) = unbounded_channel();
+            let (to_schedule, done) = channel(1);
             self.worker = spawn_worker(to_schedule);
             done
         })
@@ -49,7 +49,7 @@ impl FilterRuns {
     }
 }
 
-fn spawn_worker(to_schedule: UnboundedSender<Filtered>) -> Option<FilterWorker> {
+fn spawn_worker(to_schedule: Sender<Filtered>) -> Option<FilterWorker> {
     FilterWorker::spawn(to_schedule)
         .inspect_err(
             |e| tracing::warn!(%e, "no thread for the indirect filter: it runs on the schedule's"),
