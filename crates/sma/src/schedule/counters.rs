@@ -30,7 +30,7 @@ pub enum Work {
     /// A refinement round: the criterion, the luminance pass, the mesh's splits.
     Round,
     /// A run of the object-space filter of the indirect part (`indirect_filter`), spaced by its
-    /// own cost there.
+    /// own cost there: its part on this thread, gathering and setting (`filtering`).
     Filter,
 }
 

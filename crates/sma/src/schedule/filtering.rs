@@ -7,6 +7,8 @@
 //! the pass of a camera that had just stopped; counted in the sync's cost, a run of tens of
 //! milliseconds spaced the syncs and the walking camera's views by ten times that (`pace`).
 
+use std::time::{Duration, Instant};
+
 use tokio::sync::mpsc::{Receiver, Sender, channel};
 
 use super::Schedule;
@@ -21,6 +23,8 @@ pub struct FilterRuns {
     /// Samples or views changed since the last run started.
     pub due: bool,
     in_flight: bool,
+    /// What gathering the run under way took on the schedule's thread.
+    gathered_in: Duration,
 }
 
 impl FilterRuns {
@@ -31,6 +35,7 @@ impl FilterRuns {
             done: Some(done),
             due: false,
             in_flight: false,
+            gathered_in: Duration::ZERO,
         }
     }
 
@@ -61,17 +66,16 @@ impl Schedule {
     /// Starts a run when one is due, none is under way and its pace allows.
     pub(super) fn start_filter(&mut self) {
         let runs = &self.filter_runs;
-        if !runs.due || runs.in_flight || !self.indirect_filter.ready(std::time::Instant::now()) {
+        if !runs.due || runs.in_flight || !self.indirect_filter.ready(Instant::now()) {
             return;
         }
-        let job = self.timed(Work::Filter, |s| {
-            s.filter_runs.due = false;
-            let views = s.viewers.views().map(|v| &v.visible);
-            s.indirect_filter.start(&s.mesh, views, &s.cache)
-        });
-        let Some(job) = job else {
+        let start = Instant::now();
+        self.filter_runs.due = false;
+        let views = self.viewers.views().map(|v| &v.visible);
+        let Some(job) = self.indirect_filter.start(&self.mesh, views, &self.cache) else {
             return;
         };
+        self.filter_runs.gathered_in = start.elapsed();
         let job = match &self.filter_runs.worker {
             Some(worker) => match worker.submit(job) {
                 Ok(()) => {
@@ -85,12 +89,15 @@ impl Schedule {
         self.finish_filter(job.filter());
     }
 
-    /// Sets a run's results: the viewers are owed a sync that shows them.
+    /// Sets a run's results: the viewers are owed a sync that shows them. The run counts once
+    /// in the thread's costs, its gathering and this (`Work::Filter`).
     pub(super) fn finish_filter(&mut self, filtered: Filtered) {
-        self.timed(Work::Filter, |s| {
-            s.filter_runs.in_flight = false;
-            s.indirect_filter.finish(filtered, &s.mesh, &mut s.cache);
-        });
+        let start = Instant::now();
+        self.filter_runs.in_flight = false;
+        self.indirect_filter
+            .finish(filtered, &self.mesh, &mut self.cache);
+        let spent = self.filter_runs.gathered_in + start.elapsed();
+        self.counters.costs.add(Work::Filter, spent);
         self.owed.samples_arrived();
     }
 }
