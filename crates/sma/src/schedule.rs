@@ -150,7 +150,7 @@ impl Schedule {
             owed: Owed::default(),
             counters: Counters::new(now),
             indirect_filter,
-            filter_runs: filtering::FilterRuns::new(),
+            filter_runs: filtering::FilterRuns::default(),
             cache_file,
         }
     }
@@ -178,7 +178,7 @@ impl Schedule {
         mut shutdown: watch::Receiver<bool>,
     ) -> anyhow::Result<()> {
         let mut stats = tokio::time::interval(self.config.stats_every);
-        let mut filtered = self.filter_runs.take_done();
+        let mut filtered = self.filter_runs.start_worker();
         loop {
             let (work_now, wake_at) = self.waiting_for();
             tokio::select! {

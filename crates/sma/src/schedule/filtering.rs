@@ -9,17 +9,18 @@
 
 use std::time::{Duration, Instant};
 
-use tokio::sync::mpsc::{Receiver, Sender, channel};
+use tokio::sync::mpsc::{Receiver, channel};
 
 use super::Schedule;
 use super::counters::Work;
 use crate::indirect_filter::{FilterWorker, Filtered};
 
-/// The filter's runs: the worker, where its results come back, and whether one is under way.
+/// The filter's runs: the worker, and whether one is under way.
+#[derive(Default)]
 pub struct FilterRuns {
-    /// None where its thread could not start: runs are then filtered on the schedule's thread.
+    /// Started with the schedule's loop (`start_worker`); None before, or where its thread could
+    /// not start: runs are then filtered on the schedule's thread.
     worker: Option<FilterWorker>,
-    done: Option<Receiver<Filtered>>,
     /// Samples or views changed since the last run started.
     pub due: bool,
     in_flight: bool,
@@ -28,38 +29,23 @@ pub struct FilterRuns {
 }
 
 impl FilterRuns {
-    pub fn new() -> FilterRuns {
+    /// Starts the worker (again, if it ran before); its results come back on the receiver, for
+    /// the schedule's loop to wait on.
+    pub fn start_worker(&mut self) -> Receiver<Filtered> {
         let (to_schedule, done) = channel(1);
-        FilterRuns {
-            worker: spawn_worker(to_schedule),
-            done: Some(done),
-            due: false,
-            in_flight: false,
-            gathered_in: Duration::ZERO,
-        }
-    }
-
-    /// Where the worker's results come back, for the schedule's loop to wait on (taken once).
-    pub fn take_done(&mut self) -> Receiver<Filtered> {
-        self.done.take().unwrap_or_else(|| {
-            let (to_schedule, done) = channel(1);
-            self.worker = spawn_worker(to_schedule);
-            done
-        })
+        self.worker = FilterWorker::spawn(to_schedule)
+            .inspect_err(|e| {
+                tracing::warn!(%e, "no thread for the indirect filter: it runs on the schedule's")
+            })
+            .ok();
+        self.in_flight = false;
+        done
     }
 
     /// Whether a run is being filtered (its results not yet set).
     pub fn in_flight(&self) -> bool {
         self.in_flight
     }
-}
-
-fn spawn_worker(to_schedule: Sender<Filtered>) -> Option<FilterWorker> {
-    FilterWorker::spawn(to_schedule)
-        .inspect_err(
-            |e| tracing::warn!(%e, "no thread for the indirect filter: it runs on the schedule's"),
-        )
-        .ok()
 }
 
 impl Schedule {
